@@ -1,0 +1,59 @@
+# PCVR: `make demo` and `make test` set up everything on a fresh Debian 12 machine.
+# Steps are stamped, so a second run with nothing changed installs and rebuilds nothing.
+
+SHELL       := /bin/bash
+PYTHON_SYS  ?= python3.11
+VENV        := .venv
+PY          := $(VENV)/bin/python
+SUDO        := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+APT_PACKAGES := build-essential cmake ninja-build libopenvdb-dev libboost-dev libtbb-dev \
+                python3.11 python3.11-venv python3.11-dev
+NATIVE_SOURCES := $(shell find native/include native/src native/python -type f -not -name '*.pyc') \
+                  native/CMakeLists.txt native/pyproject.toml
+WHEEL_DIR   := dist
+
+.PHONY: all setup system native test demo bench extension clean
+
+all: test
+
+setup: $(VENV)/.native-stamp
+
+# System packages: skip apt entirely when everything is present.
+system:
+	@missing=""; for p in $(APT_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ] && ! { command -v $(PYTHON_SYS) >/dev/null && dpkg-query -W libopenvdb-dev libtbb-dev libboost-dev cmake g++ >/dev/null 2>&1 \
+	       && $(PYTHON_SYS) -c 'import sysconfig,os,sys; sys.exit(not os.path.exists(sysconfig.get_paths()["include"]+"/Python.h"))'; }; then \
+	  echo "Installing system packages:$$missing"; \
+	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
+	fi
+
+$(VENV)/.deps-stamp: requirements.txt | system
+	test -x $(PY) || $(PYTHON_SYS) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -r requirements.txt
+	touch $@
+
+# The wheel is built in place (native/build/<tag>) so rebuilds are incremental; the lock keeps
+# concurrent builds from sharing a build tree.
+$(VENV)/.native-stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
+	rm -f $(WHEEL_DIR)/pcvr_native-*.whl
+	flock native/.build.lock $(PY) -m pip wheel -q --no-build-isolation --no-deps -w $(WHEEL_DIR) ./native
+	$(PY) -m pip install -q --force-reinstall --no-deps $(WHEEL_DIR)/pcvr_native-*.whl
+	touch $@
+
+native: $(VENV)/.native-stamp
+
+test: $(VENV)/.native-stamp
+	$(PY) -m pytest
+
+demo: $(VENV)/.native-stamp
+	$(PY) tools/demo.py --output out/demo_xray.png
+
+bench: $(VENV)/.native-stamp
+	$(PY) -m pip install -q matplotlib
+	$(PY) tests/bench/run_benchmarks.py --output docs/benchmarks.md
+
+clean:
+	rm -rf native/build $(WHEEL_DIR) out

@@ -1,0 +1,90 @@
+/// @file grid.h
+/// @brief A scalar volume read from (or written to) OpenVDB, seen by the renderer as sparse voxel blocks.
+///
+/// The renderer never includes OpenVDB: it walks `Grid::blocks()`, one entry per 8^3 leaf (and per
+/// 8^3 chunk of an active tile), holding a pointer to the leaf's values and its active mask. A Grid
+/// shares its voxels between copies; `with_index_to_world` re-places the same voxels cheaply.
+/// Grids are immutable once built and safe to read from many threads.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pcvr/math.h"
+
+namespace pcvr {
+
+/// An 8^3 block of voxels in OpenVDB leaf order: offset = (x << 6) | (y << 3) | z, for x, y, z in [0, 8).
+struct VoxelBlock {
+    static constexpr int kDim = 8;
+    static constexpr int kSize = kDim * kDim * kDim;
+
+    std::array<int32_t, 3> origin{};    ///< index coordinates of offset 0
+    const float* values = nullptr;      ///< kSize values, or nullptr for a constant block
+    float constant = 0.0f;              ///< value of every voxel when values == nullptr
+    std::array<uint64_t, 8> mask{};     ///< active voxels, bit (offset & 63) of word (offset >> 6)
+
+    float value(int offset) const { return values ? values[offset] : constant; }
+    bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
+};
+
+class Grid {
+public:
+    /// Build from a dense float32 array indexed [i][j][k] (C order, i slowest). Voxels equal to
+    /// `background` stay inactive. Throws GridError on a singular or non-affine transform.
+    static Grid from_dense(const float* values, std::array<size_t, 3> shape, const Mat4& index_to_world,
+                           float background, const std::string& name = "density");
+
+    const std::string& name() const { return name_; }
+    /// The file the grid came from, empty for grids built in memory.
+    const std::string& source_path() const;
+    const Mat4& index_to_world() const { return index_to_world_; }
+    /// The same voxels under another index-to-world transform (shares memory).
+    Grid with_index_to_world(const Mat4& index_to_world) const;
+
+    uint64_t active_voxel_count() const;
+    /// Inclusive index bounding box of the active voxels: {min i, min j, min k, max i, max j, max k};
+    /// all zero for an empty grid.
+    std::array<int32_t, 6> index_bbox() const;
+    /// Minimum and maximum active value; (0, 0) for an empty grid.
+    std::pair<float, float> value_range() const;
+    /// The active voxels as blocks; built on first use, then cached (thread-safe).
+    const std::vector<VoxelBlock>& blocks() const;
+
+    /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
+    /// so a failed write never leaves a half-written file. Throws Error with the path on failure.
+    void write_vdb(const std::string& path, const std::string& name) const;
+
+    struct Data;  ///< the OpenVDB grid and the block cache (defined in grid.cpp)
+    Grid(std::shared_ptr<Data> data, const Mat4& index_to_world, std::string name);
+
+    const std::shared_ptr<Data>& data() const { return data_; }
+
+private:
+    std::shared_ptr<Data> data_;
+    Mat4 index_to_world_;
+    std::string name_;
+};
+
+/// Information about one grid in a file, without reading its voxels.
+struct GridInfo {
+    std::string name;
+    std::string value_type;   ///< OpenVDB's type name: "float", "double", "int32", "vec3s", ...
+    std::string grid_class;   ///< "fog volume", "level set", "staggered" or "unknown"
+    uint64_t active_voxels = 0;
+};
+
+/// Read one grid. `grid_name` empty: "density" if present, else the first scalar grid.
+/// double and integer grids are converted to float; level sets are converted to fog volumes
+/// (density 1 inside, falling to 0 across the narrow band). Throws FileNotFound, VdbReadError or
+/// GridError (unknown name: the message lists the grids that exist; vector grids: rejected).
+Grid read_vdb(const std::string& path, const std::string& grid_name = "");
+
+/// The grids of a file. Throws FileNotFound or VdbReadError.
+std::vector<GridInfo> list_grids(const std::string& path);
+
+}  // namespace pcvr

@@ -1,0 +1,97 @@
+#include "pcvr/math.h"
+
+#include <algorithm>
+
+namespace pcvr {
+
+Mat4 Mat4::from_rows(const std::array<double, 16>& r) {
+    Mat4 out;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) out.m[i][j] = r[i * 4 + j];
+    return out;
+}
+
+Mat4 Mat4::operator*(const Mat4& o) const {
+    Mat4 out;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            double s = 0;
+            for (int k = 0; k < 4; ++k) s += m[i][k] * o.m[k][j];
+            out.m[i][j] = s;
+        }
+    return out;
+}
+
+Vec4 Mat4::operator*(const Vec4& v) const {
+    const double in[4] = {v.x, v.y, v.z, v.w};
+    double r[4];
+    for (int i = 0; i < 4; ++i) r[i] = m[i][0] * in[0] + m[i][1] * in[1] + m[i][2] * in[2] + m[i][3] * in[3];
+    return {r[0], r[1], r[2], r[3]};
+}
+
+Vec3 Mat4::transform_point(const Vec3& p) const {
+    return {m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z + m[0][3],
+            m[1][0] * p.x + m[1][1] * p.y + m[1][2] * p.z + m[1][3],
+            m[2][0] * p.x + m[2][1] * p.y + m[2][2] * p.z + m[2][3]};
+}
+
+Vec3 Mat4::transform_vector(const Vec3& v) const {
+    return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
+            m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
+}
+
+bool Mat4::is_finite() const {
+    for (const auto& row : m)
+        for (double v : row)
+            if (!std::isfinite(v)) return false;
+    return true;
+}
+
+bool Mat4::is_affine() const {
+    return m[3][0] == 0.0 && m[3][1] == 0.0 && m[3][2] == 0.0 && m[3][3] == 1.0;
+}
+
+double Mat4::determinant3() const {
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+std::optional<Mat4> Mat4::inverse() const {
+    // Gauss-Jordan with partial pivoting; "singular" is judged relative to the matrix's own scale
+    // so that a grid with 1e-3 voxels is fine while a flattened (rank-deficient) one is not.
+    double a[4][8];
+    double scale = 0;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            a[i][j] = m[i][j];
+            a[i][j + 4] = (i == j) ? 1.0 : 0.0;
+            scale = std::max(scale, std::abs(m[i][j]));
+        }
+    if (!(scale > 0) || !is_finite()) return std::nullopt;
+    const double eps = 1e-12 * scale;
+    for (int c = 0; c < 4; ++c) {
+        int pivot = c;
+        for (int r = c + 1; r < 4; ++r)
+            if (std::abs(a[r][c]) > std::abs(a[pivot][c])) pivot = r;
+        if (std::abs(a[pivot][c]) <= eps) return std::nullopt;
+        if (pivot != c)
+            for (int j = 0; j < 8; ++j) std::swap(a[c][j], a[pivot][j]);
+        const double inv = 1.0 / a[c][c];
+        for (int j = 0; j < 8; ++j) a[c][j] *= inv;
+        for (int r = 0; r < 4; ++r) {
+            if (r == c) continue;
+            const double f = a[r][c];
+            if (f == 0.0) continue;
+            for (int j = 0; j < 8; ++j) a[r][j] -= f * a[c][j];
+        }
+    }
+    Mat4 out;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) out.m[i][j] = a[i][j + 4];
+    if (!out.is_finite()) return std::nullopt;
+    return out;
+}
+
+}  // namespace pcvr
