@@ -3,12 +3,12 @@
 
 #include <nanobind/ndarray.h>
 
-#include <cmath>
 #include <string>
 
 #include "pcvr/errors.h"
 
 namespace nb = nanobind;
+using namespace nb::literals;
 
 namespace pcvr::python {
 
@@ -28,9 +28,9 @@ Mat4 mat4_from_python(nb::handle obj, const char* what) {
     Mat4 out;
     for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j) {
+            // Non-finite values are left to the receiving type, which names the real problem
+            // (a camera or a grid transform).
             out.m[i][j] = nb::cast<double>(arr[nb::make_tuple(i, j)]);
-            if (!std::isfinite(out.m[i][j]))
-                throw nb::value_error((std::string(what) + " contains a non-finite value").c_str());
         }
     return out;
 }

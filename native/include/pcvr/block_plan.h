@@ -1,0 +1,45 @@
+/// @file block_plan.h
+/// @brief Which voxel blocks can change the image, and at which subgrid stride each is splatted.
+///
+/// Culling happens per 8^3 block before any voxel is touched: a block whose projected footprint
+/// misses the area the splat grid covers, or that lies wholly outside the clip range, costs nothing.
+/// Blocks that straddle a clip plane are marked so their voxels are tested one by one.
+/// The stride of a block is the largest integer that does not undersample its projected voxel
+/// spacing, floor(min pixels per voxel over its corners): one value for an orthographic view, a few
+/// depth bands under perspective (nearer blocks are magnified more and take a coarser subgrid).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <vector>
+
+#include "pcvr/grid.h"
+#include "pcvr/view_projection.h"
+
+namespace pcvr {
+
+struct PlannedBlock {
+    uint32_t index;         ///< into Grid::blocks()
+    bool needs_clip_test;   ///< straddles a clip plane: test each voxel's centre
+};
+
+struct BlockPlanParams {
+    double kernel_radius = 2.0;  ///< index units
+    int fixed_stride = 0;        ///< > 0: every block uses this stride; 0: automatic per block
+    int margin_nodes = 0;        ///< nodes the splat grid extends beyond the image on each side
+};
+
+struct BlockPlan {
+    std::map<int, std::vector<PlannedBlock>> by_stride;  ///< stride -> blocks splatted at that stride
+    uint64_t blocks_total = 0;
+    uint64_t blocks_culled = 0;
+    double min_magnification = 0;  ///< over the kept blocks (pixels per voxel)
+    double max_magnification = 0;
+};
+
+/// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
+int automatic_stride(double pixels_per_voxel);
+
+BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params);
+
+}  // namespace pcvr

@@ -1,0 +1,56 @@
+/// @file camera.h
+/// @brief A pinhole or orthographic camera given by Blender's matrices, and its pixel rays.
+///
+/// `world_to_camera` maps world space to camera space (looking down -Z); `projection` maps camera
+/// space to OpenGL clip space, exactly what bpy's `Object.calc_matrix_camera` returns, so shift,
+/// sensor fit and pixel aspect need no parameters of their own. Pixel (c, r) has its centre at
+/// NDC x = (c + 0.5) / width * 2 - 1, y = 1 - (r + 0.5) / height * 2: row 0 is the top row.
+/// "Pixel coordinates" below are continuous: pixel (c, r) has its centre at (c, r).
+#pragma once
+
+#include "pcvr/math.h"
+
+namespace pcvr {
+
+/// A ray o + t d with d not normalised: t = 0 on the near plane, t = 1 on the far plane.
+struct Ray {
+    Vec3 origin;
+    Vec3 direction;
+};
+
+class Camera {
+public:
+    /// Throws CameraError when a matrix is singular or not finite, the image is empty or huge,
+    /// or the projection is neither a pinhole nor an orthographic one (its rays must vary affinely
+    /// across the image).
+    Camera(const Mat4& world_to_camera, const Mat4& projection, int width, int height);
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    bool orthographic() const { return orthographic_; }
+    const Mat4& world_to_camera() const { return world_to_camera_; }
+    const Mat4& projection() const { return projection_; }
+    const Mat4& world_to_clip() const { return world_to_clip_; }
+    const Mat4& clip_to_world() const { return clip_to_world_; }
+
+    double pixel_x(double ndc_x) const { return (ndc_x + 1.0) * 0.5 * width_ - 0.5; }
+    double pixel_y(double ndc_y) const { return (1.0 - ndc_y) * 0.5 * height_ - 0.5; }
+    double ndc_x(double px) const { return (px + 0.5) / width_ * 2.0 - 1.0; }
+    double ndc_y(double py) const { return 1.0 - (py + 0.5) / height_ * 2.0; }
+
+    /// The world-space ray through pixel coordinates (px, py), from the near to the far plane.
+    Ray pixel_ray(double px, double py) const;
+
+    /// Rays are affine in pixel coordinates: ray(px, py) = ray(0, 0) + px * d/dpx + py * d/dpy.
+    const Ray& ray_at_origin() const { return ray0_; }
+    const Ray& ray_per_pixel_x() const { return ray_dx_; }
+    const Ray& ray_per_pixel_y() const { return ray_dy_; }
+
+private:
+    Mat4 world_to_camera_, projection_, world_to_clip_, clip_to_world_;
+    int width_, height_;
+    bool orthographic_;
+    Ray ray0_, ray_dx_, ray_dy_;
+};
+
+}  // namespace pcvr

@@ -1,0 +1,60 @@
+/// @file splat_grid.h
+/// @brief The accumulation buffer splats land in: every `stride`-th image pixel, plus a margin.
+///
+/// Node (i, j) sits on image pixel (stride * i, stride * j), so for stride 1 the grid is the image
+/// itself and for stride L it is PCVR's subgrid, stored compactly (the paper's "adjusting indices").
+/// Nodes extend `margin` beyond the image on each side because the post-convolution reads them.
+/// Values are double: thousands of voxels can land on one node without losing precision.
+/// Tiles of kTile x kTile nodes remember whether anything landed in them, so the post-convolution
+/// can skip empty space. A SplatGrid is not thread-safe: each worker splats into its own and the
+/// results are added with `add()`.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace pcvr {
+
+class SplatGrid {
+public:
+    static constexpr int kTile = 16;
+
+    SplatGrid() = default;
+    /// The grid of stride `stride` covering a width x height image with `margin` extra nodes per side.
+    SplatGrid(int width, int height, int stride, int margin);
+
+    int stride() const { return stride_; }
+    int first_node_x() const { return node_x0_; }  ///< node index of column 0 (negative: margin)
+    int first_node_y() const { return node_y0_; }
+    int columns() const { return nx_; }
+    int rows() const { return ny_; }
+    /// Image pixel range covered by the nodes (inclusive), for culling.
+    double min_pixel_x() const { return double(stride_) * node_x0_; }
+    double max_pixel_x() const { return double(stride_) * (node_x0_ + nx_ - 1); }
+    double min_pixel_y() const { return double(stride_) * node_y0_; }
+    double max_pixel_y() const { return double(stride_) * (node_y0_ + ny_ - 1); }
+
+    double* row(int r) { return values_.data() + size_t(r) * nx_; }
+    const double* row(int r) const { return values_.data() + size_t(r) * nx_; }
+    double& at(int column, int r) { return values_[size_t(r) * nx_ + column]; }
+
+    /// Mark the tiles overlapping columns [c0, c1] x rows [r0, r1] (storage indices, clamped) as touched.
+    void mark(int c0, int r0, int c1, int r1);
+    bool tile_touched(int tile_column, int tile_row) const { return touched_[size_t(tile_row) * tiles_x_ + tile_column] != 0; }
+    int tiles_x() const { return tiles_x_; }
+    int tiles_y() const { return tiles_y_; }
+
+    /// A grid of the same shape holding zeros (for a worker's private accumulation).
+    SplatGrid zero_like() const;
+    /// this += other (same shape), tile flags included.
+    void add(const SplatGrid& other);
+    bool empty() const { return values_.empty(); }
+
+private:
+    int stride_ = 1, node_x0_ = 0, node_y0_ = 0, nx_ = 0, ny_ = 0, tiles_x_ = 0, tiles_y_ = 0;
+    std::vector<double> values_;
+    std::vector<uint8_t> touched_;
+};
+
+}  // namespace pcvr

@@ -1,0 +1,43 @@
+/// @file splatter.h
+/// @brief Splatting voxel blocks into a SplatGrid, with footprint tables or bilinear spreading.
+///
+/// | mode            | per voxel                                                        |
+/// |-----------------|------------------------------------------------------------------|
+/// | Footprint       | every node within the kernel's ellipse gets value * P(rho^2), P from the table |
+/// | BilinearSpread  | the footprint's whole integral goes to the 2 x 2 nearest nodes with bilinear weights (Westenberg-Roerdink) |
+///
+/// Used for every splatting method: "regular" splats into a stride-1 grid (the image), "pcvr" and
+/// "bilinear_spread" into the stride-L subgrid; the same code for both keeps the comparison honest.
+/// It is equally usable per sheet and per tile: it only needs blocks, a view and a target grid.
+/// Work is split over blocks with oneTBB in the caller's task arena; each worker accumulates into
+/// its own grid, added into the target at the end.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "pcvr/block_plan.h"
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "pcvr/render_control.h"
+#include "pcvr/splat_grid.h"
+#include "pcvr/view_projection.h"
+
+namespace pcvr {
+
+enum class SplatMode { Footprint, BilinearSpread };
+
+struct SplatParams {
+    SplatMode mode = SplatMode::Footprint;
+    const FootprintTable* table = nullptr;  ///< required for Footprint
+    double kernel_radius = 2.0;             ///< index units
+    float density_scale = 1.0f;
+};
+
+/// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,
+/// inside the clip range). Advances `control` by one unit per block and stops with Cancelled.
+uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
+                      const ViewProjection& view, const SplatParams& params, SplatGrid& target,
+                      RenderControl& control);
+
+}  // namespace pcvr

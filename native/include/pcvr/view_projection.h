@@ -1,0 +1,61 @@
+/// @file view_projection.h
+/// @brief Where one grid's voxels land on the image: projected centre, elliptical footprint, ray scale.
+///
+/// A voxel's kernel is spherical in index space. The rays near its projected centre p cross the plane
+/// through the voxel perpendicular to the central ray at points y(p + delta) ~ c + U dx + V dy, so the
+/// distance of a ray from the centre is rho^2 = |U dx + V dy|^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2:
+/// the footprint is an ellipse. Orthographic: the form is the same for every voxel. Perspective: it is
+/// evaluated per voxel (the linearisation is exact at the centre and first-order accurate across the
+/// footprint, whose size is tiny compared with the distance to the eye).
+#pragma once
+
+#include "pcvr/camera.h"
+#include "pcvr/math.h"
+
+namespace pcvr {
+
+struct Footprint {
+    double px = 0, py = 0;              ///< projected centre, pixel coordinates
+    double qxx = 0, qxy = 0, qyy = 0;   ///< rho^2 in index units^2 per pixel offset, see above
+    double line_scale = 1;              ///< world length per index length along the ray
+
+    /// Smallest number of pixels that one index unit spans in any direction (the magnification that
+    /// limits the subgrid stride).
+    double min_pixels_per_voxel() const;
+    /// Half-widths in pixels of the bounding box of the ellipse rho <= radius.
+    double extent_x(double radius) const;
+    double extent_y(double radius) const;
+    /// Integral of the footprint over the image plane in pixel^2, for a unit-integral kernel.
+    double area_integral() const;
+};
+
+class ViewProjection {
+public:
+    /// Throws GridError when the index-to-world transform is singular or not affine.
+    ViewProjection(const Camera& camera, const Mat4& index_to_world);
+
+    const Camera& camera() const { return camera_; }
+    bool orthographic() const { return camera_.orthographic(); }
+    const Mat4& index_to_clip() const { return index_to_clip_; }
+
+    /// True when a point's centre lies between the clip planes (its voxel contributes in full).
+    static bool inside_clip_range(const Vec4& clip) { return clip.w > 0 && clip.z >= -clip.w && clip.z <= clip.w; }
+    Vec4 to_clip(const Vec3& index_pos) const { return index_to_clip_ * Vec4{index_pos.x, index_pos.y, index_pos.z, 1.0}; }
+
+    /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
+    bool footprint(const Vec3& index_pos, Footprint& out) const;
+    /// The same, ignoring the near and far planes; false only behind the eye.
+    bool footprint_unclipped(const Vec3& index_pos, Footprint& out) const;
+
+private:
+    void footprint_at(const Vec3& c, const Vec4& clip, Footprint& out) const;
+
+    Camera camera_;
+    Mat4 index_to_clip_;
+    Mat4 world_to_index_;
+    // Pixel rays in index space (affine in pixel coordinates) and their world-space directions.
+    Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
+    Vec3 wd0_, wdx_, wdy_;
+};
+
+}  // namespace pcvr

@@ -1,0 +1,61 @@
+/// @file xray.h
+/// @brief X-ray (line-integral) rendering of one or more grids: the four methods behind render_xray.
+///
+/// | method            | splat into              | then                                  |
+/// |-------------------|-------------------------|---------------------------------------|
+/// | "regular"         | the image (stride 1)    | nothing: classic footprint splatting  |
+/// | "pcvr"            | the stride-L subgrid    | one separable post-convolution        |
+/// | "bilinear_spread" | the stride-L subgrid, 2x2 bilinear | one separable post-convolution |
+/// | "exact"           | analytic, per pixel, double precision (reference)               |
+///
+/// The image is the integral of the reconstructed density along each pixel's ray in world units.
+/// Clipping is per voxel: a voxel contributes its whole footprint when its centre lies between the
+/// camera's clip planes. Grids are summed, so overlapping volumes add.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pcvr/camera.h"
+#include "pcvr/exact_xray.h"
+#include "pcvr/grid.h"
+#include "pcvr/render_control.h"
+
+namespace pcvr {
+
+enum class XrayMethod { Regular, Pcvr, BilinearSpread, Exact };
+
+/// Parses "regular", "pcvr", "bilinear_spread" or "exact"; throws InvalidArgument listing the names.
+XrayMethod xray_method_from_name(const std::string& name);
+
+struct XrayParams {
+    XrayMethod method = XrayMethod::Pcvr;
+    std::string splat_kernel = "gauss1.4";
+    std::string post_filter = "bilinear";
+    int stride = 0;      ///< subgrid stride in pixels; 0 = automatic per depth band
+    int threads = 0;     ///< 0 = all cores
+    int pixel_step = 1;  ///< exact only: evaluate every step-th pixel
+};
+
+struct XrayStats {
+    uint64_t voxels_splatted = 0;
+    uint64_t blocks_total = 0;
+    uint64_t blocks_culled = 0;
+    double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
+    double max_magnification = 0;
+    std::vector<int> strides;      ///< the subgrid strides used (one per depth band)
+    double seconds = 0;
+};
+
+struct XrayImage {
+    int width = 0, height = 0;
+    std::vector<float> pixels;  ///< row-major, row 0 on top
+};
+
+XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& camera, const XrayParams& params,
+                      RenderControl& control, XrayStats* stats = nullptr);
+
+/// Smallest and largest pixels per voxel over the grid's blocks in view (0, 0 when nothing is in view).
+std::pair<double, double> effective_magnification(const Grid& grid, const Camera& camera);
+
+}  // namespace pcvr

@@ -1,0 +1,207 @@
+// Bindings of the rendering API: Camera, render_xray and small queries. Long calls run with the GIL
+// released; Python callbacks (progress, cancel) are polled from the calling thread.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "bindings.h"
+#include "pcvr/block_plan.h"
+#include "pcvr/camera.h"
+#include "pcvr/errors.h"
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "pcvr/xray.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace pcvr::python {
+
+namespace {
+
+constexpr auto kPollInterval = std::chrono::milliseconds(20);
+
+/// `grids` is one Grid or a sequence of them; `scales` one number or one per grid.
+std::vector<Grid> grids_from_python(nb::handle grids) {
+    if (nb::isinstance<Grid>(grids)) return {nb::cast<Grid>(grids)};
+    std::vector<Grid> out;
+    try {
+        for (nb::handle item : grids) out.push_back(nb::cast<Grid>(item));
+    } catch (const std::exception&) {
+        throw nb::type_error("render_xray: `grid` must be a pcvr_native.Grid or a sequence of them");
+    }
+    return out;
+}
+
+std::vector<double> scales_from_python(nb::handle scales, size_t count) {
+    if (nb::isinstance<nb::float_>(scales) || nb::isinstance<nb::int_>(scales))
+        return std::vector<double>(count, nb::cast<double>(scales));
+    std::vector<double> out;
+    for (nb::handle item : scales) out.push_back(nb::cast<double>(item));
+    if (out.size() != count)
+        throw nb::value_error("render_xray: density_scale must be one number or one per grid");
+    return out;
+}
+
+bool cancel_requested(nb::handle cancel) {
+    if (nb::hasattr(cancel, "is_set")) return nb::cast<bool>(cancel.attr("is_set")());
+    return nb::cast<bool>(nb::bool_(cancel()));
+}
+
+/// Runs `work` with the GIL released. With callbacks, the work runs on a worker thread while this
+/// thread polls them every few milliseconds, holding the GIL only for the calls.
+template <class Work>
+void run_polled(Work&& work, RenderControl& control, nb::handle progress, nb::handle cancel) {
+    std::exception_ptr failure;
+    std::optional<nb::python_error> callback_error;
+    const bool polled = !progress.is_none() || !cancel.is_none();
+    {
+        nb::gil_scoped_release release;
+        if (!polled) {
+            try {
+                work();
+            } catch (...) {
+                failure = std::current_exception();
+            }
+        } else {
+            std::mutex mutex;
+            std::condition_variable done_cv;
+            bool done = false;
+            std::thread worker([&] {
+                try {
+                    work();
+                } catch (...) {
+                    failure = std::current_exception();
+                }
+                std::lock_guard<std::mutex> lock(mutex);
+                done = true;
+                done_cv.notify_all();
+            });
+            std::unique_lock<std::mutex> lock(mutex);
+            while (!done_cv.wait_for(lock, kPollInterval, [&] { return done; })) {
+                lock.unlock();
+                {
+                    nb::gil_scoped_acquire acquire;
+                    try {
+                        if (!progress.is_none()) progress(control.fraction());
+                        if (!cancel.is_none() && cancel_requested(cancel)) control.request_cancel();
+                    } catch (nb::python_error& e) {
+                        // A failing callback stops the render; its exception is what the caller sees.
+                        if (!callback_error) callback_error.emplace(std::move(e));
+                        control.request_cancel();
+                    }
+                }
+                lock.lock();
+            }
+            lock.unlock();
+            worker.join();
+        }
+    }
+    if (callback_error) throw std::move(*callback_error);
+    if (failure) std::rethrow_exception(failure);
+    if (!progress.is_none()) progress(1.0);
+}
+
+nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::string& method,
+                          const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
+                          nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
+                          int pixel_step) {
+    const std::vector<Grid> grids = grids_from_python(grid_arg);
+    const std::vector<double> scales = scales_from_python(density_scale, grids.size());
+    std::vector<WeightedGrid> weighted;
+    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], scales[i]});
+
+    XrayParams params;
+    params.method = xray_method_from_name(method);
+    params.splat_kernel = splat_kernel;
+    params.post_filter = post_filter;
+    params.stride = stride;
+    params.threads = threads;
+    params.pixel_step = pixel_step;
+
+    RenderControl control;
+    if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
+    XrayImage image;
+    XrayStats xs;
+    run_polled([&] { image = render_xray(weighted, camera, params, control, &xs); }, control, progress, cancel);
+
+    if (!stats.is_none()) {
+        nb::list strides;
+        for (int s : xs.strides) strides.append(s);
+        stats["voxels"] = xs.voxels_splatted;
+        stats["blocks"] = xs.blocks_total;
+        stats["blocks_culled"] = xs.blocks_culled;
+        stats["magnification"] = xs.min_magnification;
+        stats["magnification_max"] = xs.max_magnification;
+        stats["strides"] = strides;
+        stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
+        stats["seconds"] = xs.seconds;
+    }
+    auto* pixels = new std::vector<float>(std::move(image.pixels));
+    nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<2>>(
+        pixels->data(), {size_t(image.height), size_t(image.width)}, owner));
+}
+
+}  // namespace
+
+void bind_render(nb::module_& m) {
+    nb::class_<Camera>(m, "Camera",
+                       "A camera in Blender's conventions: world_to_camera (camera looks down -Z) and an OpenGL "
+                       "projection matrix, as returned by Object.calc_matrix_camera(depsgraph, x=width, y=height).")
+        .def("__init__",
+             [](Camera* self, nb::handle world_to_camera, nb::handle projection, int width, int height) {
+                 new (self) Camera(mat4_from_python(world_to_camera, "world_to_camera"),
+                                   mat4_from_python(projection, "projection"), width, height);
+             },
+             "world_to_camera"_a, "projection"_a, "width"_a, "height"_a)
+        .def_prop_ro("width", &Camera::width)
+        .def_prop_ro("height", &Camera::height)
+        .def_prop_ro("orthographic", &Camera::orthographic)
+        .def_prop_ro("world_to_camera", [](const Camera& c) { return mat4_to_numpy(c.world_to_camera()); })
+        .def_prop_ro("projection", [](const Camera& c) { return mat4_to_numpy(c.projection()); })
+        .def("__repr__", [](const Camera& c) {
+            return std::string("<pcvr_native.Camera ") + (c.orthographic() ? "orthographic " : "perspective ") +
+                   std::to_string(c.width()) + "x" + std::to_string(c.height()) + ">";
+        });
+
+    m.def("render_xray", &render_xray_py, "grid"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
+          "post_filter"_a = "bilinear", "stride"_a = 0, "threads"_a = 0, nb::kw_only(), "density_scale"_a = 1.0,
+          "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), "pixel_step"_a = 1,
+          "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.");
+
+    m.def("kernel_info", [](const std::string& name) {
+        const Kernel k = Kernel::from_name(name);
+        nb::dict d;
+        d["name"] = k.name();
+        d["radius"] = k.radius();
+        d["variance"] = k.variance();
+        d["line_integral_at_centre"] = k.line_integral(0.0);
+        return d;
+    }, "name"_a, "Radius (voxels), per-axis variance (voxels^2) and central line integral of a splat kernel.");
+
+    m.def("effective_magnification",
+          [](const Grid& grid, const Camera& camera) {
+              nb::gil_scoped_release release;
+              return effective_magnification(grid, camera);
+          },
+          "grid"_a, "camera"_a, "(min, max) pixels per voxel over the grid's blocks in view; (0, 0) when none is.");
+    m.def("automatic_stride",
+          [](const Grid& grid, const Camera& camera) {
+              nb::gil_scoped_release release;
+              const auto [lo, hi] = effective_magnification(grid, camera);
+              return hi > 0 ? automatic_stride(lo) : 1;
+          },
+          "grid"_a, "camera"_a,
+          "The subgrid stride PCVR picks for the least magnified part of the grid in view (perspective views "
+          "use coarser strides for nearer depth bands).");
+}
+
+}  // namespace pcvr::python

@@ -1,0 +1,61 @@
+#include "pcvr/splat_grid.h"
+
+#include <algorithm>
+
+namespace pcvr {
+
+namespace {
+int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+}  // namespace
+
+SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(stride) {
+    node_x0_ = -margin;
+    node_y0_ = -margin;
+    nx_ = floor_div(width - 1, stride) + 1 + 2 * margin;
+    ny_ = floor_div(height - 1, stride) + 1 + 2 * margin;
+    tiles_x_ = (nx_ + kTile - 1) / kTile;
+    tiles_y_ = (ny_ + kTile - 1) / kTile;
+    values_.assign(size_t(nx_) * ny_, 0.0);
+    touched_.assign(size_t(tiles_x_) * tiles_y_, 0);
+}
+
+SplatGrid SplatGrid::zero_like() const {
+    SplatGrid out;
+    out.stride_ = stride_;
+    out.node_x0_ = node_x0_;
+    out.node_y0_ = node_y0_;
+    out.nx_ = nx_;
+    out.ny_ = ny_;
+    out.tiles_x_ = tiles_x_;
+    out.tiles_y_ = tiles_y_;
+    out.values_.assign(values_.size(), 0.0);
+    out.touched_.assign(touched_.size(), 0);
+    return out;
+}
+
+void SplatGrid::mark(int c0, int r0, int c1, int r1) {
+    c0 = std::max(c0, 0);
+    r0 = std::max(r0, 0);
+    c1 = std::min(c1, nx_ - 1);
+    r1 = std::min(r1, ny_ - 1);
+    if (c0 > c1 || r0 > r1) return;
+    for (int ty = r0 / kTile; ty <= r1 / kTile; ++ty)
+        for (int tx = c0 / kTile; tx <= c1 / kTile; ++tx) touched_[size_t(ty) * tiles_x_ + tx] = 1;
+}
+
+void SplatGrid::add(const SplatGrid& other) {
+    for (size_t t = 0; t < touched_.size(); ++t) {
+        if (!other.touched_[t]) continue;
+        touched_[t] = 1;
+        // Only touched tiles can hold non-zero values.
+        const int tx = int(t % tiles_x_), ty = int(t / tiles_x_);
+        const int c0 = tx * kTile, c1 = std::min(c0 + kTile, nx_);
+        for (int r = ty * kTile; r < std::min((ty + 1) * kTile, ny_); ++r) {
+            double* dst = row(r);
+            const double* src = other.row(r);
+            for (int c = c0; c < c1; ++c) dst[c] += src[c];
+        }
+    }
+}
+
+}  // namespace pcvr

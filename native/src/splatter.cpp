@@ -1,0 +1,270 @@
+#include "pcvr/splatter.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#define PCVR_AVX2 1
+#endif
+
+namespace pcvr {
+
+namespace {
+
+/// The footprint's shape in node units of the target grid, as floats for the tap loops.
+struct NodeShape {
+    float qxx, qxy, qyy;
+    float ext_x, ext_y;  // bounding half-widths of the ellipse rho <= radius
+    float area;          // integral of the footprint over the plane, node^2
+};
+
+NodeShape node_shape(const Footprint& fp, double stride, double radius) {
+    Footprint f = fp;
+    const double s2 = stride * stride;
+    f.qxx *= s2;
+    f.qxy *= s2;
+    f.qyy *= s2;
+    return {float(f.qxx), float(f.qxy), float(f.qyy), float(f.extent_x(radius)), float(f.extent_y(radius)),
+            float(f.area_integral())};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Deposits: what one voxel writes into the grid around its centre (cx, cy) in storage node units.
+
+/// Footprint taps over the exact chord of the ellipse on every row; any size, clipped to the grid.
+void deposit_footprint(SplatGrid& g, double cx, double cy, const NodeShape& s, float amp, const FootprintTable& table) {
+    const int r0 = std::max(0, int(std::ceil(cy - s.ext_y)));
+    const int r1 = std::min(g.rows() - 1, int(std::floor(cy + s.ext_y)));
+    const double radius2 = table.radius2();
+    const float* tab = table.data();
+    const float scale = table.scale(), max_index = table.max_index();
+    for (int r = r0; r <= r1; ++r) {
+        const double dy = r - cy;
+        // Solve qxx dx^2 + 2 qxy dy dx + qyy dy^2 <= R^2 for the columns inside the ellipse.
+        const double b = double(s.qxy) * dy, c = double(s.qyy) * dy * dy - radius2;
+        const double disc = b * b - double(s.qxx) * c;
+        if (disc <= 0) continue;
+        const double root = std::sqrt(disc);
+        const int c0 = std::max(0, int(std::ceil(cx + (-b - root) / s.qxx)));
+        const int c1 = std::min(g.columns() - 1, int(std::floor(cx + (-b + root) / s.qxx)));
+        double* out = g.row(r);
+        const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, base = s.qyy * fdy * fdy;
+        const float first_dx = float(c0 - cx);
+        int col = c0;
+#ifdef PCVR_AVX2
+        const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+        for (; col + 8 <= c1 + 1; col += 8) {
+            const __m256 dx = _mm256_add_ps(_mm256_set1_ps(first_dx + float(col - c0)), lanes);
+            const __m256 r2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qxx), dx, _mm256_set1_ps(lin)), dx,
+                                              _mm256_set1_ps(base));
+            const __m256i idx = _mm256_cvttps_epi32(
+                _mm256_max_ps(_mm256_min_ps(_mm256_mul_ps(r2, _mm256_set1_ps(scale)), _mm256_set1_ps(max_index)),
+                              _mm256_setzero_ps()));
+            const __m256 w = _mm256_mul_ps(_mm256_i32gather_ps(tab, idx, 4), _mm256_set1_ps(amp));
+            double* o = out + col;
+            _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+            _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+        }
+#endif
+        for (; col <= c1; ++col) {
+            const float dx = first_dx + float(col - c0);
+            out[col] += double(amp * table.at_rho2(std::max(0.0f, (s.qxx * dx + lin) * dx + base)));
+        }
+    }
+}
+
+/// The common PCVR case: the footprint fits 4 x 4 nodes (|offset| < 2 in node units on both axes).
+/// `col`, `row`: the top-left tap, floor(centre) - 1; fx, fy: centre minus that tap, in [1, 2).
+inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, float fy, const NodeShape& s, float amp,
+                                  const FootprintTable& table) {
+#ifdef PCVR_AVX2
+    const __m256 dx = _mm256_sub_ps(_mm256_setr_ps(0, 1, 2, 3, 0, 1, 2, 3), _mm256_set1_ps(fx));
+    const __m256 qxx_dx = _mm256_mul_ps(_mm256_set1_ps(s.qxx), dx);
+    const __m256 qxy2_dx = _mm256_mul_ps(_mm256_set1_ps(2.0f * s.qxy), dx);
+    const __m256 scale = _mm256_set1_ps(table.scale()), max_index = _mm256_set1_ps(table.max_index());
+    const __m256 amp8 = _mm256_set1_ps(amp);
+    for (int half = 0; half < 2; ++half) {
+        const __m256 dy = _mm256_sub_ps(_mm256_setr_ps(0, 0, 0, 0, 1, 1, 1, 1), _mm256_set1_ps(fy - 2.0f * half));
+        // rho^2 = qxx dx^2 + (2 qxy dx + qyy dy) dy, non-negative up to rounding
+        const __m256 r2 = _mm256_fmadd_ps(qxx_dx, dx, _mm256_mul_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qyy), dy, qxy2_dx), dy));
+        const __m256i idx = _mm256_cvttps_epi32(_mm256_max_ps(_mm256_min_ps(_mm256_mul_ps(r2, scale), max_index), _mm256_setzero_ps()));
+        const __m256 w = _mm256_mul_ps(_mm256_i32gather_ps(table.data(), idx, 4), amp8);
+        double* a = g.row(row + 2 * half) + col;
+        double* b = g.row(row + 2 * half + 1) + col;
+        _mm256_storeu_pd(a, _mm256_add_pd(_mm256_loadu_pd(a), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+        _mm256_storeu_pd(b, _mm256_add_pd(_mm256_loadu_pd(b), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+    }
+#else
+    for (int j = 0; j < 4; ++j) {
+        double* out = g.row(row + j) + col;
+        const float dy = float(j) - fy;
+        for (int i = 0; i < 4; ++i) {
+            const float dx = float(i) - fx;
+            out[i] += double(amp * table.at_rho2(std::max(0.0f, s.qxx * dx * dx + 2.0f * s.qxy * dx * dy + s.qyy * dy * dy)));
+        }
+    }
+#endif
+}
+
+/// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nearest nodes.
+inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
+    const int c = int(std::floor(cx)), r = int(std::floor(cy));
+    const double fx = cx - c, fy = cy - r;
+    const double w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
+    for (int j = 0; j < 2; ++j) {
+        if (r + j < 0 || r + j >= g.rows()) continue;
+        double* out = g.row(r + j);
+        for (int i = 0; i < 2; ++i)
+            if (c + i >= 0 && c + i < g.columns()) out[c + i] += mass * w[j][i];
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// Calls fn(offset, value) for the active, finite, non-zero voxels of a block. Non-finite values
+/// are skipped so that one bad voxel cannot poison the pixels of everything else in the image.
+template <class Fn>
+inline void for_each_voxel(const VoxelBlock& block, Fn&& fn) {
+    for (int word = 0; word < 8; ++word) {
+        uint64_t bits = block.mask[word];
+        while (bits) {
+            const int offset = word * 64 + __builtin_ctzll(bits);
+            bits &= bits - 1;
+            const float v = block.value(offset);
+            if (v != 0.0f && std::isfinite(v)) fn(offset, v);
+        }
+    }
+}
+
+inline Vec3 voxel_position(const VoxelBlock& block, int offset) {
+    return {double(block.origin[0] + (offset >> 6)), double(block.origin[1] + ((offset >> 3) & 7)),
+            double(block.origin[2] + (offset & 7))};
+}
+
+/// Splats one voxel whose footprint is known; tracks the block's touched node range.
+struct Depositor {
+    SplatGrid& grid;
+    const SplatParams& params;
+    double inv_stride;
+    int min_col = 1 << 30, max_col = -(1 << 30), min_row = 1 << 30, max_row = -(1 << 30);
+
+    /// Pixel centre -> storage node coordinates.
+    double node_x(double px) const { return px * inv_stride - grid.first_node_x(); }
+    double node_y(double py) const { return py * inv_stride - grid.first_node_y(); }
+
+    void operator()(double cx, double cy, const NodeShape& s, float amp) {
+        const int reach_x = int(std::ceil(s.ext_x)), reach_y = int(std::ceil(s.ext_y));
+        const int fc = int(std::floor(cx)), fr = int(std::floor(cy));
+        if (params.mode == SplatMode::BilinearSpread) {
+            deposit_bilinear(grid, cx, cy, amp * s.area);
+            track(fc, fr, fc + 1, fr + 1);
+            return;
+        }
+        if (s.ext_x <= 2.0f && s.ext_y <= 2.0f && fc >= 1 && fr >= 1 && fc + 2 < grid.columns() && fr + 2 < grid.rows()) {
+            deposit_footprint_4x4(grid, fc - 1, fr - 1, float(cx - (fc - 1)), float(cy - (fr - 1)), s, amp, *params.table);
+            track(fc - 1, fr - 1, fc + 2, fr + 2);
+            return;
+        }
+        deposit_footprint(grid, cx, cy, s, amp, *params.table);
+        track(fc - reach_x, fr - reach_y, fc + reach_x + 1, fr + reach_y + 1);
+    }
+
+    void track(int c0, int r0, int c1, int r1) {
+        min_col = std::min(min_col, c0);
+        max_col = std::max(max_col, c1);
+        min_row = std::min(min_row, r0);
+        max_row = std::max(max_row, r1);
+    }
+    void flush_touched() {
+        if (min_col <= max_col) grid.mark(min_col, min_row, max_col, max_row);
+        min_col = min_row = 1 << 30;
+        max_col = max_row = -(1 << 30);
+    }
+};
+
+/// Orthographic views: one footprint shape for every voxel and centres affine in the index.
+uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
+                                  const NodeShape& shape, float amp_per_value, const Vec3& gx, const Vec3& gy,
+                                  double bx, double by, Depositor& deposit) {
+    uint64_t count = 0;
+    const double ox = bx + gx.x * block.origin[0] + gx.y * block.origin[1] + gx.z * block.origin[2];
+    const double oy = by + gy.x * block.origin[0] + gy.y * block.origin[1] + gy.z * block.origin[2];
+    for_each_voxel(block, [&](int offset, float v) {
+        if (clip_test && !ViewProjection::inside_clip_range(view.to_clip(voxel_position(block, offset)))) return;
+        const int i = offset >> 6, j = (offset >> 3) & 7, k = offset & 7;
+        deposit(ox + gx.x * i + gx.y * j + gx.z * k, oy + gy.x * i + gy.y * j + gy.z * k, shape, amp_per_value * v);
+        ++count;
+    });
+    return count;
+}
+
+/// Perspective views: each voxel's own footprint (size and shape change with depth and position).
+uint64_t splat_block_perspective(const VoxelBlock& block, const ViewProjection& view, double stride,
+                                 const SplatParams& params, Depositor& deposit) {
+    uint64_t count = 0;
+    for_each_voxel(block, [&](int offset, float v) {
+        Footprint fp;
+        if (!view.footprint(voxel_position(block, offset), fp)) return;
+        const NodeShape shape = node_shape(fp, stride, params.kernel_radius);
+        deposit(deposit.node_x(fp.px), deposit.node_y(fp.py), shape, float(v * params.density_scale * fp.line_scale));
+        ++count;
+    });
+    return count;
+}
+
+}  // namespace
+
+uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
+                      const ViewProjection& view, const SplatParams& params, SplatGrid& target, RenderControl& control) {
+    const double stride = target.stride();
+    const double inv_stride = 1.0 / stride;
+
+    // Orthographic constants: the footprint at any point, and node coordinates as an affine function
+    // of the index (differences of exact projections, so no assumption beyond the camera's own check).
+    NodeShape ortho_shape{};
+    float ortho_amp = 0;
+    Vec3 gx, gy;
+    double bx = 0, by = 0;
+    if (view.orthographic()) {
+        Footprint f0, fi, fj, fk;
+        view.footprint_unclipped({0, 0, 0}, f0);
+        view.footprint_unclipped({1, 0, 0}, fi);
+        view.footprint_unclipped({0, 1, 0}, fj);
+        view.footprint_unclipped({0, 0, 1}, fk);
+        ortho_shape = node_shape(f0, stride, params.kernel_radius);
+        ortho_amp = float(params.density_scale * f0.line_scale);
+        gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
+        gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
+        bx = f0.px * inv_stride - target.first_node_x();
+        by = f0.py * inv_stride - target.first_node_y();
+    }
+
+    tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
+    tbb::enumerable_thread_specific<uint64_t> counts(0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
+        control.throw_if_cancelled();
+        Depositor deposit{locals.local(), params, inv_stride};
+        uint64_t& count = counts.local();
+        for (size_t b = range.begin(); b != range.end(); ++b) {
+            const PlannedBlock& pb = blocks[b];
+            const VoxelBlock& block = grid_blocks[pb.index];
+            count += view.orthographic()
+                         ? splat_block_orthographic(block, pb.needs_clip_test, view, ortho_shape, ortho_amp, gx, gy, bx, by, deposit)
+                         : splat_block_perspective(block, view, stride, params, deposit);
+            deposit.flush_touched();
+        }
+        control.advance(range.size());
+    });
+    control.throw_if_cancelled();
+    for (const SplatGrid& local : locals) target.add(local);
+    uint64_t total = 0;
+    for (uint64_t c : counts) total += c;
+    return total;
+}
+
+}  // namespace pcvr

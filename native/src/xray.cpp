@@ -1,0 +1,130 @@
+#include "pcvr/xray.h"
+
+#include <tbb/task_arena.h>
+
+#include <chrono>
+
+#include "pcvr/block_plan.h"
+#include "pcvr/errors.h"
+#include "pcvr/kernel.h"
+#include "pcvr/post_convolution.h"
+#include "pcvr/splatter.h"
+
+namespace pcvr {
+
+XrayMethod xray_method_from_name(const std::string& name) {
+    if (name == "regular") return XrayMethod::Regular;
+    if (name == "pcvr") return XrayMethod::Pcvr;
+    if (name == "bilinear_spread") return XrayMethod::BilinearSpread;
+    if (name == "exact") return XrayMethod::Exact;
+    throw InvalidArgument("unknown method '" + name + "' (expected regular, pcvr, bilinear_spread or exact)");
+}
+
+namespace {
+
+/// One grid ready to splat: its view and which of its blocks go to which stride.
+struct PlannedGrid {
+    const WeightedGrid* source;
+    ViewProjection view;
+    BlockPlan plan;
+};
+
+void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
+                     const Kernel& kernel, PostFilterShape post_shape, ImageAccumulator& image, RenderControl& control,
+                     XrayStats& stats) {
+    const bool regular = params.method == XrayMethod::Regular;
+    BlockPlanParams plan_params;
+    plan_params.kernel_radius = kernel.radius();
+    plan_params.fixed_stride = regular ? 1 : params.stride;
+    plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
+
+    std::vector<PlannedGrid> planned;
+    std::map<int, bool> strides;
+    uint64_t planned_blocks = 0;
+    for (const auto& g : grids) {
+        ViewProjection view(cam, g.grid->index_to_world());
+        BlockPlan plan = plan_blocks(g.grid->blocks(), view, plan_params);
+        stats.blocks_total += plan.blocks_total;
+        stats.blocks_culled += plan.blocks_culled;
+        if (plan.max_magnification > 0) {
+            stats.min_magnification = stats.min_magnification > 0 ? std::min(stats.min_magnification, plan.min_magnification)
+                                                                   : plan.min_magnification;
+            stats.max_magnification = std::max(stats.max_magnification, plan.max_magnification);
+        }
+        for (const auto& [stride, blocks] : plan.by_stride) {
+            strides[stride] = true;
+            planned_blocks += blocks.size();
+        }
+        planned.push_back({&g, std::move(view), std::move(plan)});
+    }
+    control.begin_phase(planned_blocks, 0.0, 0.97);
+
+    const FootprintTable table(kernel);
+    SplatParams splat;
+    splat.mode = params.method == XrayMethod::BilinearSpread ? SplatMode::BilinearSpread : SplatMode::Footprint;
+    splat.table = &table;
+    splat.kernel_radius = kernel.radius();
+
+    // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
+    for (const auto& [stride, unused] : strides) {
+        SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
+        for (const PlannedGrid& pg : planned) {
+            auto it = pg.plan.by_stride.find(stride);
+            if (it == pg.plan.by_stride.end()) continue;
+            splat.density_scale = float(pg.source->density_scale);
+            stats.voxels_splatted += splat_blocks(pg.source->grid->blocks(), it->second, pg.view, splat, target, control);
+        }
+        if (regular)
+            add_unfiltered(target, image);
+        else
+            post_convolve(target, PostFilter(post_shape, stride), image, control);
+        stats.strides.push_back(stride);
+    }
+}
+
+}  // namespace
+
+XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
+                      RenderControl& control, XrayStats* stats_out) {
+    const auto start = std::chrono::steady_clock::now();
+    // Validate every argument up front, whatever the method, so mistakes are caught early.
+    const Kernel kernel = Kernel::from_name(params.splat_kernel);
+    const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
+    if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
+    if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
+    if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+    if (params.pixel_step > 1 && params.method != XrayMethod::Exact)
+        throw InvalidArgument("pixel_step is only supported by method 'exact'");
+
+    XrayStats stats;
+    XrayImage out;
+    tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+        if (params.method == XrayMethod::Exact) {
+            const std::vector<double> px = render_exact_xray(grids, cam, kernel, params.pixel_step, control);
+            out.width = (cam.width() + params.pixel_step - 1) / params.pixel_step;
+            out.height = (cam.height() + params.pixel_step - 1) / params.pixel_step;
+            out.pixels.assign(px.begin(), px.end());
+            for (const auto& g : grids) stats.voxels_splatted += g.grid->active_voxel_count();
+            return;
+        }
+        ImageAccumulator image(cam.width(), cam.height());
+        render_splatted(grids, cam, params, kernel, post_shape, image, control, stats);
+        out.width = image.width;
+        out.height = image.height;
+        out.pixels.assign(image.pixels.begin(), image.pixels.end());
+    });
+    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (stats_out) *stats_out = stats;
+    return out;
+}
+
+std::pair<double, double> effective_magnification(const Grid& grid, const Camera& camera) {
+    const ViewProjection view(camera, grid.index_to_world());
+    BlockPlanParams params;
+    params.margin_nodes = 0;
+    const BlockPlan plan = plan_blocks(grid.blocks(), view, params);
+    return {plan.min_magnification, plan.max_magnification};
+}
+
+}  // namespace pcvr
