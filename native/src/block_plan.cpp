@@ -11,6 +11,8 @@ int automatic_stride(double pixels_per_voxel) {
     return std::max(1, int(std::floor(pixels_per_voxel + 1e-6)));
 }
 
+int nearest_stride(double pixels_per_voxel) { return std::max(1, int(std::lround(pixels_per_voxel))); }
+
 namespace {
 
 enum ClipSide : int { kInside = 0, kBeforeNear = 1, kBeyondFar = 2 };
@@ -65,8 +67,11 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
             ++plan.blocks_culled;
             continue;
         }
-        const int stride = params.fixed_stride > 0 ? params.fixed_stride
-                                                   : (block_mag_max > 0 ? automatic_stride(block_mag_min) : 1);
+        int stride = 1;
+        if (params.fixed_stride > 0)
+            stride = params.fixed_stride;
+        else if (block_mag_max > 0)
+            stride = params.nearest_stride ? nearest_stride(0.5 * (block_mag_min + block_mag_max)) : automatic_stride(block_mag_min);
         if (all_projectable) {
             const double margin = double(params.margin_nodes) * stride;
             if (x1 + ext_x < -margin || x0 - ext_x > cam.width() - 1 + margin || y1 + ext_y < -margin ||
@@ -79,7 +84,14 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
             mag_min = std::min(mag_min, block_mag_min);
             mag_max = std::max(mag_max, block_mag_max);
         }
-        plan.by_stride[stride].push_back({index, sides_or != kInside});
+        PlannedBlock planned{index, sides_or != kInside, -1e30f, -1e30f, 1e30f, 1e30f};
+        if (all_projectable) {
+            planned.min_x = float(x0 - ext_x);
+            planned.min_y = float(y0 - ext_y);
+            planned.max_x = float(x1 + ext_x);
+            planned.max_y = float(y1 + ext_y);
+        }
+        plan.by_stride[stride].push_back(planned);
     }
     if (mag_max > 0) {
         plan.min_magnification = mag_min;

@@ -1,11 +1,14 @@
 #include "pcvr/splatter.h"
 
+#include "pcvr/phase_table.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
@@ -111,6 +114,19 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 #endif
 }
 
+/// The same from a phase table: one load of 16 weights, four row updates. `out` is the top-left tap.
+inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
+    const float* w = table.weights(fx, fy);
+#ifdef PCVR_AVX2
+    const __m256d a = _mm256_set1_pd(amp);
+    for (int j = 0; j < 4; ++j, out += pitch)
+        _mm256_storeu_pd(out, _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(w + 4 * j)), a, _mm256_loadu_pd(out)));
+#else
+    for (int j = 0; j < 4; ++j, out += pitch)
+        for (int i = 0; i < 4; ++i) out[i] += double(amp) * w[4 * j + i];
+#endif
+}
+
 /// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nearest nodes.
 inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
     const int c = int(std::floor(cx)), r = int(std::floor(cy));
@@ -146,59 +162,84 @@ inline Vec3 voxel_position(const VoxelBlock& block, int offset) {
             double(block.origin[2] + (offset & 7))};
 }
 
-/// Splats one voxel whose footprint is known; tracks the block's touched node range.
+/// Splats one voxel whose footprint is known, choosing the cheapest deposit that is exact for it.
 struct Depositor {
     SplatGrid& grid;
     const SplatParams& params;
     double inv_stride;
-    int min_col = 1 << 30, max_col = -(1 << 30), min_row = 1 << 30, max_row = -(1 << 30);
 
     /// Pixel centre -> storage node coordinates.
     double node_x(double px) const { return px * inv_stride - grid.first_node_x(); }
     double node_y(double py) const { return py * inv_stride - grid.first_node_y(); }
 
     void operator()(double cx, double cy, const NodeShape& s, float amp) {
-        const int reach_x = int(std::ceil(s.ext_x)), reach_y = int(std::ceil(s.ext_y));
-        const int fc = int(std::floor(cx)), fr = int(std::floor(cy));
         if (params.mode == SplatMode::BilinearSpread) {
             deposit_bilinear(grid, cx, cy, amp * s.area);
-            track(fc, fr, fc + 1, fr + 1);
             return;
         }
+        const int fc = int(std::floor(cx)), fr = int(std::floor(cy));
         if (s.ext_x <= 2.0f && s.ext_y <= 2.0f && fc >= 1 && fr >= 1 && fc + 2 < grid.columns() && fr + 2 < grid.rows()) {
             deposit_footprint_4x4(grid, fc - 1, fr - 1, float(cx - (fc - 1)), float(cy - (fr - 1)), s, amp, *params.table);
-            track(fc - 1, fr - 1, fc + 2, fr + 2);
             return;
         }
         deposit_footprint(grid, cx, cy, s, amp, *params.table);
-        track(fc - reach_x, fr - reach_y, fc + reach_x + 1, fr + reach_y + 1);
-    }
-
-    void track(int c0, int r0, int c1, int r1) {
-        min_col = std::min(min_col, c0);
-        max_col = std::max(max_col, c1);
-        min_row = std::min(min_row, r0);
-        max_row = std::max(max_row, r1);
-    }
-    void flush_touched() {
-        if (min_col <= max_col) grid.mark(min_col, min_row, max_col, max_row);
-        min_col = min_row = 1 << 30;
-        max_col = max_row = -(1 << 30);
     }
 };
 
-/// Orthographic views: one footprint shape for every voxel and centres affine in the index.
+/// What an orthographic view shares across all voxels: one footprint shape, and node coordinates
+/// that are an affine function of the index.
+struct OrthographicSetup {
+    NodeShape shape;
+    float amp_per_value;
+    Vec3 gx, gy;    // node coordinates per index step
+    double bx, by;  // node coordinates of index (0, 0, 0)
+};
+
+OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid& target, const SplatParams& params) {
+    // Differences of exact projections, so nothing is assumed beyond the camera's own affinity check.
+    const double inv_stride = 1.0 / target.stride();
+    Footprint f0, fi, fj, fk;
+    view.footprint_unclipped({0, 0, 0}, f0);
+    view.footprint_unclipped({1, 0, 0}, fi);
+    view.footprint_unclipped({0, 1, 0}, fj);
+    view.footprint_unclipped({0, 0, 1}, fk);
+    OrthographicSetup o;
+    o.shape = node_shape(f0, target.stride(), params.kernel_radius);
+    o.amp_per_value = float(params.density_scale * f0.line_scale);
+    o.gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
+    o.gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
+    o.bx = f0.px * inv_stride - target.first_node_x();
+    o.by = f0.py * inv_stride - target.first_node_y();
+    return o;
+}
+
+/// Orthographic views: node coordinates by three multiply-adds per voxel. With a phase table, the
+/// whole splat is inline here: the per-voxel work is a handful of instructions plus four row updates.
 uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
-                                  const NodeShape& shape, float amp_per_value, const Vec3& gx, const Vec3& gy,
-                                  double bx, double by, Depositor& deposit) {
+                                  const OrthographicSetup& o, const PhaseFootprintTable* phases, Depositor& deposit) {
     uint64_t count = 0;
-    const double ox = bx + gx.x * block.origin[0] + gx.y * block.origin[1] + gx.z * block.origin[2];
-    const double oy = by + gy.x * block.origin[0] + gy.y * block.origin[1] + gy.z * block.origin[2];
+    SplatGrid& grid = deposit.grid;
+    double* const base = grid.row(0);
+    const int columns = grid.columns(), rows = grid.rows();
+    const double ox = o.bx + o.gx.x * block.origin[0] + o.gx.y * block.origin[1] + o.gx.z * block.origin[2];
+    const double oy = o.by + o.gy.x * block.origin[0] + o.gy.y * block.origin[1] + o.gy.z * block.origin[2];
     for_each_voxel(block, [&](int offset, float v) {
         if (clip_test && !ViewProjection::inside_clip_range(view.to_clip(voxel_position(block, offset)))) return;
         const int i = offset >> 6, j = (offset >> 3) & 7, k = offset & 7;
-        deposit(ox + gx.x * i + gx.y * j + gx.z * k, oy + gy.x * i + gy.y * j + gy.z * k, shape, amp_per_value * v);
+        const double cx = ox + o.gx.x * i + o.gx.y * j + o.gx.z * k;
+        const double cy = oy + o.gy.x * i + o.gy.y * j + o.gy.z * k;
+        const float amp = o.amp_per_value * v;
         ++count;
+        if (phases) {
+            const double fcx = std::floor(cx), fcy = std::floor(cy);
+            const int c = int(fcx) - 1, r = int(fcy) - 1;
+            // One unsigned compare per axis: the 4 x 4 window lies inside the grid.
+            if (unsigned(c) < unsigned(columns - 3) && unsigned(r) < unsigned(rows - 3)) {
+                deposit_phase_4x4(base + size_t(r) * columns + c, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
+                return;
+            }
+        }
+        deposit(cx, cy, o.shape, amp);
     });
     return count;
 }
@@ -222,41 +263,31 @@ uint64_t splat_block_perspective(const VoxelBlock& block, const ViewProjection& 
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
                       const ViewProjection& view, const SplatParams& params, SplatGrid& target, RenderControl& control) {
     const double stride = target.stride();
-    const double inv_stride = 1.0 / stride;
-
-    // Orthographic constants: the footprint at any point, and node coordinates as an affine function
-    // of the index (differences of exact projections, so no assumption beyond the camera's own check).
-    NodeShape ortho_shape{};
-    float ortho_amp = 0;
-    Vec3 gx, gy;
-    double bx = 0, by = 0;
+    std::optional<OrthographicSetup> ortho;
+    std::optional<PhaseFootprintTable> phases;
     if (view.orthographic()) {
-        Footprint f0, fi, fj, fk;
-        view.footprint_unclipped({0, 0, 0}, f0);
-        view.footprint_unclipped({1, 0, 0}, fi);
-        view.footprint_unclipped({0, 1, 0}, fj);
-        view.footprint_unclipped({0, 0, 1}, fk);
-        ortho_shape = node_shape(f0, stride, params.kernel_radius);
-        ortho_amp = float(params.density_scale * f0.line_scale);
-        gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
-        gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
-        bx = f0.px * inv_stride - target.first_node_x();
-        by = f0.py * inv_stride - target.first_node_y();
+        ortho = orthographic_setup(view, target, params);
+        if (params.mode == SplatMode::Footprint && ortho->shape.ext_x <= 2.0f && ortho->shape.ext_y <= 2.0f)
+            phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy);
     }
 
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
-        Depositor deposit{locals.local(), params, inv_stride};
+        SplatGrid& grid = locals.local();
+        Depositor deposit{grid, params, 1.0 / stride};
         uint64_t& count = counts.local();
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
             const VoxelBlock& block = grid_blocks[pb.index];
-            count += view.orthographic()
-                         ? splat_block_orthographic(block, pb.needs_clip_test, view, ortho_shape, ortho_amp, gx, gy, bx, by, deposit)
-                         : splat_block_perspective(block, view, stride, params, deposit);
-            deposit.flush_touched();
+            const uint64_t n = ortho ? splat_block_orthographic(block, pb.needs_clip_test, view, *ortho, phases ? &*phases : nullptr, deposit)
+                                     : splat_block_perspective(block, view, stride, params, deposit);
+            if (n == 0) continue;
+            count += n;
+            // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.
+            grid.mark(int(std::floor(deposit.node_x(std::max(pb.min_x, -1e9f)))), int(std::floor(deposit.node_y(std::max(pb.min_y, -1e9f)))),
+                      int(std::ceil(deposit.node_x(std::min(pb.max_x, 1e9f)))), int(std::ceil(deposit.node_y(std::min(pb.max_y, 1e9f)))));
         }
         control.advance(range.size());
     });

@@ -37,6 +37,7 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     plan_params.kernel_radius = kernel.radius();
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
+    plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
 
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
@@ -63,6 +64,7 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     SplatParams splat;
     splat.mode = params.method == XrayMethod::BilinearSpread ? SplatMode::BilinearSpread : SplatMode::Footprint;
     splat.table = &table;
+    splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.

@@ -21,12 +21,17 @@ namespace pcvr {
 struct PlannedBlock {
     uint32_t index;         ///< into Grid::blocks()
     bool needs_clip_test;   ///< straddles a clip plane: test each voxel's centre
+    /// Pixel bounds of everything the block's footprints can touch (the whole plane when unknown).
+    float min_x, min_y, max_x, max_y;
 };
 
 struct BlockPlanParams {
     double kernel_radius = 2.0;  ///< index units
     int fixed_stride = 0;        ///< > 0: every block uses this stride; 0: automatic per block
     int margin_nodes = 0;        ///< nodes the splat grid extends beyond the image on each side
+    /// Bilinear spreading replaces the footprint by a one-node tent, which only reconstructs when the
+    /// nodes are about one voxel apart: round the stride to the nearest instead of flooring it.
+    bool nearest_stride = false;
 };
 
 struct BlockPlan {
@@ -39,6 +44,8 @@ struct BlockPlan {
 
 /// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
 int automatic_stride(double pixels_per_voxel);
+/// The stride closest to one voxel per node (for bilinear spreading).
+int nearest_stride(double pixels_per_voxel);
 
 BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params);
 

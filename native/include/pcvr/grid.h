@@ -32,6 +32,10 @@ struct VoxelBlock {
     bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
 };
 
+/// Codec for Grid::write_vdb. Blosc is OpenVDB's default and the fastest; zip suits readers built
+/// without blosc; none is largest.
+enum class VdbCompression { Blosc, Zip, None };
+
 class Grid {
 public:
     /// Build from a dense float32 array indexed [i][j][k] (C order, i slowest). Voxels equal to
@@ -58,6 +62,7 @@ public:
     /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
     /// so a failed write never leaves a half-written file. Throws Error with the path on failure.
     void write_vdb(const std::string& path, const std::string& name) const;
+    void write_vdb(const std::string& path, const std::string& name, VdbCompression compression) const;
 
     struct Data;  ///< the OpenVDB grid and the block cache (defined in grid.cpp)
     Grid(std::shared_ptr<Data> data, const Mat4& index_to_world, std::string name);

@@ -6,6 +6,9 @@
 /// | Footprint       | every node within the kernel's ellipse gets value * P(rho^2), P from the table |
 /// | BilinearSpread  | the footprint's whole integral goes to the 2 x 2 nearest nodes with bilinear weights (Westenberg-Roerdink) |
 ///
+/// Orthographic footprints that fit 4 x 4 nodes (PCVR at integer magnification) take their 16
+/// weights from a PhaseFootprintTable; all others evaluate rho^2 per tap and look P up in the
+/// FootprintTable, over the exact chord of the ellipse on each row.
 /// Used for every splatting method: "regular" splats into a stride-1 grid (the image), "pcvr" and
 /// "bilinear_spread" into the stride-L subgrid; the same code for both keeps the comparison honest.
 /// It is equally usable per sheet and per tile: it only needs blocks, a view and a target grid.
@@ -30,6 +33,7 @@ enum class SplatMode { Footprint, BilinearSpread };
 struct SplatParams {
     SplatMode mode = SplatMode::Footprint;
     const FootprintTable* table = nullptr;  ///< required for Footprint
+    const Kernel* kernel = nullptr;         ///< required for Footprint (builds phase tables)
     double kernel_radius = 2.0;             ///< index units
     float density_scale = 1.0f;
 };

@@ -1,0 +1,227 @@
+// Python bindings of pcvr/grid.h: Grid, read_vdb, list_grids. Thin: conversions and GIL handling only.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+#include <sstream>
+
+#include "bindings.h"
+#include "pcvr/errors.h"
+#include "pcvr/grid.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace pcvr::python {
+
+namespace {
+
+/// A matrix argument of the grid API: ValueError from the conversion becomes GridError, so every
+/// bad transform (wrong shape, non-finite, singular) raises the same exception type.
+/// numpy's shape tuple as text, e.g. "(4, 4)".
+std::string shape_string(nb::handle arr) {
+    const nb::tuple shape(arr.attr("shape"));
+    std::string s = "(";
+    for (size_t i = 0; i < nb::len(shape); ++i) s += (i ? ", " : "") + std::to_string(nb::cast<long long>(shape[i]));
+    return s + (nb::len(shape) == 1 ? ",)" : ")");
+}
+
+Mat4 grid_matrix(nb::handle obj, const char* what) {
+    // The shape is checked here too so its message survives: mat4_from_python formats it with
+    // nb::cast<std::string>, which bindings.cpp instantiates without nanobind/stl/string.h (a
+    // std::bad_cast; the same ODR clash is why this file avoids nb::cast<std::string>).
+    nb::object arr;
+    try {
+        arr = nb::module_::import_("numpy").attr("asarray")(obj, "dtype"_a = "float64");
+    } catch (nb::python_error&) {
+        throw GridError(std::string(what) + " must be a 4x4 matrix of numbers");
+    }
+    const std::string shape = shape_string(arr);
+    if (shape != "(4, 4)") throw GridError(std::string(what) + " must have shape (4, 4), got " + shape);
+    try {
+        return mat4_from_python(arr, what);
+    } catch (const nb::builtin_exception& e) {
+        throw GridError(e.what());
+    }
+}
+
+nb::dict grid_info_to_dict(const GridInfo& info) {
+    nb::dict d;
+    d["name"] = info.name;
+    d["value_type"] = info.value_type;
+    d["grid_class"] = info.grid_class;
+    d["active_voxels"] = info.active_voxels;
+    return d;
+}
+
+Grid from_dense(nb::handle values, nb::handle index_to_world, double background, const std::string& name) {
+    const Mat4 m = grid_matrix(index_to_world, "index_to_world");
+    // numpy does every dtype conversion (ints, float64, bool) and makes a C-order copy only if needed.
+    nb::module_ np = nb::module_::import_("numpy");
+    nb::object arr = np.attr("ascontiguousarray")(values, "dtype"_a = "float32");
+    if (nb::cast<int>(arr.attr("ndim")) != 3)
+        throw InvalidArgument("Grid.from_dense: values must be a 3-D array indexed [i, j, k], got shape " +
+                              shape_string(arr));
+    auto view = nb::cast<nb::ndarray<const float, nb::ndim<3>, nb::c_contig, nb::device::cpu>>(arr);
+    const std::array<size_t, 3> shape{view.shape(0), view.shape(1), view.shape(2)};
+    // `arr` keeps the buffer alive while the GIL is released.
+    nb::gil_scoped_release release;
+    return Grid::from_dense(view.data(), shape, m, float(background), name);
+}
+
+VdbCompression compression_from_string(const std::string& s) {
+    if (s == "blosc") return VdbCompression::Blosc;
+    if (s == "zip") return VdbCompression::Zip;
+    if (s == "none") return VdbCompression::None;
+    throw InvalidArgument("write_vdb: compression must be 'blosc', 'zip' or 'none', got '" + s + "'");
+}
+
+/// The active voxels over index_bbox, read through blocks() exactly as the renderer sees them.
+nb::object to_dense(const Grid& g, float fill) {
+    const auto b = g.index_bbox();
+    std::array<size_t, 3> dims{0, 0, 0};
+    if (g.active_voxel_count() > 0)
+        for (int a = 0; a < 3; ++a) dims[a] = size_t(int64_t(b[a + 3]) - int64_t(b[a]) + 1);
+    const uint64_t total = uint64_t(dims[0]) * dims[1] * dims[2];
+    if (total > (uint64_t(1) << 31))
+        throw InvalidArgument("Grid.to_dense: the active bounding box holds " + std::to_string(total) +
+                              " voxels, too many for a dense array");
+    auto* data = new float[std::max<uint64_t>(total, 1)];
+    nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<float*>(p); });
+    {
+        nb::gil_scoped_release release;
+        std::fill(data, data + total, fill);
+        for (const VoxelBlock& block : g.blocks())
+            for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
+                if (!block.active(offset)) continue;
+                const int64_t i = int64_t(block.origin[0]) + (offset >> 6) - b[0];
+                const int64_t j = int64_t(block.origin[1]) + ((offset >> 3) & 7) - b[1];
+                const int64_t k = int64_t(block.origin[2]) + (offset & 7) - b[2];
+                data[(size_t(i) * dims[1] + size_t(j)) * dims[2] + size_t(k)] = block.value(offset);
+            }
+    }
+    return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<3>>(data, {dims[0], dims[1], dims[2]}, owner));
+}
+
+std::string grid_repr(const Grid& g) {
+    std::ostringstream s;
+    const auto b = g.index_bbox();
+    const auto r = g.value_range();
+    s << "<pcvr_native.Grid '" << g.name() << "': " << g.active_voxel_count() << " active voxels, index bbox ("
+      << b[0] << ", " << b[1] << ", " << b[2] << ")..(" << b[3] << ", " << b[4] << ", " << b[5] << "), values ["
+      << r.first << ", " << r.second << "]";
+    if (!g.source_path().empty()) s << ", from '" << g.source_path() << "'";
+    s << ">";
+    return s.str();
+}
+
+}  // namespace
+
+void bind_grid(nb::module_& m) {
+    nb::class_<Grid>(m, "Grid",
+                     "A scalar OpenVDB volume (float voxels, sparse). Immutable; copies share their voxels.")
+        .def_static("from_dense", &from_dense, "values"_a, "index_to_world"_a, "background"_a = 0.0,
+                    "name"_a = "density",
+                    "Build from a 3-D array indexed [i, j, k] (converted to float32). Voxels equal to\n"
+                    "`background` stay inactive. `index_to_world` is a 4x4 matrix, world = M @ [i, j, k, 1];\n"
+                    "a singular or non-finite one raises GridError.")
+        .def(
+            "write_vdb",
+            [](const Grid& g, const std::filesystem::path& path, const std::string& name, const std::string& compression) {
+                const VdbCompression codec = compression_from_string(compression);
+                // Failures to write are I/O errors: OSError rather than the RuntimeError of pcvr::Error.
+                std::string error;
+                {
+                    nb::gil_scoped_release release;
+                    try {
+                        g.write_vdb(path.string(), name, codec);
+                    } catch (const GridError&) {
+                        throw;
+                    } catch (const Error& e) {
+                        error = e.what();
+                    }
+                }
+                if (!error.empty()) {
+                    PyErr_SetString(PyExc_OSError, error.c_str());
+                    throw nb::python_error();
+                }
+            },
+            "path"_a, "name"_a = "density", "compression"_a = "blosc",
+            "Write as a float fog-volume grid called `name`, compressed with 'blosc', 'zip' or 'none'.\n"
+            "The file is replaced atomically (written beside it, then renamed); on failure an OSError\n"
+            "is raised and no partial file is left.")
+        .def(
+            "with_index_to_world",
+            [](const Grid& g, nb::handle matrix) { return g.with_index_to_world(grid_matrix(matrix, "index_to_world")); },
+            "index_to_world"_a, "The same voxels (shared, not copied) under another index-to-world matrix.")
+        .def_prop_ro("index_to_world", [](const Grid& g) { return mat4_to_numpy(g.index_to_world()); },
+                     "(4, 4) float64 array: world = M @ [i, j, k, 1], voxel centres at integer indices.")
+        .def_prop_ro("active_voxel_count", &Grid::active_voxel_count)
+        .def_prop_ro(
+            "index_bbox",
+            [](const Grid& g) {
+                const auto b = g.index_bbox();
+                return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
+            },
+            "Inclusive index bounds of the active voxels: ((i0, j0, k0), (i1, j1, k1)); zeros when empty.")
+        .def_prop_ro(
+            "value_range",
+            [](const Grid& g) {
+                const auto r = g.value_range();
+                return nb::make_tuple(double(r.first), double(r.second));
+            },
+            "(min, max) over the active voxels; (0, 0) when empty.")
+        .def_prop_ro("name", &Grid::name)
+        .def_prop_ro(
+            "source_path",
+            [](const Grid& g) -> std::optional<std::string> {
+                if (g.source_path().empty()) return std::nullopt;
+                return g.source_path();
+            },
+            "The file the grid was read from, None for grids built in memory.")
+        .def_prop_ro(
+            "block_count",
+            [](const Grid& g) {
+                nb::gil_scoped_release release;  // the first call builds the block list
+                return g.blocks().size();
+            },
+            "Number of 8^3 voxel blocks the renderer walks (leaves plus expanded active tiles).")
+        .def("to_dense", &to_dense, "fill"_a = 0.0f,
+             "The active voxels as a float32 array indexed [i - i0, j - j0, k - k0] over index_bbox\n"
+             "((i0, j0, k0) = index_bbox[0]); voxels that are not active hold `fill`. Read through the\n"
+             "same 8^3 blocks the renderer walks. Raises ValueError above 2^31 voxels.")
+        .def("__repr__", &grid_repr);
+
+    m.def(
+        "read_vdb",
+        [](const std::filesystem::path& path, std::optional<std::string> grid) {
+            nb::gil_scoped_release release;
+            return read_vdb(path.string(), grid.value_or(""));
+        },
+        "path"_a, "grid"_a = nb::none(),
+        "Read one grid of a .vdb file as a float Grid. grid=None: 'density' if present, else the first\n"
+        "float grid. Double and integer grids are converted to float, level sets to fog volumes.\n"
+        "Raises FileNotFoundError, VDBReadError (not a VDB, truncated, corrupt) or GridError (unknown\n"
+        "grid, vector grid, frustum transform).");
+    m.def(
+        "list_grids",
+        [](const std::filesystem::path& path) {
+            std::vector<GridInfo> infos;
+            {
+                nb::gil_scoped_release release;
+                infos = list_grids(path.string());
+            }
+            nb::list out;
+            for (const GridInfo& info : infos) out.append(grid_info_to_dict(info));
+            return out;
+        },
+        "path"_a, "The grids of a .vdb file: a list of dicts with name, value_type, grid_class, active_voxels.");
+}
+
+}  // namespace pcvr::python

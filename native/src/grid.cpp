@@ -1,0 +1,183 @@
+/// @file grid.cpp
+/// @brief pcvr::Grid: construction from dense arrays, statistics, transforms and the block view the
+/// renderer walks. File I/O lives in vdb_io.cpp.
+#include "grid_data.h"
+
+#include <openvdb/tools/Count.h>
+#include <openvdb/tools/Dense.h>
+
+#include <limits>
+#include <sstream>
+
+#include "pcvr/errors.h"
+
+namespace pcvr {
+
+namespace vdb = openvdb;
+
+namespace detail {
+
+void initialize_openvdb() {
+    // A function-local static is initialised once even under concurrent first calls.
+    static const bool initialized = [] {
+        vdb::initialize();
+        return true;
+    }();
+    (void)initialized;
+}
+
+void check_index_to_world(const Mat4& m, const std::string& context) {
+    if (!m.is_finite()) throw GridError(context + ": index_to_world contains a non-finite value");
+    if (!m.is_affine()) throw GridError(context + ": index_to_world is not affine (last row must be 0 0 0 1)");
+    if (!m.inverse()) throw GridError(context + ": index_to_world is singular (voxels would have no volume)");
+}
+
+vdb::math::Transform::Ptr to_vdb_transform(const Mat4& m) {
+    vdb::Mat4d a;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) a(r, c) = m.m[c][r];
+    return std::make_shared<vdb::math::Transform>(std::make_shared<vdb::math::AffineMap>(a));
+}
+
+Mat4 from_vdb_transform(const vdb::math::Transform& xform, const std::string& context) {
+    if (!xform.isLinear())
+        throw GridError(context + " has a " + xform.mapType() +
+                        " transform; only affine (linear) transforms are supported, not frustums");
+    const vdb::Mat4d a = xform.baseMap()->getAffineMap()->getMat4();
+    Mat4 m;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m.m[r][c] = a(c, r);
+    check_index_to_world(m, context);
+    return m;
+}
+
+Grid make_grid(vdb::FloatGrid::ConstPtr grid, const std::string& source_path, const std::string& name,
+               const std::string& context) {
+    const Mat4 index_to_world = from_vdb_transform(grid->transform(), context);
+    return Grid(std::make_shared<Grid::Data>(std::move(grid), source_path), index_to_world, name);
+}
+
+}  // namespace detail
+
+Grid::Data::Data(vdb::FloatGrid::ConstPtr grid, std::string path) : vdb(std::move(grid)), source_path(std::move(path)) {
+    const vdb::FloatTree& tree = vdb->tree();
+    active_voxel_count = tree.activeVoxelCount();
+    vdb::CoordBBox bbox;
+    if (active_voxel_count == 0 || !tree.evalActiveVoxelBoundingBox(bbox)) return;
+    index_bbox = {bbox.min().x(), bbox.min().y(), bbox.min().z(), bbox.max().x(), bbox.max().y(), bbox.max().z()};
+    const auto range = vdb::tools::minMax(tree);
+    value_range = {range.min(), range.max()};
+}
+
+Grid::Grid(std::shared_ptr<Data> data, const Mat4& index_to_world, std::string name)
+    : data_(std::move(data)), index_to_world_(index_to_world), name_(std::move(name)) {
+    if (!data_) throw InvalidArgument("Grid: no voxel data");
+}
+
+const std::string& Grid::source_path() const { return data_->source_path; }
+uint64_t Grid::active_voxel_count() const { return data_->active_voxel_count; }
+std::array<int32_t, 6> Grid::index_bbox() const { return data_->index_bbox; }
+std::pair<float, float> Grid::value_range() const { return data_->value_range; }
+
+Grid Grid::with_index_to_world(const Mat4& index_to_world) const {
+    detail::check_index_to_world(index_to_world, "grid '" + name_ + "'");
+    return Grid(data_, index_to_world, name_);
+}
+
+Grid Grid::from_dense(const float* values, std::array<size_t, 3> shape, const Mat4& index_to_world,
+                      float background, const std::string& name) {
+    detail::initialize_openvdb();
+    const std::string context = "Grid.from_dense '" + name + "'";
+    detail::check_index_to_world(index_to_world, context);
+    // Index coordinates must stay far from OpenVDB's int32 limits (node origins are rounded down).
+    constexpr size_t kMaxDim = size_t(1) << 30;
+    for (size_t n : shape)
+        if (n > kMaxDim) throw GridError(context + ": array dimension " + std::to_string(n) + " is too large");
+
+    auto grid = vdb::FloatGrid::create(background);
+    if (shape[0] > 0 && shape[1] > 0 && shape[2] > 0) {
+        const vdb::CoordBBox bbox(vdb::Coord(0), vdb::Coord(int(shape[0]) - 1, int(shape[1]) - 1, int(shape[2]) - 1));
+        // LayoutZYX: k fastest, i.e. a C-order numpy array indexed [i, j, k]. copyFromDense only reads
+        // the array; Dense merely lacks a const-data constructor.
+        const vdb::tools::Dense<float, vdb::tools::LayoutZYX> dense(bbox, const_cast<float*>(values));
+        // Tolerance 0: exactly the voxels equal to the background stay inactive. Constant leaves
+        // become tiles, which blocks() expands again.
+        vdb::tools::copyFromDense(dense, *grid, 0.0f);
+    }
+    grid->setName(name);
+    grid->setGridClass(vdb::GRID_FOG_VOLUME);
+    // Keep the OpenVDB transform in step with index_to_world, so write_vdb needs no conversion.
+    grid->setTransform(detail::to_vdb_transform(index_to_world));
+    return Grid(std::make_shared<Data>(std::move(grid), std::string()), index_to_world, name);
+}
+
+namespace {
+
+/// One VoxelBlock per leaf, then one constant block per 8^3 chunk of every active tile.
+std::vector<VoxelBlock> build_blocks(const vdb::FloatTree& tree, const std::string& grid_name) {
+    using LeafT = vdb::FloatTree::LeafNodeType;
+    static_assert(LeafT::DIM == VoxelBlock::kDim, "VoxelBlock assumes OpenVDB's 8^3 leaves");
+    static_assert(LeafT::NodeMaskType::WORD_COUNT == 8, "VoxelBlock::mask holds 8 64-bit words");
+
+    // Active tiles sit above the leaf level; cap their expansion before allocating anything
+    // (a single root tile already spans 4096^3 voxels).
+    constexpr uint64_t kMaxTileVoxels = uint64_t(1) << 31;
+    uint64_t tile_voxels = 0;
+    auto tiles_begin = [&tree] {
+        auto it = tree.cbeginValueOn();
+        it.setMaxDepth(vdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1);
+        return it;
+    };
+    for (auto it = tiles_begin(); it; ++it) {
+        tile_voxels += it.getBoundingBox().volume();
+        if (tile_voxels > kMaxTileVoxels) {
+            std::ostringstream msg;
+            msg << "grid '" << grid_name << "': active tiles cover more than " << kMaxTileVoxels
+                << " voxels; refusing to expand them into voxel blocks";
+            throw GridError(msg.str());
+        }
+    }
+
+    std::vector<VoxelBlock> blocks;
+    blocks.reserve(tree.leafCount() + tile_voxels / VoxelBlock::kSize);
+    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
+        VoxelBlock b;
+        const vdb::Coord o = leaf->origin();
+        b.origin = {o.x(), o.y(), o.z()};
+        // Same offset order as VoxelBlock: (x << 6) | (y << 3) | z.
+        b.values = leaf->buffer().data();
+        for (int w = 0; w < 8; ++w) b.mask[w] = leaf->getValueMask().getWord<uint64_t>(w);
+        blocks.push_back(b);
+    }
+    for (auto it = tiles_begin(); it; ++it) {
+        const vdb::CoordBBox box = it.getBoundingBox();
+        VoxelBlock b;
+        b.constant = *it;
+        b.mask.fill(~uint64_t(0));
+        // Tiles are node-aligned, so their extent is a whole number of 8^3 chunks.
+        // 64-bit counters: a tile may end at INT32_MAX.
+        for (int64_t x = box.min().x(); x <= box.max().x(); x += VoxelBlock::kDim)
+            for (int64_t y = box.min().y(); y <= box.max().y(); y += VoxelBlock::kDim)
+                for (int64_t z = box.min().z(); z <= box.max().z(); z += VoxelBlock::kDim) {
+                    b.origin = {int32_t(x), int32_t(y), int32_t(z)};
+                    blocks.push_back(b);
+                }
+    }
+    return blocks;
+}
+
+}  // namespace
+
+const std::vector<VoxelBlock>& Grid::blocks() const {
+    // Double-checked: after the first build every caller takes only the atomic load.
+    if (!data_->blocks_ready.load(std::memory_order_acquire)) {
+        std::lock_guard<std::mutex> lock(data_->blocks_mutex);
+        if (!data_->blocks_ready.load(std::memory_order_relaxed)) {
+            data_->blocks = build_blocks(data_->vdb->tree(), name_);
+            data_->blocks_ready.store(true, std::memory_order_release);
+        }
+    }
+    return data_->blocks;
+}
+
+}  // namespace pcvr

@@ -1,0 +1,59 @@
+/// @file grid_data.h
+/// @brief Grid::Data, the OpenVDB grid behind a pcvr::Grid, and the helpers grid.cpp and vdb_io.cpp share.
+///
+/// Private to the two grid translation units: everything else sees only pcvr/grid.h, so the rendering
+/// core never pays for OpenVDB's headers.
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <atomic>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "pcvr/grid.h"
+
+namespace pcvr {
+
+struct Grid::Data {
+    /// Never modified after construction, so any number of threads may read it. Leaf buffers are
+    /// fully loaded (no delayed loading): VoxelBlock::values point straight into them.
+    openvdb::FloatGrid::ConstPtr vdb;
+    std::string source_path;  ///< empty for grids built in memory
+
+    // Statistics over the active voxels (tiles included), computed once at construction.
+    uint64_t active_voxel_count = 0;
+    std::array<int32_t, 6> index_bbox{};
+    std::pair<float, float> value_range{0.0f, 0.0f};
+
+    // Block cache, built by the first call to Grid::blocks(). A mutex rather than std::call_once:
+    // a failed build (absurd tile expansion) throws, and call_once with exceptions is unreliable
+    // on some libstdc++ targets.
+    std::mutex blocks_mutex;
+    std::atomic<bool> blocks_ready{false};
+    std::vector<VoxelBlock> blocks;
+
+    Data(openvdb::FloatGrid::ConstPtr grid, std::string path);
+};
+
+namespace detail {
+
+/// openvdb::initialize() exactly once per process, from any thread.
+void initialize_openvdb();
+
+/// Throws GridError (prefixed with `context`) unless `m` is finite, affine and invertible.
+void check_index_to_world(const Mat4& m, const std::string& context);
+
+/// Mat4 (column vectors: world = M [i j k 1]^T) <-> OpenVDB transform (row vectors: world = [i j k 1] A),
+/// i.e. A = M^T. OpenVDB places voxel centres at integer index coordinates, as we do.
+openvdb::math::Transform::Ptr to_vdb_transform(const Mat4& m);
+/// Throws GridError (prefixed with `context`) for frustum and other non-linear maps.
+Mat4 from_vdb_transform(const openvdb::math::Transform& xform, const std::string& context);
+
+/// Wrap a finished float grid: computes statistics; its transform becomes the Grid's index_to_world.
+Grid make_grid(openvdb::FloatGrid::ConstPtr grid, const std::string& source_path, const std::string& name,
+               const std::string& context);
+
+}  // namespace detail
+}  // namespace pcvr
