@@ -6,8 +6,9 @@ PYTHON_SYS  ?= python3.11
 VENV        := .venv
 PY          := $(VENV)/bin/python
 SUDO        := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := build-essential cmake ninja-build libopenvdb-dev libboost-dev libtbb-dev \
-                python3.11 python3.11-venv python3.11-dev
+APT_PACKAGES := build-essential cmake ninja-build libopenvdb-dev libboost-dev libboost-iostreams-dev libtbb-dev
+# Python 3.11 with headers and venv: Debian's packages unless a working one is already there (e.g. pyenv).
+APT_PYTHON  := python3.11 python3.11-venv python3.11-dev
 NATIVE_SOURCES := $(shell find native/include native/src native/python -type f -not -name '*.pyc') \
                   native/CMakeLists.txt native/pyproject.toml
 WHEEL_DIR   := dist
@@ -23,8 +24,9 @@ system:
 	@missing=""; for p in $(APT_PACKAGES); do \
 	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$p"; \
 	done; \
-	if [ -n "$$missing" ] && ! { command -v $(PYTHON_SYS) >/dev/null && dpkg-query -W libopenvdb-dev libtbb-dev libboost-dev cmake g++ >/dev/null 2>&1 \
-	       && $(PYTHON_SYS) -c 'import sysconfig,os,sys; sys.exit(not os.path.exists(sysconfig.get_paths()["include"]+"/Python.h"))'; }; then \
+	$(PYTHON_SYS) -c 'import sysconfig, os, sys, venv, ensurepip; sys.exit(not os.path.exists(sysconfig.get_paths()["include"] + "/Python.h"))' \
+	  2>/dev/null || missing="$$missing $(APT_PYTHON)"; \
+	if [ -n "$$missing" ]; then \
 	  echo "Installing system packages:$$missing"; \
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
 	fi
@@ -45,11 +47,15 @@ $(VENV)/.native-stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 
 native: $(VENV)/.native-stamp
 
-test: $(VENV)/.native-stamp
+# The add-on tests install the packaged extension, so the zip is built first.
+test: $(VENV)/.native-stamp extension
 	$(PY) -m pytest
 
 demo: $(VENV)/.native-stamp
 	$(PY) tools/demo.py --output out/demo_xray.png
+
+extension: $(VENV)/.native-stamp
+	$(PY) tools/build_extension.py
 
 bench: $(VENV)/.native-stamp
 	$(PY) -m pip install -q matplotlib

@@ -1,0 +1,106 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""The render camera as pcvr_native sees it: a view matrix, an OpenGL projection and a pixel window."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CameraView:
+    world_to_camera: np.ndarray  # (4, 4), camera looks down -Z
+    projection: np.ndarray       # (4, 4), camera space to the clip space of this window
+    width: int                   # image size in pixels
+    height: int
+
+    def sees_box(self, corners):
+        """False when the world-space points `corners` (N, 3), e.g. a bounding box, all lie on the outer
+        side of one clip plane, so nothing inside their convex hull can reach the image."""
+        points = np.c_[np.asarray(corners, dtype=np.float64), np.ones(len(corners))]
+        x, y, z, w = self.projection @ self.world_to_camera @ points.T
+        # The planes are linear in homogeneous coordinates, so this also holds for points behind
+        # a perspective camera (w < 0).
+        outside = ((x > w).all() or (x < -w).all() or
+                   (y > w).all() or (y < -w).all() or
+                   (z > w).all() or (z < -w).all())
+        return not outside
+
+
+def border_window(render, width, height):
+    """The pixel rectangle (x, y, width, height) Blender renders for the render border, from the bottom
+    left of the frame, or None when the whole frame is rendered."""
+    if not render.use_border:
+        return None
+    # Blender computes the border in single precision and truncates; do the same so the window
+    # matches the size of the result Blender hands out.
+    f = np.float32
+    xmin, xmax = int(f(render.border_min_x) * f(width)), int(f(render.border_max_x) * f(width))
+    ymin, ymax = int(f(render.border_min_y) * f(height)), int(f(render.border_max_y) * f(height))
+    if (xmin, ymin, xmax, ymax) == (0, 0, width, height):
+        return None
+    return xmin, ymin, xmax - xmin, ymax - ymin
+
+
+def window_projection(projection, width, height, window):
+    """Narrow a full-frame projection to the pixel window (x, y, w, h): the window maps to NDC [-1, 1]."""
+    x, y, w, h = window
+    sx, sy = w / width, h / height
+    # Centre of the window in full-frame NDC.
+    cx, cy = (2 * x + w) / width - 1, (2 * y + h) / height - 1
+    to_window = np.array([
+        [1 / sx, 0, 0, -cx / sx],
+        [0, 1 / sy, 0, -cy / sy],
+        [0, 0, 1, 0],
+        [0, 0, 0, 1],
+    ])
+    return to_window @ projection
+
+
+def camera_view(depsgraph, camera_eval, model_matrix, width, height):
+    """The full frame of `width` x `height` pixels seen by the evaluated camera placed at `model_matrix`."""
+    render = depsgraph.scene.render
+    projection = camera_eval.calc_matrix_camera(
+        depsgraph, x=width, y=height, scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
+    return CameraView(
+        world_to_camera=np.linalg.inv(np.array(model_matrix, dtype=np.float64)),
+        projection=np.array(projection, dtype=np.float64),
+        width=width,
+        height=height,
+    )
+
+
+def render_view(engine, depsgraph):
+    """What `engine` renders now: its camera and resolution, narrowed to the render border if one is set
+    (Blender's render result then covers only the border). None when the scene has no camera."""
+    scene = depsgraph.scene
+    camera_object = engine.camera_override or scene.camera
+    if camera_object is None:
+        return None
+    camera_eval = camera_object.evaluated_get(depsgraph)
+    width, height = engine.resolution_x, engine.resolution_y
+    # The matrix of the view being rendered (stereo aware), without scale.
+    model_matrix = engine.camera_model_matrix(camera_eval, use_spherical_stereo=False)
+    view = camera_view(depsgraph, camera_eval, model_matrix, width, height)
+
+    window = border_window(scene.render, width, height)
+    if window is None:
+        return view
+    return CameraView(
+        world_to_camera=view.world_to_camera,
+        projection=window_projection(view.projection, width, height, window),
+        width=window[2],
+        height=window[3],
+    )
+
+
+def scene_view(depsgraph):
+    """The full frame of the scene camera at the output resolution, for estimates outside a render."""
+    scene = depsgraph.scene
+    if scene.camera is None:
+        return None
+    render = scene.render
+    width = render.resolution_x * render.resolution_percentage // 100
+    height = render.resolution_y * render.resolution_percentage // 100
+    camera_eval = scene.camera.evaluated_get(depsgraph)
+    return camera_view(depsgraph, camera_eval, camera_eval.matrix_world.normalized(), width, height)

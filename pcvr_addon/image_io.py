@@ -1,0 +1,160 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""Images on disk, through the OpenImageIO that Blender bundles.
+
+| extension     | written as                                                                   |
+|---------------|------------------------------------------------------------------------------|
+| .exr          | 32-bit float, values as given: linear, colour premultiplied by alpha         |
+| .png          | 8-bit, colour divided by alpha (straight alpha) and sRGB-encoded             |
+| .tif / .tiff  | 16-bit, colour divided by alpha (straight alpha) and sRGB-encoded            |
+
+Pixels come in as Blender's render results hold them: linear, colour premultiplied by alpha. Files
+are written next to their destination and renamed into place, so a reader never sees a
+half-written image.
+"""
+
+import os
+import tempfile
+import uuid
+
+import bpy
+import numpy as np
+
+FORMATS = {
+    ".exr": "float",
+    ".png": "uint8",
+    ".tif": "uint16",
+    ".tiff": "uint16",
+}
+
+
+def _oiio():
+    bpy.utils.expose_bundled_modules()
+    import OpenImageIO
+    return OpenImageIO
+
+
+def srgb_encode(linear):
+    """The sRGB transfer function of values clamped to [0, 1]."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+COLOUR_CHANNELS = ("R", "G", "B", "Y")
+
+
+def default_channel_names(count):
+    return {1: ["Y"], 2: ["Y", "A"], 3: ["R", "G", "B"], 4: ["R", "G", "B", "A"]}.get(
+        count, [f"channel{i}" for i in range(count)])
+
+
+def display_encoded(pixels, channel_names):
+    """What integer formats store: straight colour, sRGB-encoded, everything clamped to [0, 1] (which
+    OpenImageIO quantises to the integer range)."""
+    colour = [index for index, name in enumerate(channel_names) if name in COLOUR_CHANNELS]
+    encoded = pixels.copy()
+    if "A" in channel_names:
+        alpha = pixels[:, :, channel_names.index("A")][:, :, None]
+        encoded[:, :, colour] = np.divide(pixels[:, :, colour], alpha, where=alpha > 0,
+                                          out=np.zeros_like(pixels[:, :, colour]))
+    encoded[:, :, colour] = srgb_encode(encoded[:, :, colour])
+    return np.clip(encoded, 0.0, 1.0)
+
+
+def write_image(filepath, pixels, channel_names=None):
+    """Write `pixels`, float32 (height, width, channels) with row 0 on top, to `filepath`; the
+    extension picks the format (see the table above). Channels are named R, G, B, A (or Y, A) unless
+    `channel_names` says otherwise; integer formats encode only R, G, B and Y."""
+    oiio = _oiio()
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    height, width, count = pixels.shape
+    channel_names = list(channel_names or default_channel_names(count))
+    if len(channel_names) != count:
+        raise ValueError(f"{count} channels but {len(channel_names)} channel names")
+
+    extension = os.path.splitext(filepath)[1].lower()
+    if extension not in FORMATS:
+        raise ValueError(f"'{filepath}': unsupported image format, use one of {', '.join(FORMATS)}")
+    pixel_type = FORMATS[extension]
+    spec = oiio.ImageSpec(width, height, count, pixel_type)
+    spec.channelnames = tuple(channel_names)
+    if "A" in channel_names:
+        spec.alpha_channel = channel_names.index("A")
+    if pixel_type != "float":
+        pixels = display_encoded(pixels, channel_names)
+        spec.attribute("oiio:UnassociatedAlpha", 1)  # already straight: OpenImageIO must not divide again
+
+    # Beside the destination, so the rename cannot cross file systems; the extension tells
+    # OpenImageIO the format.
+    directory, name = os.path.split(os.path.abspath(filepath))
+    temporary = os.path.join(directory, f".{name}.{os.getpid()}.{uuid.uuid4().hex[:8]}{extension}")
+    try:
+        output = oiio.ImageOutput.create(temporary)
+        if output is None or not output.open(temporary, spec):
+            raise OSError(f"'{filepath}': {oiio.geterror()}")
+        ok = output.write_image(pixels)
+        ok = output.close() and ok
+        if not ok:
+            raise OSError(f"'{filepath}': {output.geterror()}")
+        os.replace(temporary, filepath)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.remove(temporary)
+        raise
+
+
+def read_passes(filepath):
+    """The channels of an image grouped by pass: {"Layer.Pass": float32 (height, width, channels)} for
+    multi-layer OpenEXR channels named "Layer.Pass.C", {"": ...} for plain R, G, B, A; row 0 on top.
+    Values are as stored: integer formats give straight, sRGB-encoded colour in [0, 1]."""
+    oiio = _oiio()
+    as_stored = oiio.ImageSpec()
+    as_stored.attribute("oiio:UnassociatedAlpha", 1)
+    image = oiio.ImageInput.open(filepath, as_stored)
+    if image is None:
+        raise OSError(f"'{filepath}': {oiio.geterror()}")
+    channels = {}
+    try:
+        subimage = 0
+        while image.seek_subimage(subimage, 0):
+            spec = image.spec()
+            pixels = np.asarray(image.read_image("float"), dtype=np.float32)
+            pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
+            for index, name in enumerate(spec.channelnames):
+                channels[name] = pixels[:, :, index]
+            subimage += 1
+    finally:
+        image.close()
+
+    passes = {}
+    for name, values in channels.items():
+        passes.setdefault(name.rpartition(".")[0], []).append(values)
+    return {name: np.stack(values, axis=-1) for name, values in passes.items()}
+
+
+def render_result_passes(scene):
+    """The passes of Blender's last render ("Render Result"), read back through a temporary multi-layer
+    OpenEXR file: {"ViewLayer.Combined": ..., "ViewLayer.XRay": ..., "Composite.Combined": ...}."""
+    image = bpy.data.images["Render Result"]
+    render = scene.render
+    settings = render.image_settings
+    saved = (settings.media_type, settings.file_format, settings.color_depth,
+             render.pixel_aspect_x, render.pixel_aspect_y)
+    directory = tempfile.mkdtemp(prefix="pcvr-")
+    filepath = os.path.join(directory, "result.exr")
+    try:
+        settings.media_type = 'MULTI_LAYER_IMAGE'
+        settings.color_depth = '32'
+        # Blender 5.0 fails to write multi-part files whose pixel aspect is not 1 ("Conflicting
+        # attributes found for header"); the pixels are the same either way.
+        render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+        image.save_render(filepath, scene=scene)
+        return read_passes(filepath)
+    finally:
+        (settings.media_type, settings.file_format, settings.color_depth,
+         render.pixel_aspect_x, render.pixel_aspect_y) = saved
+        if os.path.exists(filepath):
+            os.remove(filepath)
+        os.rmdir(directory)

@@ -1,0 +1,103 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+import bpy
+import numpy as np
+from bpy.props import FloatProperty
+from bpy.types import Operator
+from mathutils import Matrix
+
+from . import engine
+from .volumes import KERNEL_RADIUS_VOXELS
+
+
+class PCVR_OT_frame_volume(Operator):
+    """Point the scene camera straight down at the active volume, orthographic, sized so that one voxel
+    spans the given number of pixels"""
+    bl_idname = "pcvr.frame_volume"
+    bl_label = "Frame Volume"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    magnification: FloatProperty(
+        name="Magnification",
+        description="Pixels per voxel",
+        min=0.01, soft_min=0.25, soft_max=32.0,
+        default=4.0,
+    )
+
+    def execute(self, context):
+        obj = context.active_object
+        if obj is None or obj.type != 'VOLUME':
+            self.report({'ERROR'}, "The active object is not a volume")
+            return {'CANCELLED'}
+        try:
+            grid = engine.object_grid(context.evaluated_depsgraph_get(), obj)
+        except (OSError, ValueError, RuntimeError, MemoryError, ImportError) as ex:
+            self.report({'ERROR'}, f"Volume object '{obj.name}': {ex}")
+            return {'CANCELLED'}
+        if grid.active_voxel_count == 0:
+            self.report({'ERROR'}, f"Volume object '{obj.name}' has no active voxels")
+            return {'CANCELLED'}
+
+        index_to_world = np.asarray(grid.index_to_world)
+        # Pixels follow the grid's first axis; the image is exact for grids aligned with world X and Y.
+        voxel_size = float(np.linalg.norm(index_to_world[:3, 0]))
+        lo, hi = _world_bounds(index_to_world, *grid.index_bbox)
+
+        # Room for the splat kernels of the outermost voxels on every side.
+        margin = 2 * KERNEL_RADIUS_VOXELS * voxel_size
+        width = max(1, round((hi[0] - lo[0] + margin) / voxel_size * self.magnification))
+        height = max(1, round((hi[1] - lo[1] + margin) / voxel_size * self.magnification))
+        depth = hi[2] - lo[2]
+
+        scene = context.scene
+        render = scene.render
+        render.resolution_x, render.resolution_y = width, height
+        render.resolution_percentage = 100
+        render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+
+        camera_object = _scene_camera(context)
+        cam = camera_object.data
+        cam.type = 'ORTHO'
+        cam.sensor_fit = 'AUTO'  # ortho_scale spans the larger side of the image
+        cam.ortho_scale = max(width, height) / self.magnification * voxel_size
+        cam.shift_x = cam.shift_y = 0.0
+        # Every voxel centre must lie between the clip planes.
+        cam.clip_start = margin
+        cam.clip_end = 3 * margin + depth
+        centre = (lo + hi) / 2
+        camera_object.matrix_world = Matrix.Translation((centre[0], centre[1], hi[2] + 2 * margin))
+        return {'FINISHED'}
+
+
+def _world_bounds(index_to_world, index_min, index_max):
+    """World-space bounds of the voxels from index_min to index_max (inclusive), cells included."""
+    lo, hi = np.asarray(index_min) - 0.5, np.asarray(index_max) + 0.5
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    world = (index_to_world @ corners.T)[:3].T
+    return world.min(axis=0), world.max(axis=0)
+
+
+def _scene_camera(context):
+    """The scene camera, created when the scene has none."""
+    scene = context.scene
+    if scene.camera is not None and scene.camera.type == 'CAMERA':
+        return scene.camera
+    camera_object = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera_object)
+    scene.camera = camera_object
+    return camera_object
+
+
+classes = (
+    PCVR_OT_frame_volume,
+)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

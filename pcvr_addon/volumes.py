@@ -1,0 +1,108 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""Scene translation: the volume instances a render sees, found before any voxel is read.
+
+Every volume instance of the evaluated depsgraph counts (plain objects, collection instances,
+geometry-node instances). A volume that comes unchanged from a file is read from that file (Blender's
+`frame_filepath` already resolves sequences and frame offsets); one that modifiers or geometry nodes
+made or changed is exported to a temporary file first.
+"""
+
+import os
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+# Splat kernels reach this many voxels beyond a voxel centre (the Gaussians' radius).
+KERNEL_RADIUS_VOXELS = 2.0
+
+
+@dataclass
+class VolumeSource:
+    """One volume instance to render."""
+    name: str                     # object name, for messages
+    volume: bpy.types.Volume      # evaluated volume data
+    filepath: str                 # absolute path of the unchanged file, or "" for a procedural volume
+    grid_name: str | None         # None: 'density', or else the first float grid
+    object_to_world: np.ndarray   # (4, 4)
+    density_scale: float
+    error: str                    # why Blender could not load the file, "" when it could
+
+
+def _file_of(obj, volume):
+    """The file the evaluated volume comes from unchanged, or "" when modifiers made or changed it."""
+    if volume.packed_file or any(modifier.show_render for modifier in obj.original.modifiers):
+        return ""
+    filepath = volume.grids.frame_filepath
+    if not filepath:
+        return ""
+    return os.path.normpath(bpy.path.abspath(filepath, library=volume.original.library))
+
+
+def _load_error(volume):
+    if len(volume.grids) or not volume.grids.error_message:
+        return ""
+    filepath = bpy.path.abspath(volume.filepath, library=volume.original.library)
+    return f"cannot load '{filepath}': {volume.grids.error_message}"
+
+
+def source_of(obj, matrix_world):
+    """The source of the evaluated volume object `obj` placed at `matrix_world`."""
+    volume = obj.data
+    settings = volume.pcvr
+    return VolumeSource(
+        name=obj.name,
+        volume=volume,
+        filepath=_file_of(obj, volume),
+        grid_name=settings.grid or None,
+        object_to_world=np.array(matrix_world, dtype=np.float64),
+        density_scale=settings.density_scale,
+        error=_load_error(volume),
+    )
+
+
+def _world_corners(obj, volume, object_to_world):
+    """The corners of the object's bounding box grown by the kernel radius, in world space."""
+    corners = np.array([tuple(corner) for corner in obj.bound_box], dtype=np.float64)
+    # A kernel ball maps to an ellipsoid in object space, whose half extent along each object axis is
+    # the radius times the length of that row of the index-to-object matrix.
+    row_lengths = [np.linalg.norm(np.array(grid.matrix_object)[:3, :3], axis=1) for grid in volume.grids]
+    margin = KERNEL_RADIUS_VOXELS * np.max(row_lengths, axis=0)
+    lo, hi = corners.min(axis=0) - margin, corners.max(axis=0) + margin
+    box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return (object_to_world[:3, :3] @ box.T).T + object_to_world[:3, 3]
+
+
+def in_view(depsgraph, view):
+    """Every volume instance that is visible in the render and may reach `view` (a CameraView)."""
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.type != 'VOLUME' or not instance.show_self:
+            continue
+        # Render depsgraphs leave these out already; the viewport depsgraph of the interface does not.
+        if obj.original.hide_render:
+            continue
+        source = source_of(obj, instance.matrix_world)
+        if len(source.volume.grids) == 0:
+            # Empty (e.g. a sequence outside its frame range), or failed to load: pass on the error.
+            if source.error:
+                yield source
+            continue
+        if view.sees_box(_world_corners(obj, source.volume, source.object_to_world)):
+            yield source
+
+
+@contextmanager
+def exported_grids(volume):
+    """The grids of the evaluated `volume` saved to a temporary .vdb file, removed afterwards."""
+    fd, filepath = tempfile.mkstemp(prefix="pcvr_", suffix=".vdb")
+    os.close(fd)
+    try:
+        if not volume.grids.save(filepath):
+            raise OSError(volume.grids.error_message or "Blender could not save the evaluated grids")
+        yield filepath
+    finally:
+        os.remove(filepath)

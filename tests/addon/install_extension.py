@@ -1,0 +1,38 @@
+"""Install the packaged extension the way Blender's Extensions preferences do, enable it and render.
+
+Run by test_extension.py in a fresh process whose BLENDER_USER_RESOURCES points at a temporary
+folder, so nothing lands in the user's own Blender configuration:
+
+    python install_extension.py ARCHIVE WORK_DIR
+"""
+
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+import blender_scenes as bs
+
+MODULE = "bl_ext.pcvr_test.pcvr"
+
+
+def main(archive, work_dir):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    repos = bpy.context.preferences.extensions.repos
+    repos.new(name="PCVR Test", module="pcvr_test", custom_directory=str(work_dir / "repo"), source='USER')
+    bpy.ops.extensions.package_install_files(filepath=str(archive), repo="pcvr_test", enable_on_install=True)
+    assert MODULE in bpy.context.preferences.addons, "the extension was installed but not enabled"
+
+    scene = bs.setup(48, 40)
+    bs.add_camera(location=(0.2, -3.0, 1.0), lens=35.0, rotation=(1.25, 0.0, 0.05))
+    obj = bs.add_volume("Blob", bs.write_vdb(work_dir / "blob.vdb", bs.blob(np.random.default_rng(7))))
+    bs.assert_matches(bs.xray(bs.render(scene)), bs.exact(bs.world_grid(obj)))
+    assert f"{MODULE}.engine" in sys.modules, "the render did not go through the installed extension"
+
+    bpy.ops.preferences.addon_disable(module=MODULE)
+    print("installed, enabled and rendered")
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), Path(sys.argv[2]))

@@ -1,0 +1,81 @@
+"""python -m pcvr_addon render: .vdb and .blend inputs to .exr, .png and .tif."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import blender_scenes as bs
+from pcvr_addon import image_io
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def pcvr(*args):
+    run = subprocess.run([sys.executable, "-m", "pcvr_addon", "render", *map(str, args)],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    return run
+
+
+def check(run):
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
+@pytest.fixture
+def box_vdb(tmp_path):
+    return bs.write_vdb(tmp_path / "box.vdb", bs.box())
+
+
+def test_vdb_to_exr_and_png(tmp_path, box_vdb):
+    check(pcvr(box_vdb, "-o", tmp_path / "box.exr", "--magnification", 2, "--method", "regular", "--gain", 2))
+    exr = image_io.read_passes(str(tmp_path / "box.exr"))[""]
+    assert exr.shape == (24, 24, 5)  # R, G, B, A, XRay; 8 voxels + 2 * 2 of room, 2 pixels each
+    integral = exr[:, :, 4]
+    # Density 1 through 8 voxels of 0.1: 0.8 in the middle.
+    assert integral[12, 12] == pytest.approx(0.8, rel=1e-2)
+    np.testing.assert_allclose(exr[:, :, 0], 1 - np.exp(-2 * integral), atol=1e-6)
+
+    check(pcvr(box_vdb, "-o", tmp_path / "box.png", "--magnification", 2, "--method", "regular", "--gain", 2))
+    png = image_io.read_passes(str(tmp_path / "box.png"))[""]
+    assert png.shape == (24, 24, 4)
+    np.testing.assert_allclose(png[:, :, :3], image_io.srgb_encode(exr[:, :, :3]), atol=0.6 / 255)
+    assert not [name for name in os.listdir(tmp_path) if name.startswith(".")], "a temporary file was left"
+
+
+def test_blend_with_its_own_camera(tmp_path, rng):
+    bs.setup(64, 64)
+    camera = bs.add_camera(location=(0.2, -3.0, 1.0), rotation=(1.25, 0.0, 0.05), lens=35.0)
+    obj = bs.add_volume("Blob", bs.write_vdb(tmp_path / "blob.vdb", bs.blob(rng)), rotation=(0.3, 0.1, 0.0))
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"), copy=True)
+    reference = bs.exact(bs.world_grid(obj), bs.reference_camera(width=40, height=30))
+
+    check(pcvr(tmp_path / "scene.blend", "-o", tmp_path / "scene.exr", "--method", "regular",
+               "--resolution", "40x30"))
+    bs.assert_matches(image_io.read_passes(str(tmp_path / "scene.exr"))[""][:, :, 4], reference)
+
+    check(pcvr(tmp_path / "scene.blend", "-o", tmp_path / "scene.tif", "--resolution", "40x30"))
+    assert image_io.read_passes(str(tmp_path / "scene.tif"))[""].shape == (30, 40, 4)
+    assert camera.name == "Camera"
+
+
+def test_bad_arguments(tmp_path, box_vdb):
+    run = pcvr(tmp_path / "nothing.vdb", "-o", tmp_path / "out.exr")
+    assert run.returncode == 2 and "does not exist" in run.stderr
+    run = pcvr(box_vdb, "-o", tmp_path / "out.exr", "--resolution", "40x30")
+    assert run.returncode == 2 and "--magnification" in run.stderr
+    run = pcvr(box_vdb, "-o", tmp_path / "out.jpg")
+    assert run.returncode == 2 and not (tmp_path / "out.jpg").exists()
+
+
+def test_numbered_vdb_is_a_sequence(tmp_path):
+    for number, density in ((10, 1.0), (11, 3.0), (12, 2.0)):
+        bs.write_vdb(tmp_path / f"fire_{number:04d}.vdb", bs.box(density=density))
+    for args, density in (((), 1.0), (("--frame", 11), 3.0)):
+        check(pcvr(tmp_path / "fire_0010.vdb", "-o", tmp_path / "fire.exr", "--magnification", 2,
+                   "--method", "regular", *args))
+        integral = image_io.read_passes(str(tmp_path / "fire.exr"))[""][:, :, 4]
+        assert integral[12, 12] == pytest.approx(0.8 * density, rel=1e-2)

@@ -1,0 +1,60 @@
+"""pcvr.frame_volume: an orthographic camera from above at a given number of pixels per voxel."""
+
+import bpy
+import numpy as np
+import pcvr_native as pn
+import pytest
+
+import blender_scenes as bs
+
+
+@pytest.fixture
+def box_object(tmp_path):
+    obj = bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
+    bpy.context.view_layer.objects.active = obj
+    return obj
+
+
+def test_one_voxel_spans_magnification_pixels(box_object):
+    scene = bs.setup()
+    bpy.ops.pcvr.frame_volume(magnification=4.0)
+    # 8 active voxels and 2 voxels of room for the kernel on each side.
+    assert (scene.render.resolution_x, scene.render.resolution_y) == (48, 48)
+    if hasattr(pn, "effective_magnification"):
+        low, high = pn.effective_magnification(bs.world_grid(box_object), bs.reference_camera())
+        assert low == pytest.approx(4.0) and high == pytest.approx(4.0)
+
+    before = bs.xray(bs.render(scene))
+    box_object.location.x += 0.1  # one voxel
+    after = bs.xray(bs.render(scene))
+    assert before.max() > 0
+    # Single-precision splatting: equal up to rounding.
+    np.testing.assert_allclose(after[:, 4:], before[:, :-4], rtol=1e-4, atol=1e-5 * before.max())
+
+
+def test_creates_an_orthographic_camera_looking_down(box_object):
+    scene = bpy.context.scene
+    assert scene.camera is None
+    bpy.ops.pcvr.frame_volume(magnification=2.0)
+    camera = scene.camera
+    assert camera.data.type == 'ORTHO'
+    view = np.array(camera.matrix_world)[:3, :3] @ (0.0, 0.0, -1.0)
+    np.testing.assert_allclose(view, (0.0, 0.0, -1.0))
+    assert (scene.render.resolution_x, scene.render.resolution_y) == (24, 24)
+    # Centred on the active voxels, which sit around the origin (index 7.5 of 0..15).
+    np.testing.assert_allclose(np.array(camera.location)[:2], (0.0, 0.0), atol=1e-6)
+
+
+def test_reports_a_non_volume():
+    mesh = bpy.data.objects.new("Mesh", bpy.data.meshes.new("Mesh"))
+    bpy.context.scene.collection.objects.link(mesh)
+    bpy.context.view_layer.objects.active = mesh
+    with pytest.raises(RuntimeError, match="not a volume"):
+        bpy.ops.pcvr.frame_volume()
+
+
+def test_reports_an_unreadable_volume(tmp_path):
+    obj = bs.add_volume("Lost", tmp_path / "lost.vdb")
+    bpy.context.view_layer.objects.active = obj
+    with pytest.raises(RuntimeError, match="Lost.*lost.vdb"):
+        bpy.ops.pcvr.frame_volume()
