@@ -22,8 +22,6 @@ namespace pcvr::python {
 
 namespace {
 
-/// A matrix argument of the grid API: ValueError from the conversion becomes GridError, so every
-/// bad transform (wrong shape, non-finite, singular) raises the same exception type.
 /// numpy's shape tuple as text, e.g. "(4, 4)".
 std::string shape_string(nb::handle arr) {
     const nb::tuple shape(arr.attr("shape"));
@@ -32,6 +30,8 @@ std::string shape_string(nb::handle arr) {
     return s + (nb::len(shape) == 1 ? ",)" : ")");
 }
 
+/// A matrix argument of the grid API: ValueError from the conversion becomes GridError, so every
+/// bad transform (wrong shape, non-finite, singular) raises the same exception type.
 Mat4 grid_matrix(nb::handle obj, const char* what) {
     // The shape is checked here too so its message survives: mat4_from_python formats it with
     // nb::cast<std::string>, which bindings.cpp instantiates without nanobind/stl/string.h (a
@@ -129,8 +129,8 @@ void bind_grid(nb::module_& m) {
         .def_static("from_dense", &from_dense, "values"_a, "index_to_world"_a, "background"_a = 0.0,
                     "name"_a = "density",
                     "Build from a 3-D array indexed [i, j, k] (converted to float32). Voxels equal to\n"
-                    "`background` stay inactive. `index_to_world` is a 4x4 matrix, world = M @ [i, j, k, 1];\n"
-                    "a singular or non-finite one raises GridError.")
+                    "`background` stay inactive. `index_to_world` is a 4x4 matrix, world = M @ [i, j, k, 1].\n"
+                    "A singular or non-finite matrix, or NaN or infinite values, raise GridError.")
         .def(
             "write_vdb",
             [](const Grid& g, const std::filesystem::path& path, const std::string& name, const std::string& compression) {

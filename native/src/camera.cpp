@@ -24,8 +24,8 @@ Camera::Camera(const Mat4& world_to_camera, const Mat4& projection, int width, i
     if (width <= 0 || height <= 0 || width > kMaxSide || height > kMaxSide)
         throw CameraError("invalid camera: image size " + std::to_string(width) + " x " + std::to_string(height) +
                           " (each side must be 1 to " + std::to_string(kMaxSide) + " pixels)");
-    if (!world_to_camera.is_finite() || !projection.is_finite())
-        throw CameraError("invalid camera: a matrix contains a non-finite value");
+    if (!world_to_camera.is_finite()) throw CameraError("invalid camera: world_to_camera contains a non-finite value");
+    if (!projection.is_finite()) throw CameraError("invalid camera: projection contains a non-finite value");
     if (!world_to_camera.inverse())
         throw CameraError("invalid camera: world_to_camera is singular");
     world_to_clip_ = projection * world_to_camera;

@@ -6,7 +6,7 @@
 #include <openvdb/tools/Count.h>
 #include <openvdb/tools/Dense.h>
 
-#include <limits>
+#include <cmath>
 #include <sstream>
 
 #include "pcvr/errors.h"
@@ -94,8 +94,18 @@ Grid Grid::from_dense(const float* values, std::array<size_t, 3> shape, const Ma
     for (size_t n : shape)
         if (n > kMaxDim) throw GridError(context + ": array dimension " + std::to_string(n) + " is too large");
 
+    if (!std::isfinite(background)) throw GridError(context + ": background is not finite");
+    // NaN would silently count as background in copyFromDense, infinity would poison every image.
+    const size_t count = shape[0] * shape[1] * shape[2];
+    for (size_t n = 0; n < count; ++n)
+        if (!std::isfinite(values[n])) {
+            const size_t k = n % shape[2], j = n / shape[2] % shape[1], i = n / (shape[1] * shape[2]);
+            throw GridError(context + ": values contain " + (std::isnan(values[n]) ? "NaN" : "infinity") + " at [" +
+                            std::to_string(i) + ", " + std::to_string(j) + ", " + std::to_string(k) + "]");
+        }
+
     auto grid = vdb::FloatGrid::create(background);
-    if (shape[0] > 0 && shape[1] > 0 && shape[2] > 0) {
+    if (count > 0) {
         const vdb::CoordBBox bbox(vdb::Coord(0), vdb::Coord(int(shape[0]) - 1, int(shape[1]) - 1, int(shape[2]) - 1));
         // LayoutZYX: k fastest, i.e. a C-order numpy array indexed [i, j, k]. copyFromDense only reads
         // the array; Dense merely lacks a const-data constructor.
@@ -154,8 +164,7 @@ std::vector<VoxelBlock> build_blocks(const vdb::FloatTree& tree, const std::stri
         VoxelBlock b;
         b.constant = *it;
         b.mask.fill(~uint64_t(0));
-        // Tiles are node-aligned, so their extent is a whole number of 8^3 chunks.
-        // 64-bit counters: a tile may end at INT32_MAX.
+        // A tile spans whole 8^3 chunks (it replaces a node). 64-bit counters: it may end at INT32_MAX.
         for (int64_t x = box.min().x(); x <= box.max().x(); x += VoxelBlock::kDim)
             for (int64_t y = box.min().y(); y <= box.max().y(); y += VoxelBlock::kDim)
                 for (int64_t z = box.min().z(); z <= box.max().z(); z += VoxelBlock::kDim) {

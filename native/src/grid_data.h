@@ -18,7 +18,8 @@ namespace pcvr {
 
 struct Grid::Data {
     /// Never modified after construction, so any number of threads may read it. Leaf buffers are
-    /// fully loaded (no delayed loading): VoxelBlock::values point straight into them.
+    /// fully loaded (no delayed loading): VoxelBlock::values point straight into them. No
+    /// ValueAccessor is kept here: accessors cache nodes and are not thread-safe, one per thread.
     openvdb::FloatGrid::ConstPtr vdb;
     std::string source_path;  ///< empty for grids built in memory
 

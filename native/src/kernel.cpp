@@ -23,7 +23,7 @@ double gauss_alpha(KernelShape s) { return s == KernelShape::Gauss14 ? 1.4 : 2.0
 bool is_gauss(KernelShape s) { return s == KernelShape::Gauss14 || s == KernelShape::Gauss20; }
 
 double raw_profile(KernelShape s, double r, double radius) {
-    if (r >= radius) return 0.0;
+    if (r > radius) return 0.0;  // inclusive, so that integrating up to the radius sees its end value
     if (is_gauss(s)) return std::exp(-gauss_alpha(s) * r * r);
     if (s == KernelShape::Linear) return 1.0 - r / radius;
     return 1.0;

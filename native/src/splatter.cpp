@@ -114,13 +114,14 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 #endif
 }
 
-/// The same from a phase table: one load of 16 weights, four row updates. `out` is the top-left tap.
+/// The same from a phase table: 16 interpolated weights, four row updates. `out` is the top-left tap.
 inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    const float* w = table.weights(fx, fy);
+    alignas(32) float w[16];
+    table.weights(fx, fy, w);
 #ifdef PCVR_AVX2
     const __m256d a = _mm256_set1_pd(amp);
     for (int j = 0; j < 4; ++j, out += pitch)
-        _mm256_storeu_pd(out, _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(w + 4 * j)), a, _mm256_loadu_pd(out)));
+        _mm256_storeu_pd(out, _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_load_ps(w + 4 * j)), a, _mm256_loadu_pd(out)));
 #else
     for (int j = 0; j < 4; ++j, out += pitch)
         for (int i = 0; i < 4; ++i) out[i] += double(amp) * w[4 * j + i];
@@ -267,7 +268,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     std::optional<PhaseFootprintTable> phases;
     if (view.orthographic()) {
         ortho = orthographic_setup(view, target, params);
-        if (params.mode == SplatMode::Footprint && ortho->shape.ext_x <= 2.0f && ortho->shape.ext_y <= 2.0f)
+        if (params.mode == SplatMode::Footprint && params.kernel->smooth_footprint() && ortho->shape.ext_x <= 2.0f &&
+            ortho->shape.ext_y <= 2.0f)
             phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy);
     }
 

@@ -556,16 +556,18 @@ vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src) {
     return out;
 }
 
+GridError unsupported_value_type(const std::string& type, const std::string& context) {
+    const bool vector = type.rfind("vec", 0) == 0;
+    return GridError(context + " has value type " + type +
+                     (vector ? ": vector grids are not supported" : ", which is not supported") +
+                     " (need a scalar density grid)");
+}
+
 /// The grid as a float fog volume, or GridError for value types we cannot render.
 vdb::FloatGrid::Ptr to_float_fog(const vdb::GridBase::Ptr& grid, const std::string& context) {
     vdb::FloatGrid::Ptr out = vdb::gridPtrCast<vdb::FloatGrid>(grid);
     if (!out) grid->apply<ConvertibleGrids>([&out](const auto& g) { out = convert_to_float(g); });
-    if (!out) {
-        const std::string type = grid->valueType();
-        if (type.rfind("vec", 0) == 0)
-            throw GridError(context + " has value type " + type + ": vector grids are not supported (need a scalar density grid)");
-        throw GridError(context + " has value type " + type + ", which is not supported (need a scalar density grid)");
-    }
+    if (!out) throw unsupported_value_type(grid->valueType(), context);
     if (out->getGridClass() == vdb::GRID_LEVEL_SET) {
         vdb::tools::sdfToFogVolume(*out);  // also sets the class to fog volume
         out->insertMeta("pcvr_converted_from", vdb::StringMetadata("level set"));
@@ -633,12 +635,7 @@ Grid read_vdb(const std::string& path, const std::string& grid_name) {
         const std::string name = Reader::display_name(reader.entries()[index]);
         const std::string context = "grid " + quoted(name) + " in " + quoted(path);
         // Check the type before reading voxels: a vector grid is refused without loading it.
-        if (!reader.entries()[index].scalar) {
-            const std::string type = reader.entries()[index].value_type;
-            if (type.rfind("vec", 0) == 0)
-                throw GridError(context + " has value type " + type + ": vector grids are not supported (need a scalar density grid)");
-            throw GridError(context + " has value type " + type + ", which is not supported (need a scalar density grid)");
-        }
+        if (!reader.entries()[index].scalar) throw unsupported_value_type(reader.entries()[index].value_type, context);
         vdb::FloatGrid::Ptr grid = to_float_fog(reader.read_grid(index), context);
         return detail::make_grid(grid, path, name, context);
     });

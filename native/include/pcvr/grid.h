@@ -39,7 +39,8 @@ enum class VdbCompression { Blosc, Zip, None };
 class Grid {
 public:
     /// Build from a dense float32 array indexed [i][j][k] (C order, i slowest). Voxels equal to
-    /// `background` stay inactive. Throws GridError on a singular or non-affine transform.
+    /// `background` stay inactive. Throws GridError on a singular or non-affine transform and on
+    /// non-finite values.
     static Grid from_dense(const float* values, std::array<size_t, 3> shape, const Mat4& index_to_world,
                            float background, const std::string& name = "density");
 

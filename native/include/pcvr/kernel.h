@@ -37,6 +37,9 @@ public:
     double line_integral(double rho) const;
     /// Per-axis second moment, index units^2 (how much the kernel blurs).
     double variance() const { return variance_; }
+    /// False for the box, whose footprint 2 sqrt(R^2 - rho^2) has an infinite slope at its rim:
+    /// interpolating between tabulated phases would smear it, so it is always evaluated per tap.
+    bool smooth_footprint() const { return shape_ != KernelShape::Box; }
 
 private:
     KernelShape shape_;

@@ -1,0 +1,257 @@
+"""Every X-ray method against the exact reference on small volumes, over projections, transforms and
+magnifications.
+
+What each comparison may differ by, and why:
+
+* regular vs exact: both evaluate the same footprint at the same pixel centres; regular reads it from a
+  table, and in perspective linearises the projection per voxel: conftest.regular_tolerance (2e-3
+  orthographic, plus (kernel radius / nearest depth)^2 in perspective).
+* pcvr vs its numpy model: pcvr(x) = sum over subgrid nodes n of S(n) w(x - n) with S the splatted
+  subgrid samples. The post-convolution is checked alone against the samples pcvr itself produced (float
+  rounding, 1e-5), the samples against exact (the regular tolerance: the splat may use other tables than
+  regular does), and the whole against exact sampled and post-convolved in numpy (regular tolerance).
+* pcvr vs exact: the post-filter's blur. conftest.taylor_pcvr_error predicts it from the exact image's
+  derivatives (second-order Taylor expansion with the filter's per-phase moments: bilinear adds
+  L^2 t (1 - t) px^2 at phase t, on average L^2 / 6; the Gaussians ~ L^2 / (2a)). The threshold is twice
+  that prediction's RMS (the expansion drops 4th-order terms, which for a volume with content up to its
+  Nyquist frequency are at most ~(pi/2)^2 / 12 ~ 20% of the 2nd-order ones, and the rest of the
+  factor covers the phase-dependent aliasing of the subgrid), plus the regular tolerance.
+* bilinear_spread: no accuracy claim against exact (it aliases, see test_xray_aliasing); it must be finite,
+  conserve mass exactly and match its numpy model (conftest.predict_bilinear_spread) to float rounding.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import pcvr_native as pn
+from pcvr_native import phantoms
+
+from conftest import (LINEAR_PARTS, POST_FILTERS, REGULAR_TOL, frame_ortho, frame_perspective, image_mass,
+                      post_matrix, predict_bilinear_spread, predict_pcvr, regular_tolerance, rel_rmse, render,
+                      taylor_pcvr_error, volume_mass)
+
+PREDICTION_TOL = 1e-5   # a numpy model of the same arithmetic: float32 rounding only
+TAYLOR_SAFETY = 2.0
+
+# (id, linear part of index_to_world, magnification, projection, view direction)
+CASES = [
+    ("ortho-identity-m1", "identity", 1.0, "ortho", (0.0, 0.0, -1.0)),
+    ("ortho-identity-m2", "identity", 2.0, "ortho", (0.2, 0.1, -1.0)),
+    ("ortho-identity-m2.5", "identity", 2.5, "ortho", (0.0, 0.0, -1.0)),
+    ("ortho-rotated-m3", "rotated", 3.0, "ortho", (0.3, -0.5, -1.0)),
+    ("ortho-sheared-m4", "sheared", 4.0, "ortho", (-0.4, 0.2, -1.0)),
+    ("ortho-scaled-m2", "scaled", 2.0, "ortho", (1.0, 0.3, -0.2)),
+    ("ortho-mirrored-m4", "mirrored", 4.0, "ortho", (0.5, 0.5, -1.0)),
+    ("ortho-identity-m8", "identity", 8.0, "ortho", (0.1, -0.2, -1.0)),
+    ("persp-identity-m4", "identity", 4.0, "persp", (0.0, 0.0, -1.0)),
+    ("persp-rotated-m3", "rotated", 3.0, "persp", (0.3, -0.5, -1.0)),
+    ("persp-sheared-m2", "sheared", 2.0, "persp", (-0.4, 0.2, -1.0)),
+    ("persp-mirrored-m2.5", "mirrored", 2.5, "persp", (0.5, 0.5, -1.0)),
+]
+CASE_IDS = [c[0] for c in CASES]
+N = 12
+
+
+def make_volume(seed: int = 7):
+    """Smooth positive noise plus white noise, a quarter of the voxels zeroed (inactive): content up to
+    the volume's Nyquist frequency, and holes in the blocks."""
+    rng = np.random.default_rng(seed)
+    smooth = phantoms.dense_volume(N, seed).values
+    values = smooth + 0.3 * rng.random((N, N, N), dtype=np.float32)
+    values[rng.random((N, N, N)) < 0.25] = 0.0
+    return values.astype(np.float32)
+
+
+def fixed_stride(mag: float) -> int:
+    return max(1, int(math.floor(mag + 1e-9)))
+
+
+_cache: dict = {}
+
+
+def case_data(case_id: str):
+    """Renders shared by the tests of one case (computed once per session)."""
+    if case_id in _cache:
+        return _cache[case_id]
+    _, lin, mag, proj, direction = next(c for c in CASES if c[0] == case_id)
+    values = make_volume()
+    xf = phantoms.centred_transform(values.shape, 0.5, LINEAR_PARTS[lin])
+    grid = pn.Grid.from_dense(values, xf)
+    if proj == "ortho":
+        cam = frame_ortho((values, xf), mag, direction, offset=(0.3, 0.17))
+        stride = fixed_stride(mag)
+    else:
+        cam = frame_perspective((values, xf), mag, direction, distance=4.0)
+        # The stride every depth band can take: that of the least magnified (farthest) voxels.
+        stride = fixed_stride(pn.effective_magnification(grid, cam.camera())[0])
+    pad = 2 * stride
+    big = cam.padded(pad)
+    exact_big = render(grid, big, "exact")
+    regular_big = render(grid, big, "regular")
+    inner = (slice(pad, pad + cam.height), slice(pad, pad + cam.width))
+    data = dict(values=values, xf=xf, grid=grid, cam=cam, mag=mag, proj=proj, stride=stride, pad=pad,
+                tol=regular_tolerance(values, xf, cam),
+                exact_big=exact_big, regular_big=regular_big, exact=exact_big[inner], regular=regular_big[inner])
+    _cache[case_id] = data
+    return data
+
+
+@pytest.mark.parametrize("case_id", CASE_IDS)
+def test_regular_matches_exact(case_id):
+    d = case_data(case_id)
+    err = rel_rmse(d["regular"], d["exact"])
+    tol = d["tol"]
+    assert err < tol, f"{case_id}: regular vs exact rel RMSE {err:.2e} >= {tol:.1e}"
+
+
+def test_exact_is_local_per_pixel():
+    """Padding the image does not change the pixels it shares with the smaller one (the premise of the
+    padded renders the pcvr model is built from)."""
+    d = case_data("ortho-rotated-m3")
+    small = render(d["grid"], d["cam"], "exact")
+    np.testing.assert_allclose(small, d["exact"], rtol=1e-6, atol=1e-7 * np.abs(small).max())
+
+
+@pytest.mark.parametrize("kernel", ["gauss1.4", "gauss2.0", "linear", "box"])
+def test_regular_matches_exact_every_kernel(kernel):
+    # Linear's footprint has a logarithmic slope at its centre and box's an infinite one at its rim, so a
+    # nearest-sample table is worse there; measured ~1e-3 and ~3e-3, bounded at 2.5x and 2x.
+    tol = {"gauss1.4": REGULAR_TOL, "gauss2.0": REGULAR_TOL, "linear": 3e-3, "box": 6e-3}[kernel]
+    d = case_data("ortho-rotated-m3")
+    exact = render(d["grid"], d["cam"], "exact", kernel)
+    regular = render(d["grid"], d["cam"], "regular", kernel)
+    err = rel_rmse(regular, exact)
+    assert err < tol, f"{kernel}: regular vs exact rel RMSE {err:.2e} >= {tol:.0e}"
+
+
+@pytest.mark.parametrize("post", POST_FILTERS)
+@pytest.mark.parametrize("case_id", CASE_IDS)
+def test_post_convolution_is_exact(case_id, post):
+    """The second stage alone. With the bilinear filter a pixel on a node (L i, L j) holds that node's
+    value, so pcvr(bilinear)[::L, ::L] are the subgrid samples; every filter's output must then be the
+    numpy post-convolution of those samples (pixels whose filter taps all lie inside the image), to
+    float32 rounding."""
+    d = case_data(case_id)
+    cam, stride = d["cam"], d["stride"]
+    nodes = render(d["grid"], cam, "pcvr", post="bilinear", stride=stride)[::stride, ::stride]
+    img = render(d["grid"], cam, "pcvr", post=post, stride=stride)
+    ny, nx = nodes.shape
+    model = (post_matrix(post, stride, cam.height, np.arange(ny)) @ nodes
+             @ post_matrix(post, stride, cam.width, np.arange(nx)).T)
+    rows = slice(2 * stride, stride * (ny - 1) - 2 * stride + 1)
+    cols = slice(2 * stride, stride * (nx - 1) - 2 * stride + 1)
+    err = np.abs(img[rows, cols] - model[rows, cols]).max() / np.abs(img).max()
+    assert err < PREDICTION_TOL, f"{case_id}/{post} stride {stride}: post-convolution off by {err:.2e} of the peak"
+
+
+@pytest.mark.parametrize("case_id", CASE_IDS)
+def test_pcvr_subgrid_samples_are_exact(case_id):
+    """The first stage alone: the subgrid samples (pixels (L i, L j), rows from the top) are the exact
+    image there, to the footprint table's accuracy."""
+    d = case_data(case_id)
+    stride = d["stride"]
+    nodes = render(d["grid"], d["cam"], "pcvr", post="bilinear", stride=stride)[::stride, ::stride]
+    err = rel_rmse(nodes, d["exact"][::stride, ::stride])
+    assert err < d["tol"], f"{case_id} stride {stride}: subgrid samples vs exact {err:.2e} >= {d['tol']:.1e}"
+
+
+@pytest.mark.parametrize("post", POST_FILTERS)
+@pytest.mark.parametrize("case_id", CASE_IDS)
+def test_pcvr_matches_post_convolution_model(case_id, post):
+    """Both stages: pcvr vs the exact image sampled at the nodes and post-convolved in numpy (with a
+    padded exact render, so the image borders are checked too)."""
+    d = case_data(case_id)
+    cam, stride = d["cam"], d["stride"]
+    pcvr = render(d["grid"], cam, "pcvr", post=post, stride=stride)
+    model_exact = predict_pcvr(d["exact_big"], d["pad"], stride, post, cam.height, cam.width)
+    err = rel_rmse(pcvr, model_exact)
+    assert err < d["tol"], f"{case_id}/{post} stride {stride}: pcvr vs model(exact) {err:.2e} >= {d['tol']:.1e}"
+
+
+@pytest.mark.parametrize("post", POST_FILTERS)
+@pytest.mark.parametrize("case_id", CASE_IDS)
+def test_pcvr_error_is_the_post_filter_blur(case_id, post):
+    """pcvr vs exact within twice the Taylor estimate of the post-filter's blur (automatic stride)."""
+    d = case_data(case_id)
+    stats = {}
+    pcvr = render(d["grid"], d["cam"], "pcvr", post=post, stride=0, stats=stats)
+    largest = max(stats["strides"]) if stats.get("strides") else d["stride"]
+    exact = d["exact"]
+    predicted = taylor_pcvr_error(exact, largest, post)
+    rms_exact = math.sqrt(np.mean(exact ** 2))
+    rmse = math.sqrt(np.mean((pcvr - exact) ** 2))
+    tol_regular = d["tol"]
+    bound = TAYLOR_SAFETY * math.sqrt(np.mean(predicted ** 2)) + tol_regular * rms_exact
+    assert rmse <= bound, (f"{case_id}/{post} strides {stats.get('strides')}: rmse {rmse / rms_exact:.2e} "
+                           f"relative > bound {bound / rms_exact:.2e}")
+
+
+@pytest.mark.parametrize("case_id", [c for c in CASE_IDS if c.startswith("ortho")])
+def test_bilinear_spread_is_finite_and_conserves_mass(case_id):
+    d = case_data(case_id)
+    for post in POST_FILTERS:
+        img = render(d["grid"], d["cam"], "bilinear_spread", post=post)
+        assert np.all(np.isfinite(img))
+        assert img.min() >= -1e-6 * img.max()  # positive weights throughout
+        mass, expected = image_mass(img, d["cam"]), volume_mass(d["values"], d["xf"])
+        # Each voxel's footprint mass goes to 2x2 nodes with weights summing to one, and the
+        # post-filter preserves sums: exact up to float32 accumulation.
+        assert mass == pytest.approx(expected, rel=1e-5), f"{case_id}/{post}"
+
+
+@pytest.mark.parametrize("post", POST_FILTERS)
+@pytest.mark.parametrize("case_id", [c for c in CASE_IDS if c.startswith("ortho")])
+def test_bilinear_spread_matches_its_model(case_id, post):
+    """Orthographic: each voxel's mass at the 2x2 nodes around its projected centre, then the
+    post-filter (conftest.predict_bilinear_spread); only float32 rounding may differ."""
+    d = case_data(case_id)
+    img = render(d["grid"], d["cam"], "bilinear_spread", post=post, stride=d["stride"])
+    model = predict_bilinear_spread(d["values"], d["xf"], d["cam"], d["stride"], post)
+    assert rel_rmse(img, model) < PREDICTION_TOL, f"{case_id}/{post}: {rel_rmse(img, model):.2e}"
+
+
+@pytest.mark.parametrize("mag,expected", [(1.0, 1), (2.0, 2), (2.5, 2), (3.0, 3), (4.0, 4), (8.0, 8), (0.5, 1)])
+@pytest.mark.parametrize("lin,direction", [("identity", (0.0, 0.0, -1.0)), ("rotated", (0.3, -0.5, -1.0))])
+def test_automatic_stride(mag, expected, lin, direction):
+    """Stride 0 takes floor(pixels per voxel) in the least magnified image direction (never below 1), so
+    the subgrid never undersamples the projected voxel spacing; for a uniform grid that is the
+    magnification whatever the rotation."""
+    values = make_volume()
+    xf = phantoms.centred_transform(values.shape, 0.5, LINEAR_PARTS[lin])
+    grid = pn.Grid.from_dense(values, xf)
+    cam = frame_ortho((values, xf), mag, direction)
+    stats = {}
+    auto = render(grid, cam, "pcvr", stride=0, stats=stats)
+    assert stats["strides"] == [expected], f"magnification {mag}: strides {stats['strides']}"
+    fixed = render(grid, cam, "pcvr", stride=expected)
+    np.testing.assert_array_equal(auto, fixed)
+
+
+def test_perspective_strides_follow_depth():
+    """Perspective: near depth bands are more magnified and may take larger strides; none exceeds the
+    floor of the largest magnification, none is below 1."""
+    values = make_volume()
+    xf = phantoms.centred_transform(values.shape, 0.5)
+    grid = pn.Grid.from_dense(values, xf)
+    cam = frame_perspective((values, xf), 4.0, (0.0, 0.0, -1.0), distance=1.6)
+    lo, hi = pn.effective_magnification(grid, cam.camera())
+    assert lo < 4.0 < hi
+    stats = {}
+    render(grid, cam, "pcvr", stride=0, stats=stats)
+    strides = stats["strides"]
+    assert min(strides) >= max(1, math.floor(lo) - 0) and max(strides) <= math.floor(hi + 1e-9), (lo, hi, strides)
+    assert len(set(strides)) >= 2, f"one stride {strides} for magnifications {lo:.2f}..{hi:.2f}"
+
+
+def test_pcvr_at_nodes_equals_regular():
+    """Bilinear post-filter: on subgrid nodes (pixels (L i, L j), rows from the top) pcvr is regular."""
+    d = case_data("ortho-sheared-m4")
+    pcvr = render(d["grid"], d["cam"], "pcvr", post="bilinear", stride=4)
+    scale = np.abs(d["regular"]).max()
+    np.testing.assert_allclose(pcvr[::4, ::4], d["regular"][::4, ::4], rtol=0, atol=1e-5 * scale)
+    off = np.abs(pcvr[2::4, 2::4] - d["regular"][2::4, 2::4]).max()
+    assert off > 1e-4 * scale  # and between nodes it is interpolated, not regular
