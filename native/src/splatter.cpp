@@ -116,15 +116,27 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 
 /// The same from a phase table: 16 interpolated weights, four row updates. `out` is the top-left tap.
 inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    alignas(32) float w[16];
-    table.weights(fx, fy, w);
+    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
 #ifdef PCVR_AVX2
-    const __m256d a = _mm256_set1_pd(amp);
-    for (int j = 0; j < 4; ++j, out += pitch)
-        _mm256_storeu_pd(out, _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_load_ps(w + 4 * j)), a, _mm256_loadu_pd(out)));
+    const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
+    const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
+    for (int half = 0; half < 2; ++half) {  // two rows of four taps per 8-lane vector
+        const int t = 8 * half;
+        const __m256 w = _mm256_fmadd_ps(c3, _mm256_loadu_ps(b.entry[3] + t),
+                         _mm256_fmadd_ps(c2, _mm256_loadu_ps(b.entry[2] + t),
+                         _mm256_fmadd_ps(c1, _mm256_loadu_ps(b.entry[1] + t), _mm256_mul_ps(c0, _mm256_loadu_ps(b.entry[0] + t)))));
+        double* r0 = out + (2 * half) * size_t(pitch);
+        double* r1 = r0 + pitch;
+        _mm256_storeu_pd(r0, _mm256_add_pd(_mm256_loadu_pd(r0), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+        _mm256_storeu_pd(r1, _mm256_add_pd(_mm256_loadu_pd(r1), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+    }
 #else
     for (int j = 0; j < 4; ++j, out += pitch)
-        for (int i = 0; i < 4; ++i) out[i] += double(amp) * w[4 * j + i];
+        for (int i = 0; i < 4; ++i) {
+            const int t = 4 * j + i;
+            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
+                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
+        }
 #endif
 }
 

@@ -24,23 +24,24 @@ public:
     /// The footprint rho^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2 (node units) of `kernel`.
     PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy);
 
-    /// Weights of taps (c - 1 + i, r - 1 + j), i, j in [0, 4), row-major, for a centre at (c + fx, r + fy)
-    /// with integer c, r and fx, fy in [0, 1]: `out` receives 16 floats.
-    void weights(float fx, float fy, float* out) const {
+    /// The four tabulated phases around a centre and their bilinear blend weights.
+    struct Blend {
+        const float* entry[4];  ///< 16 weights each: (px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)
+        float coeff[4];
+    };
+
+    /// For taps (c - 1 + i, r - 1 + j), i, j in [0, 4), of a centre at (c + fx, r + fy) with integer
+    /// c, r and fx, fy in [0, 1].
+    Blend blend(float fx, float fy) const {
         const float sx = fx * kPhases, sy = fy * kPhases;
         const int px = std::min(kPhases - 1, int(sx)), py = std::min(kPhases - 1, int(sy));
         const float ax = sx - px, ay = sy - py;
-        const float* w00 = entry(px, py);
-        const float* w10 = w00 + 16;
-        const float* w01 = w00 + (kPhases + 1) * 16;
-        const float* w11 = w01 + 16;
-        const float c00 = (1 - ax) * (1 - ay), c10 = ax * (1 - ay), c01 = (1 - ax) * ay, c11 = ax * ay;
-        for (int t = 0; t < 16; ++t) out[t] = c00 * w00[t] + c10 * w10[t] + c01 * w01[t] + c11 * w11[t];
+        const float* e = values_.data() + (size_t(py) * (kPhases + 1) + px) * 16;
+        return {{e, e + 16, e + (kPhases + 1) * 16, e + (kPhases + 2) * 16},
+                {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}};
     }
 
 private:
-    const float* entry(int px, int py) const { return values_.data() + (size_t(py) * (kPhases + 1) + px) * 16; }
-
     std::vector<float> values_;
 };
 
