@@ -51,8 +51,11 @@ native: $(VENV)/.native-stamp
 test: $(VENV)/.native-stamp extension
 	$(PY) -m pytest
 
+# The phantom through the native module (timed, checked against exact), then through Blender's
+# PCVR engine by the command line.
 demo: $(VENV)/.native-stamp
 	$(PY) tools/demo.py --output out/demo_xray.png
+	$(PY) -m pcvr_addon render out/phantom.vdb -o out/demo_blender.png --magnification 4
 
 extension: $(VENV)/.native-stamp
 	$(PY) tools/build_extension.py

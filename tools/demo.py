@@ -25,30 +25,9 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 import pcvr_native as pn  # noqa: E402
 from pcvr_native import phantoms  # noqa: E402
+from pcvr_native.cameras import look_at, ortho  # noqa: E402
 
 EXACT_STEP = 7
-
-
-def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """world_to_camera of a camera at `eye` looking at `target` down its -Z axis (Blender's convention)."""
-    eye = np.asarray(eye, dtype=np.float64)
-    forward = np.asarray(target, dtype=np.float64) - eye
-    forward /= np.linalg.norm(forward)
-    x = np.cross(forward, up)
-    x /= np.linalg.norm(x)
-    y = np.cross(x, forward)
-    m = np.eye(4)
-    m[0, :3], m[1, :3], m[2, :3] = x, y, -forward
-    m[:3, 3] = -m[:3, :3] @ eye
-    return m
-
-
-def ortho(left, right, bottom, top, near, far) -> np.ndarray:
-    m = np.diag([2.0 / (right - left), 2.0 / (top - bottom), -2.0 / (far - near), 1.0])
-    m[0, 3] = -(right + left) / (right - left)
-    m[1, 3] = -(top + bottom) / (top - bottom)
-    m[2, 3] = -(far + near) / (far - near)
-    return m
 
 
 def frame(grid, magnification: float, direction) -> "pn.Camera":
