@@ -73,7 +73,7 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
                 column_sums[c] = wy[0] * r[0][c] + wy[1] * r[1][c] + wy[2] * r[2][c] + wy[3] * r[3][c];
 
             // Horizontal pass over the active tiles, pixel by pixel in (node, phase) order.
-            double* out = image.pixels.data() + size_t(y) * image.width;
+            float* out = image.pixels.data() + size_t(y) * image.width;
             for (int tx = first; tx <= last; ++tx) {
                 if (!active[tx]) continue;
                 for (int sc = std::max(tx * T, sx0); sc < (tx + 1) * T; ++sc) {
@@ -82,7 +82,7 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
                     const double* n = column_sums.data() + sc - 1;
                     for (int p = 0; p < L && x_base + p < image.width; ++p) {
                         const float* wx = filter.weights(p);
-                        out[x_base + p] += wx[0] * n[0] + wx[1] * n[1] + wx[2] * n[2] + wx[3] * n[3];
+                        out[x_base + p] += float(wx[0] * n[0] + wx[1] * n[1] + wx[2] * n[2] + wx[3] * n[3]);
                     }
                 }
             }
@@ -94,8 +94,8 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
 void add_unfiltered(const SplatGrid& grid, ImageAccumulator& image) {
     for (int y = 0; y < image.height; ++y) {
         const double* src = grid.row(y - grid.first_node_y()) - grid.first_node_x();
-        double* dst = image.pixels.data() + size_t(y) * image.width;
-        for (int x = 0; x < image.width; ++x) dst[x] += src[x];
+        float* dst = image.pixels.data() + size_t(y) * image.width;
+        for (int x = 0; x < image.width; ++x) dst[x] += float(src[x]);
     }
 }
 

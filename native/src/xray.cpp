@@ -3,6 +3,7 @@
 #include <tbb/task_arena.h>
 
 #include <chrono>
+#include <utility>
 
 #include "pcvr/block_plan.h"
 #include "pcvr/errors.h"
@@ -114,7 +115,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
         render_splatted(grids, cam, params, kernel, post_shape, image, control, stats);
         out.width = image.width;
         out.height = image.height;
-        out.pixels.assign(image.pixels.begin(), image.pixels.end());
+        out.pixels = std::move(image.pixels);
     });
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats_out) *stats_out = stats;

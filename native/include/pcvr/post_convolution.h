@@ -41,11 +41,12 @@ private:
     std::vector<float> weights_;
 };
 
-/// Row-major width x height image of doubles that several grids and strides accumulate into.
+/// Row-major width x height image that the depth bands add into. Float is enough here: the many
+/// small contributions were already summed in double on the splat grid; a pixel gets one value per band.
 struct ImageAccumulator {
     int width = 0, height = 0;
-    std::vector<double> pixels;
-    ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h, 0.0) {}
+    std::vector<float> pixels;
+    ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h, 0.0f) {}
 };
 
 /// image += filter applied to grid. The grid must cover the image with PostFilter::kMarginNodes.
