@@ -12,6 +12,8 @@ APT_PYTHON  := python3.11 python3.11-venv python3.11-dev
 NATIVE_SOURCES := $(shell find native/include native/src native/python -type f -not -name '*.pyc') \
                   native/CMakeLists.txt native/pyproject.toml
 WHEEL_DIR   := dist
+ADDON_SOURCES := $(shell find pcvr_addon -name '*.py')
+EXTENSION_ZIP := $(WHEEL_DIR)/pcvr-$(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)-linux_x64.zip
 
 .PHONY: all setup system native test demo bench extension clean
 
@@ -48,7 +50,7 @@ $(VENV)/.native-stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 native: $(VENV)/.native-stamp
 
 # The add-on tests install the packaged extension, so the zip is built first.
-test: $(VENV)/.native-stamp extension
+test: $(VENV)/.native-stamp $(EXTENSION_ZIP)
 	$(PY) -m pytest
 
 # The phantom through the native module (timed, checked against exact), then through Blender's
@@ -57,7 +59,9 @@ demo: $(VENV)/.native-stamp
 	$(PY) tools/demo.py --output out/demo_xray.png
 	$(PY) -m pcvr_addon render out/phantom.vdb -o out/demo_blender.png --magnification 4
 
-extension: $(VENV)/.native-stamp
+extension: $(EXTENSION_ZIP)
+
+$(EXTENSION_ZIP): $(VENV)/.native-stamp blender_manifest.toml tools/build_extension.py $(ADDON_SOURCES)
 	$(PY) tools/build_extension.py
 
 bench: $(VENV)/.native-stamp
