@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <tbb/parallel_for.h>
+
 namespace pcvr {
 
 namespace {
@@ -15,7 +17,7 @@ SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(st
     ny_ = floor_div(height - 1, stride) + 1 + 2 * margin;
     tiles_x_ = (nx_ + kTile - 1) / kTile;
     tiles_y_ = (ny_ + kTile - 1) / kTile;
-    values_.assign(size_t(nx_) * ny_, 0.0);
+    values_.assign(size_t(nx_) * ny_ + kPadding, 0.0);
     touched_.assign(size_t(tiles_x_) * tiles_y_, 0);
 }
 
@@ -44,18 +46,20 @@ void SplatGrid::mark(int c0, int r0, int c1, int r1) {
 }
 
 void SplatGrid::add(const SplatGrid& other) {
-    for (size_t t = 0; t < touched_.size(); ++t) {
-        if (!other.touched_[t]) continue;
-        touched_[t] = 1;
-        // Only touched tiles can hold non-zero values.
-        const int tx = int(t % tiles_x_), ty = int(t / tiles_x_);
-        const int c0 = tx * kTile, c1 = std::min(c0 + kTile, nx_);
-        for (int r = ty * kTile; r < std::min((ty + 1) * kTile, ny_); ++r) {
-            double* dst = row(r);
-            const double* src = other.row(r);
-            for (int c = c0; c < c1; ++c) dst[c] += src[c];
+    // Tile rows in parallel (a stride-1 grid is a whole image); only touched tiles can hold values.
+    tbb::parallel_for(0, tiles_y_, [&](int ty) {
+        for (int tx = 0; tx < tiles_x_; ++tx) {
+            const size_t t = size_t(ty) * tiles_x_ + tx;
+            if (!other.touched_[t]) continue;
+            touched_[t] = 1;
+            const int c0 = tx * kTile, c1 = std::min(c0 + kTile, nx_);
+            for (int r = ty * kTile; r < std::min((ty + 1) * kTile, ny_); ++r) {
+                double* dst = row(r);
+                const double* src = other.row(r);
+                for (int c = c0; c < c1; ++c) dst[c] += src[c];
+            }
         }
-    }
+    });
 }
 
 }  // namespace pcvr

@@ -58,26 +58,29 @@ void deposit_footprint(SplatGrid& g, double cx, double cy, const NodeShape& s, f
         double* out = g.row(r);
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, base = s.qyy * fdy * fdy;
         const float first_dx = float(c0 - cx);
-        int col = c0;
 #ifdef PCVR_AVX2
+        // Whole 8-lane vectors; lanes past c1 (outside the ellipse, or past the grid's edge) are masked
+        // to zero weight, and the grid is padded so that their stores stay inside it.
         const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
-        for (; col + 8 <= c1 + 1; col += 8) {
+        for (int col = c0; col <= c1; col += 8) {
             const __m256 dx = _mm256_add_ps(_mm256_set1_ps(first_dx + float(col - c0)), lanes);
             const __m256 r2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qxx), dx, _mm256_set1_ps(lin)), dx,
                                               _mm256_set1_ps(base));
             const __m256i idx = _mm256_cvttps_epi32(
                 _mm256_max_ps(_mm256_min_ps(_mm256_mul_ps(r2, _mm256_set1_ps(scale)), _mm256_set1_ps(max_index)),
                               _mm256_setzero_ps()));
-            const __m256 w = _mm256_mul_ps(_mm256_i32gather_ps(tab, idx, 4), _mm256_set1_ps(amp));
+            const __m256 inside = _mm256_cmp_ps(lanes, _mm256_set1_ps(float(c1 - col)), _CMP_LE_OQ);
+            const __m256 w = _mm256_and_ps(_mm256_mul_ps(_mm256_i32gather_ps(tab, idx, 4), _mm256_set1_ps(amp)), inside);
             double* o = out + col;
             _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
             _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
         }
-#endif
-        for (; col <= c1; ++col) {
+#else
+        for (int col = c0; col <= c1; ++col) {
             const float dx = first_dx + float(col - c0);
             out[col] += double(amp * table.at_rho2(std::max(0.0f, (s.qxx * dx + lin) * dx + base)));
         }
+#endif
     }
 }
 

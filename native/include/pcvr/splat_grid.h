@@ -19,6 +19,8 @@ namespace pcvr {
 class SplatGrid {
 public:
     static constexpr int kTile = 16;
+    /// Extra doubles after the last row, so vector loops may run up to 7 entries past a row's end.
+    static constexpr int kPadding = 8;
 
     SplatGrid() = default;
     /// The grid of stride `stride` covering a width x height image with `margin` extra nodes per side.
