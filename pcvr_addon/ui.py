@@ -163,15 +163,16 @@ classes = (
 )
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
 def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     for panel in get_panels():
         panel.COMPAT_ENGINES.add('PCVR')
 
 
 def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()
     for panel in get_panels():
         panel.COMPAT_ENGINES.discard('PCVR')
