@@ -39,22 +39,31 @@ NodeShape node_shape(const Footprint& fp, double stride, double radius) {
 // ---------------------------------------------------------------------------------------------
 // Deposits: what one voxel writes into the grid around its centre (cx, cy) in storage node units.
 
-/// Footprint taps over the exact chord of the ellipse on every row; any size, clipped to the grid.
+/// Footprint taps on every row of the ellipse's bounding box, clipped to the grid. Wide footprints
+/// (regular splatting at high magnification) visit only each row's chord of the ellipse; for narrow
+/// ones a row is one or two vectors anyway, and the chord's square root would cost more than it saves.
 void deposit_footprint(SplatGrid& g, double cx, double cy, const NodeShape& s, float amp, const FootprintTable& table) {
+    constexpr float kChordWidth = 8.0f;  // half-width in nodes from which rows are trimmed to the chord
     const int r0 = std::max(0, int(std::ceil(cy - s.ext_y)));
     const int r1 = std::min(g.rows() - 1, int(std::floor(cy + s.ext_y)));
+    const int box_c0 = std::max(0, int(std::ceil(cx - s.ext_x)));
+    const int box_c1 = std::min(g.columns() - 1, int(std::floor(cx + s.ext_x)));
+    const bool trim_rows = s.ext_x > kChordWidth;
     const double radius2 = table.radius2();
     const float* tab = table.data();
     const float scale = table.scale(), max_index = table.max_index();
     for (int r = r0; r <= r1; ++r) {
         const double dy = r - cy;
-        // Solve qxx dx^2 + 2 qxy dy dx + qyy dy^2 <= R^2 for the columns inside the ellipse.
-        const double b = double(s.qxy) * dy, c = double(s.qyy) * dy * dy - radius2;
-        const double disc = b * b - double(s.qxx) * c;
-        if (disc <= 0) continue;
-        const double root = std::sqrt(disc);
-        const int c0 = std::max(0, int(std::ceil(cx + (-b - root) / s.qxx)));
-        const int c1 = std::min(g.columns() - 1, int(std::floor(cx + (-b + root) / s.qxx)));
+        int c0 = box_c0, c1 = box_c1;
+        if (trim_rows) {
+            // Solve qxx dx^2 + 2 qxy dy dx + qyy dy^2 <= R^2 for the columns inside the ellipse.
+            const double b = double(s.qxy) * dy, c = double(s.qyy) * dy * dy - radius2;
+            const double disc = b * b - double(s.qxx) * c;
+            if (disc <= 0) continue;
+            const double root = std::sqrt(disc);
+            c0 = std::max(c0, int(std::ceil(cx + (-b - root) / s.qxx)));
+            c1 = std::min(c1, int(std::floor(cx + (-b + root) / s.qxx)));
+        }
         double* out = g.row(r);
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, base = s.qyy * fdy * fdy;
         const float first_dx = float(c0 - cx);
