@@ -152,6 +152,36 @@ inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float 
 #endif
 }
 
+/// Any window from a phase table (regular splatting at magnification > 1): each row is whole 8-lane
+/// vectors of interpolated weights; lanes past the window hold zeros. `out` is the top-left tap.
+inline void deposit_phase_window(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
+    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
+    const int window = table.window(), row_floats = table.pitch();
+#ifdef PCVR_AVX2
+    const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
+    const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
+    for (int j = 0; j < window; ++j, out += pitch) {
+        const size_t row = size_t(j) * row_floats;
+        for (int i = 0; i < row_floats; i += 8) {
+            const size_t t = row + i;
+            const __m256 w = _mm256_fmadd_ps(c3, _mm256_loadu_ps(b.entry[3] + t),
+                             _mm256_fmadd_ps(c2, _mm256_loadu_ps(b.entry[2] + t),
+                             _mm256_fmadd_ps(c1, _mm256_loadu_ps(b.entry[1] + t), _mm256_mul_ps(c0, _mm256_loadu_ps(b.entry[0] + t)))));
+            double* o = out + i;
+            _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+            _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+        }
+    }
+#else
+    for (int j = 0; j < window; ++j, out += pitch)
+        for (int i = 0; i < window; ++i) {
+            const size_t t = size_t(j) * row_floats + i;
+            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
+                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
+        }
+#endif
+}
+
 /// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nearest nodes.
 inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
     const int c = int(std::floor(cx)), r = int(std::floor(cy));
@@ -239,13 +269,16 @@ OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid
 }
 
 /// Orthographic views: node coordinates by three multiply-adds per voxel. With a phase table, the
-/// whole splat is inline here: the per-voxel work is a handful of instructions plus four row updates.
+/// whole splat is inline here: a handful of instructions plus the window's row updates.
 uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
                                   const OrthographicSetup& o, const PhaseFootprintTable* phases, Depositor& deposit) {
     uint64_t count = 0;
     SplatGrid& grid = deposit.grid;
     double* const base = grid.row(0);
     const int columns = grid.columns(), rows = grid.rows();
+    // Window corner offset, and the room it needs: the stores span `pitch` columns (zeros past the
+    // window), which the grid's row padding absorbs on the last row.
+    const int h = phases ? phases->half_width() : 0, span = phases ? phases->window() : 0;
     const double ox = o.bx + o.gx.x * block.origin[0] + o.gx.y * block.origin[1] + o.gx.z * block.origin[2];
     const double oy = o.by + o.gy.x * block.origin[0] + o.gy.y * block.origin[1] + o.gy.z * block.origin[2];
     auto splat = [&](double cx, double cy, float v) {
@@ -253,10 +286,14 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
         ++count;
         if (phases) {
             const double fcx = std::floor(cx), fcy = std::floor(cy);
-            const int c = int(fcx) - 1, r = int(fcy) - 1;
-            // One unsigned compare per axis: the 4 x 4 window lies inside the grid.
-            if (unsigned(c) < unsigned(columns - 3) && unsigned(r) < unsigned(rows - 3)) {
-                deposit_phase_4x4(base + size_t(r) * columns + c, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
+            const int c = int(fcx) - h + 1, r = int(fcy) - h + 1;
+            // One unsigned compare per axis: the window lies inside the grid.
+            if (unsigned(c) < unsigned(columns - span + 1) && unsigned(r) < unsigned(rows - span + 1)) {
+                double* out = base + size_t(r) * columns + c;
+                if (span == 4)
+                    deposit_phase_4x4(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
+                else
+                    deposit_phase_window(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
                 return;
             }
         }
@@ -307,9 +344,10 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     std::optional<PhaseFootprintTable> phases;
     if (view.orthographic()) {
         ortho = orthographic_setup(view, target, params);
-        if (params.mode == SplatMode::Footprint && params.kernel->smooth_footprint() && ortho->shape.ext_x <= 2.0f &&
-            ortho->shape.ext_y <= 2.0f)
-            phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy);
+        const int half_width = int(std::ceil(std::max(ortho->shape.ext_x, ortho->shape.ext_y) - 1e-4f));
+        if (params.mode == SplatMode::Footprint && params.kernel->smooth_footprint() &&
+            half_width <= PhaseFootprintTable::kMaxHalfWidth)
+            phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy, std::max(half_width, 2));
     }
 
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });

@@ -1,13 +1,17 @@
 /// @file phase_table.h
-/// @brief A voxel's whole 4 x 4 footprint, tabulated per sub-node phase, for the PCVR fast path.
+/// @brief A voxel's whole footprint window, tabulated per sub-node phase, for orthographic splats.
 ///
-/// When every voxel's footprint has the same shape in node units (orthographic views) and fits
-/// 4 x 4 nodes (stride close to the magnification), the 16 weights depend only on where the centre
-/// falls inside its node. Tabulating them at (kPhases + 1)^2 phases and interpolating bilinearly
-/// between the four nearest turns a splat into four 64-byte loads, a blend and four row updates,
-/// with no per-tap table lookups (gathers are slow on many CPUs). Interpolation keeps the error
-/// second order (about 1e-4 of the peak) and, unlike rounding to the nearest phase, free of the
-/// coherent sub-pixel shift that axis-aligned views would otherwise show.
+/// When every voxel's footprint has the same shape in node units (orthographic views), the weights
+/// of the window of taps around a voxel depend only on where its centre falls inside its node.
+/// Tabulating them at (phases + 1)^2 phases and interpolating bilinearly between the four nearest
+/// turns a splat into plain loads, a blend and row updates, with no per-tap table lookups (gathers
+/// cost about a cycle per lane on many CPUs). Interpolation keeps the error second order (about 1e-4
+/// of the peak) and, unlike rounding to the nearest phase, free of the coherent sub-pixel shift that
+/// axis-aligned views would otherwise show.
+///
+/// PCVR's window is 4 x 4 nodes with 32 phases per node; regular splatting at magnification m has a
+/// window of about 4m x 4m pixels, where fewer phases per pixel suffice because the footprint is
+/// smooth at that scale. The number of phases is chosen to keep the table near 256 KiB.
 #pragma once
 
 #include <algorithm>
@@ -19,29 +23,40 @@ namespace pcvr {
 
 class PhaseFootprintTable {
 public:
-    static constexpr int kPhases = 32;
+    /// Largest half-width (in nodes) worth tabulating; wider footprints use per-tap lookups.
+    static constexpr int kMaxHalfWidth = 32;
 
-    /// The footprint rho^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2 (node units) of `kernel`.
-    PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy);
+    /// The footprint rho^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2 (node units) of `kernel`, for a window
+    /// of 2 * half_width taps per axis (half_width >= the footprint's extent in nodes).
+    PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width);
+
+    int half_width() const { return half_width_; }
+    int window() const { return 2 * half_width_; }
+    /// Floats per tabulated row: the window rounded up to whole 8-lane vectors (4 for the 4 x 4 window).
+    int pitch() const { return pitch_; }
+    int phases() const { return phases_; }
 
     /// The four tabulated phases around a centre and their bilinear blend weights.
     struct Blend {
-        const float* entry[4];  ///< 16 weights each: (px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)
+        const float* entry[4];  ///< window rows x pitch weights each: (px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)
         float coeff[4];
     };
 
-    /// For taps (c - 1 + i, r - 1 + j), i, j in [0, 4), of a centre at (c + fx, r + fy) with integer
-    /// c, r and fx, fy in [0, 1].
+    /// For taps (c - h + 1 + i, r - h + 1 + j), i, j in [0, window), h = half_width, of a centre at
+    /// (c + fx, r + fy) with integer c, r and fx, fy in [0, 1].
     Blend blend(float fx, float fy) const {
-        const float sx = fx * kPhases, sy = fy * kPhases;
-        const int px = std::min(kPhases - 1, int(sx)), py = std::min(kPhases - 1, int(sy));
+        const float sx = fx * phases_, sy = fy * phases_;
+        const int px = std::min(phases_ - 1, int(sx)), py = std::min(phases_ - 1, int(sy));
         const float ax = sx - px, ay = sy - py;
-        const float* e = values_.data() + (size_t(py) * (kPhases + 1) + px) * 16;
-        return {{e, e + 16, e + (kPhases + 1) * 16, e + (kPhases + 2) * 16},
+        const float* e = values_.data() + (size_t(py) * (phases_ + 1) + px) * entry_size_;
+        const size_t row = size_t(phases_ + 1) * entry_size_;
+        return {{e, e + entry_size_, e + row, e + row + entry_size_},
                 {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}};
     }
 
 private:
+    int half_width_, pitch_, phases_;
+    size_t entry_size_;
     std::vector<float> values_;
 };
 
