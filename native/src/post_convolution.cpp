@@ -35,6 +35,9 @@ PostFilter::PostFilter(PostFilterShape shape, int stride) : stride_(stride), wei
         }
         for (int k = 0; k < kTaps; ++k) weights_[size_t(phase) * kTaps + k] = float(w[k] / sum);
     }
+    by_tap_.resize(weights_.size());
+    for (int phase = 0; phase < stride; ++phase)
+        for (int k = 0; k < kTaps; ++k) by_tap_[size_t(k) * stride + phase] = weights_[size_t(phase) * kTaps + k];
 }
 
 void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumulator& image, RenderControl& control) {
@@ -60,7 +63,9 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
         }
         if (last < 0) return;
         const int col_lo = std::max(0, first * T - 1), col_hi = std::min(grid.columns() - 1, (last + 1) * T + 1);
-        std::vector<double> column_sums(grid.columns(), 0.0);
+        std::vector<float> column_sums(grid.columns(), 0.0f);
+        const float *w0 = filter.tap_weights(0), *w1 = filter.tap_weights(1), *w2 = filter.tap_weights(2),
+                    *w3 = filter.tap_weights(3);
 
         const int y_lo = std::max(0, (ty * T - sy0) * L), y_hi = std::min(image.height - 1, ((ty + 1) * T - sy0) * L - 1);
         for (int y = y_lo; y <= y_hi; ++y) {
@@ -70,20 +75,21 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
             const double* r[PostFilter::kTaps];
             for (int k = 0; k < PostFilter::kTaps; ++k) r[k] = grid.row(node + sy0 - 1 + k);
             for (int c = col_lo; c <= col_hi; ++c)
-                column_sums[c] = wy[0] * r[0][c] + wy[1] * r[1][c] + wy[2] * r[2][c] + wy[3] * r[3][c];
+                column_sums[c] = float(wy[0] * r[0][c] + wy[1] * r[1][c] + wy[2] * r[2][c] + wy[3] * r[3][c]);
 
-            // Horizontal pass over the active tiles, pixel by pixel in (node, phase) order.
+            // Horizontal pass over the active tiles: each node's run of L pixels is one contiguous,
+            // vectorisable loop over the phases.
             float* out = image.pixels.data() + size_t(y) * image.width;
             for (int tx = first; tx <= last; ++tx) {
                 if (!active[tx]) continue;
                 for (int sc = std::max(tx * T, sx0); sc < (tx + 1) * T; ++sc) {
                     const int x_base = (sc - sx0) * L;
                     if (x_base >= image.width) break;
-                    const double* n = column_sums.data() + sc - 1;
-                    for (int p = 0; p < L && x_base + p < image.width; ++p) {
-                        const float* wx = filter.weights(p);
-                        out[x_base + p] += float(wx[0] * n[0] + wx[1] * n[1] + wx[2] * n[2] + wx[3] * n[3]);
-                    }
+                    const float n0 = column_sums[sc - 1], n1 = column_sums[sc], n2 = column_sums[sc + 1],
+                                n3 = column_sums[sc + 2];
+                    float* o = out + x_base;
+                    const int run = std::min(L, image.width - x_base);
+                    for (int p = 0; p < run; ++p) o[p] += w0[p] * n0 + w1[p] * n1 + w2[p] * n2 + w3[p] * n3;
                 }
             }
         }

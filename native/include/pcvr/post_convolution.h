@@ -35,10 +35,13 @@ public:
     int stride() const { return stride_; }
     /// Weights of nodes (base - 1 + k), k in [0, kTaps), for a pixel at phase `phase` = pixel - stride * base.
     const float* weights(int phase) const { return weights_.data() + phase * kTaps; }
+    /// The weights of tap k for phases 0 .. stride - 1: one node's contribution to a run of pixels.
+    const float* tap_weights(int k) const { return by_tap_.data() + size_t(k) * stride_; }
 
 private:
     int stride_;
-    std::vector<float> weights_;
+    std::vector<float> weights_;  // [phase][tap]
+    std::vector<float> by_tap_;   // [tap][phase], for the horizontal pass's contiguous loops
 };
 
 /// Row-major width x height image that the depth bands add into. Float is enough here: the many
