@@ -210,6 +210,15 @@ def goal_lines(results: dict, sd: SolData) -> list[str]:
         best = max(rates.values())
         out.append(f"| (context) speed of light of a 16-tap splat here | – | {b['sol'] / 1e6:.0f} M voxels/s "
                    f"({b['sol_limiter']} bound); pcvr reaches {100 * best / (b['sol'] / 1e6):.0f}% of it at best | – |")
+    missed = [mag for mag, key in ((4, "speedup_m4"), (8, "speedup_m8"))
+              if str(mag) in cfgs and cfgs[str(mag)]["methods"]["pcvr_bilinear"]["speedup"] < GOALS[key]]
+    if missed:
+        out += ["", "The speed-up goals assume a `regular` that pays about as much per tap as pcvr. In orthographic views "
+                "`regular` takes its whole footprint window from a phase table (plain loads, no per-tap gathers), "
+                "which makes its taps about three times cheaper than pcvr's, whose fixed per-voxel work is spread "
+                "over 16 taps only. Against that baseline the ratios above are what PCVR earns on this machine; "
+                "with per-tap gathers (the renderer's earlier `regular`, still used under perspective) this "
+                "benchmark measured 31.6x at m=4 and 79.3x at m=8 (commit 2d30717). See *What limits us*."]
     return out
 
 
@@ -428,15 +437,17 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
     reg = [(int(m), v["configs"][m]["methods"]["regular"]["median_s"], lim["configs"][m]["regular"]) for m in mags]
     if reg and pc and sd.ok:
         m_hi, t_hi, i_hi = reg[-1]
-        taps_hi = sol.regular_taps(m_hi)
-        reg_rate = v["active_voxels"] * taps_hi / max(t_hi - i_hi, 1e-9) / 1e9
+        window_hi = (4 * m_hi) ** 2  # the phase-table window regular splats (its disc: regular_taps)
+        reg_rate = v["active_voxels"] * window_hi / max(t_hi - i_hi, 1e-9) / 1e9
         pc_rate = v["active_voxels"] * sol.pcvr_taps() / max(pc[-1][1] - pc[-1][2], 1e-9) / 1e9
-        lanes = sd.rate("gather_ymm", "gathers_per_s") * 8 / 1e9
-        bullets.append(f"**Regular splatting pays per pixel**: at m={m_hi} a voxel has {taps_hi:.0f} taps instead of 16. "
-                       f"Its splat stage runs at {reg_rate:.2f} G taps/s ({100 * reg_rate / lanes:.0f}% of the "
-                       f"{lanes:.2f} G gather lanes/s measured), pcvr's 16-tap loop at {pc_rate:.2f} G taps/s. The speed-ups "
-                       f"above are the tap ratio ({taps_hi / 16:.0f}x at m={m_hi}) times pcvr's per-tap advantage "
-                       f"({pc_rate / reg_rate:.2f}x), less what pcvr's image-sized work takes back.")
+        bullets.append(f"**Regular splatting pays per pixel**: at m={m_hi} a voxel's footprint window has "
+                       f"{window_hi:.0f} taps ({sol.regular_taps(m_hi):.0f} of them inside the disc) instead of 16. "
+                       f"In orthographic views regular takes its weights from the same kind of phase table as pcvr "
+                       f"(plain loads and a blend, no gathers), so it is as optimised: its splat stage runs at "
+                       f"{reg_rate:.2f} G window taps/s, pcvr's 16-tap loop at {pc_rate:.2f} G taps/s. The speed-ups "
+                       f"above are the tap ratio ({window_hi / 16:.0f}x at m={m_hi}) divided by regular's per-tap "
+                       f"advantage ({reg_rate / pc_rate:.2f}x): pcvr's per-voxel work (position, phase blend, four "
+                       f"overlapping row updates) is spread over 16 taps only, less what pcvr's image-sized work takes back.")
     th = [(int(m), r["pcvr_1thread"], r["pcvr_all_threads"]) for m, r in lim["configs"].items() if "pcvr_1thread" in r]
     if th:
         nt = os.cpu_count() or 2
