@@ -182,6 +182,23 @@ inline void deposit_phase_window(double* out, int pitch, float fx, float fy, flo
 #endif
 }
 
+/// A phase-table window that sticks out of the grid: only its taps inside, one by one. Using the same
+/// table as the fast paths keeps the image exactly shift-invariant up to the grid's edges.
+void deposit_phase_clipped(SplatGrid& g, int col, int row, float fx, float fy, float amp, const PhaseFootprintTable& table) {
+    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
+    const int window = table.window(), row_floats = table.pitch();
+    const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
+    const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
+    for (int j = j0; j < j1; ++j) {
+        double* out = g.row(row + j) + col;
+        for (int i = i0; i < i1; ++i) {
+            const size_t t = size_t(j) * row_floats + i;
+            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
+                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
+        }
+    }
+}
+
 /// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nearest nodes.
 inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
     const int c = int(std::floor(cx)), r = int(std::floor(cy));
@@ -294,8 +311,10 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
                     deposit_phase_4x4(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
                 else
                     deposit_phase_window(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
-                return;
+            } else {
+                deposit_phase_clipped(grid, c, r, float(cx - fcx), float(cy - fcy), amp, *phases);
             }
+            return;
         }
         deposit(cx, cy, o.shape, amp);
     };
