@@ -6,7 +6,7 @@ namespace pcvr {
 
 namespace {
 constexpr size_t kTargetBytes = 256 * 1024;
-constexpr int kMostPhases = 32;
+constexpr int kMostPhases = PhaseFootprintTable::kPhases4x4;
 constexpr int kFewestPhases = 4;
 }  // namespace
 
@@ -16,7 +16,7 @@ PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, doubl
     pitch_ = window == 4 ? 4 : (window + 7) / 8 * 8;
     entry_size_ = size_t(window) * pitch_;
     const int fit = int(std::sqrt(double(kTargetBytes) / (entry_size_ * sizeof(float)))) - 1;
-    phases_ = std::clamp(fit, kFewestPhases, kMostPhases);
+    phases_ = window == 4 ? kPhases4x4 : std::clamp(fit, kFewestPhases, kMostPhases);
     values_.assign(size_t(phases_ + 1) * (phases_ + 1) * entry_size_, 0.0f);
     for (int py = 0; py <= phases_; ++py)
         for (int px = 0; px <= phases_; ++px) {

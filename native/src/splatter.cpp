@@ -128,7 +128,7 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 
 /// The same from a phase table: 16 interpolated weights, four row updates. `out` is the top-left tap.
 inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
+    const PhaseFootprintTable::Blend b = table.blend_4x4(fx, fy);
 #ifdef PCVR_AVX2
     const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
     const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
@@ -287,6 +287,8 @@ OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid
 
 /// Orthographic views: node coordinates by three multiply-adds per voxel. With a phase table, the
 /// whole splat is inline here: a handful of instructions plus the window's row updates.
+/// `Window4x4`: the table is PCVR's 4 x 4 window, so the hot loop runs on compile-time sizes.
+template <bool Window4x4>
 uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
                                   const OrthographicSetup& o, const PhaseFootprintTable* phases, Depositor& deposit) {
     uint64_t count = 0;
@@ -295,7 +297,8 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
     const int columns = grid.columns(), rows = grid.rows();
     // Window corner offset, and the room it needs: the stores span `pitch` columns (zeros past the
     // window), which the grid's row padding absorbs on the last row.
-    const int h = phases ? phases->half_width() : 0, span = phases ? phases->window() : 0;
+    const int h = Window4x4 ? 2 : (phases ? phases->half_width() : 0);
+    const int span = Window4x4 ? 4 : (phases ? phases->window() : 0);
     const double ox = o.bx + o.gx.x * block.origin[0] + o.gx.y * block.origin[1] + o.gx.z * block.origin[2];
     const double oy = o.by + o.gy.x * block.origin[0] + o.gy.y * block.origin[1] + o.gy.z * block.origin[2];
     auto splat = [&](double cx, double cy, float v) {
@@ -307,7 +310,7 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
             // One unsigned compare per axis: the window lies inside the grid.
             if (unsigned(c) < unsigned(columns - span + 1) && unsigned(r) < unsigned(rows - span + 1)) {
                 double* out = base + size_t(r) * columns + c;
-                if (span == 4)
+                if (Window4x4)
                     deposit_phase_4x4(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
                 else
                     deposit_phase_window(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
@@ -369,6 +372,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
             phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy, std::max(half_width, 2));
     }
 
+    const bool window4x4 = phases && phases->window() == 4;
+
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
@@ -379,8 +384,9 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
             const VoxelBlock& block = grid_blocks[pb.index];
-            const uint64_t n = ortho ? splat_block_orthographic(block, pb.needs_clip_test, view, *ortho, phases ? &*phases : nullptr, deposit)
-                                     : splat_block_perspective(block, view, stride, params, deposit);
+            const uint64_t n = !ortho ? splat_block_perspective(block, view, stride, params, deposit)
+                               : window4x4 ? splat_block_orthographic<true>(block, pb.needs_clip_test, view, *ortho, &*phases, deposit)
+                                           : splat_block_orthographic<false>(block, pb.needs_clip_test, view, *ortho, phases ? &*phases : nullptr, deposit);
             if (n == 0) continue;
             count += n;
             // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.
