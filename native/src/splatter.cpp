@@ -50,8 +50,8 @@ void deposit_footprint(SplatGrid& g, double cx, double cy, const NodeShape& s, f
     const int box_c1 = std::min(g.columns() - 1, int(std::floor(cx + s.ext_x)));
     const bool trim_rows = s.ext_x > kChordWidth;
     const double radius2 = table.radius2();
-    const float* tab = table.data();
-    const float scale = table.scale(), max_index = table.max_index();
+    [[maybe_unused]] const float* tab = table.data();
+    [[maybe_unused]] const float scale = table.scale(), max_index = table.max_index();
     for (int r = r0; r <= r1; ++r) {
         const double dy = r - cy;
         int c0 = box_c0, c1 = box_c1;
@@ -126,10 +126,10 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 #endif
 }
 
+#ifdef PCVR_AVX2
 /// The same from a phase table: 16 interpolated weights, four row updates. `out` is the top-left tap.
 inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
     const PhaseFootprintTable::Blend b = table.blend_4x4(fx, fy);
-#ifdef PCVR_AVX2
     const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
     const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
     for (int half = 0; half < 2; ++half) {  // two rows of four taps per 8-lane vector
@@ -142,14 +142,6 @@ inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float 
         _mm256_storeu_pd(r0, _mm256_add_pd(_mm256_loadu_pd(r0), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
         _mm256_storeu_pd(r1, _mm256_add_pd(_mm256_loadu_pd(r1), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
     }
-#else
-    for (int j = 0; j < 4; ++j, out += pitch)
-        for (int i = 0; i < 4; ++i) {
-            const int t = 4 * j + i;
-            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
-                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
-        }
-#endif
 }
 
 /// Any window from a phase table (regular splatting at magnification > 1): each row is whole 8-lane
@@ -157,7 +149,6 @@ inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float 
 inline void deposit_phase_window(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
     const PhaseFootprintTable::Blend b = table.blend(fx, fy);
     const int window = table.window(), row_floats = table.pitch();
-#ifdef PCVR_AVX2
     const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
     const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
     for (int j = 0; j < window; ++j, out += pitch) {
@@ -172,18 +163,12 @@ inline void deposit_phase_window(double* out, int pitch, float fx, float fy, flo
             _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
         }
     }
-#else
-    for (int j = 0; j < window; ++j, out += pitch)
-        for (int i = 0; i < window; ++i) {
-            const size_t t = size_t(j) * row_floats + i;
-            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
-                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
-        }
-#endif
 }
+#endif
 
-/// A phase-table window that sticks out of the grid: only its taps inside, one by one. Using the same
-/// table as the fast paths keeps the image exactly shift-invariant up to the grid's edges.
+/// A phase-table window tap by tap, clipped to the grid: for windows that stick out of it (the same
+/// table as the vector paths keeps the image shift-invariant up to the grid's edges), and the whole
+/// phase-table path of builds without AVX2.
 void deposit_phase_clipped(SplatGrid& g, int col, int row, float fx, float fy, float amp, const PhaseFootprintTable& table) {
     const PhaseFootprintTable::Blend b = table.blend(fx, fy);
     const int window = table.window(), row_floats = table.pitch();
@@ -293,12 +278,12 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
                                   const OrthographicSetup& o, const PhaseFootprintTable* phases, Depositor& deposit) {
     uint64_t count = 0;
     SplatGrid& grid = deposit.grid;
-    double* const base = grid.row(0);
-    const int columns = grid.columns(), rows = grid.rows();
+    [[maybe_unused]] double* const base = grid.row(0);
+    [[maybe_unused]] const int columns = grid.columns(), rows = grid.rows();
     // Window corner offset, and the room it needs: the stores span `pitch` columns (zeros past the
     // window), which the grid's row padding absorbs on the last row.
     const int h = Window4x4 ? 2 : (phases ? phases->half_width() : 0);
-    const int span = Window4x4 ? 4 : (phases ? phases->window() : 0);
+    [[maybe_unused]] const int span = Window4x4 ? 4 : (phases ? phases->window() : 0);
     const double ox = o.bx + o.gx.x * block.origin[0] + o.gx.y * block.origin[1] + o.gx.z * block.origin[2];
     const double oy = o.by + o.gy.x * block.origin[0] + o.gy.y * block.origin[1] + o.gy.z * block.origin[2];
     auto splat = [&](double cx, double cy, float v) {
@@ -307,6 +292,7 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
         if (phases) {
             const double fcx = std::floor(cx), fcy = std::floor(cy);
             const int c = int(fcx) - h + 1, r = int(fcy) - h + 1;
+#ifdef PCVR_AVX2
             // One unsigned compare per axis: the window lies inside the grid.
             if (unsigned(c) < unsigned(columns - span + 1) && unsigned(r) < unsigned(rows - span + 1)) {
                 double* out = base + size_t(r) * columns + c;
@@ -314,9 +300,10 @@ uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const
                     deposit_phase_4x4(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
                 else
                     deposit_phase_window(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
-            } else {
-                deposit_phase_clipped(grid, c, r, float(cx - fcx), float(cy - fcy), amp, *phases);
+                return;
             }
+#endif
+            deposit_phase_clipped(grid, c, r, float(cx - fcx), float(cy - fcy), amp, *phases);
             return;
         }
         deposit(cx, cy, o.shape, amp);
