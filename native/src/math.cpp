@@ -52,12 +52,6 @@ bool Mat4::is_affine() const {
     return m[3][0] == 0.0 && m[3][1] == 0.0 && m[3][2] == 0.0 && m[3][3] == 1.0;
 }
 
-double Mat4::determinant3() const {
-    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-}
-
 std::optional<Mat4> Mat4::inverse() const {
     // Gauss-Jordan with partial pivoting; "singular" is judged relative to the matrix's own scale
     // so that a grid with 1e-3 voxels is fine while a flattened (rank-deficient) one is not.

@@ -49,7 +49,6 @@ struct Mat4 {
     bool is_affine() const;  ///< last row is (0, 0, 0, 1)
     /// Inverse, or nothing when the matrix is singular relative to its own scale.
     std::optional<Mat4> inverse() const;
-    double determinant3() const;  ///< determinant of the upper-left 3x3
 };
 
 }  // namespace pcvr

@@ -31,15 +31,9 @@ public:
     int first_node_y() const { return node_y0_; }
     int columns() const { return nx_; }
     int rows() const { return ny_; }
-    /// Image pixel range covered by the nodes (inclusive), for culling.
-    double min_pixel_x() const { return double(stride_) * node_x0_; }
-    double max_pixel_x() const { return double(stride_) * (node_x0_ + nx_ - 1); }
-    double min_pixel_y() const { return double(stride_) * node_y0_; }
-    double max_pixel_y() const { return double(stride_) * (node_y0_ + ny_ - 1); }
 
     double* row(int r) { return values_.data() + size_t(r) * nx_; }
     const double* row(int r) const { return values_.data() + size_t(r) * nx_; }
-    double& at(int column, int r) { return values_[size_t(r) * nx_ + column]; }
 
     /// Mark the tiles overlapping columns [c0, c1] x rows [r0, r1] (storage indices, clamped) as touched.
     void mark(int c0, int r0, int c1, int r1);
@@ -51,7 +45,6 @@ public:
     SplatGrid zero_like() const;
     /// this += other (same shape), tile flags included.
     void add(const SplatGrid& other);
-    bool empty() const { return values_.empty(); }
 
 private:
     int stride_ = 1, node_x0_ = 0, node_y0_ = 0, nx_ = 0, ny_ = 0, tiles_x_ = 0, tiles_y_ = 0;
