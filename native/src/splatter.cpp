@@ -1,5 +1,7 @@
 #include "pcvr/splatter.h"
 
+#include "block_voxels.h"
+#include "phase_splat.h"
 #include "pcvr/phase_table.h"
 
 #include <tbb/blocked_range.h>
@@ -126,64 +128,6 @@ inline void deposit_footprint_4x4(SplatGrid& g, int col, int row, float fx, floa
 #endif
 }
 
-#ifdef PCVR_AVX2
-/// The same from a phase table: 16 interpolated weights, four row updates. `out` is the top-left tap.
-inline void deposit_phase_4x4(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    const PhaseFootprintTable::Blend b = table.blend_4x4(fx, fy);
-    const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
-    const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
-    for (int half = 0; half < 2; ++half) {  // two rows of four taps per 8-lane vector
-        const int t = 8 * half;
-        const __m256 w = _mm256_fmadd_ps(c3, _mm256_loadu_ps(b.entry[3] + t),
-                         _mm256_fmadd_ps(c2, _mm256_loadu_ps(b.entry[2] + t),
-                         _mm256_fmadd_ps(c1, _mm256_loadu_ps(b.entry[1] + t), _mm256_mul_ps(c0, _mm256_loadu_ps(b.entry[0] + t)))));
-        double* r0 = out + (2 * half) * size_t(pitch);
-        double* r1 = r0 + pitch;
-        _mm256_storeu_pd(r0, _mm256_add_pd(_mm256_loadu_pd(r0), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
-        _mm256_storeu_pd(r1, _mm256_add_pd(_mm256_loadu_pd(r1), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
-    }
-}
-
-/// Any window from a phase table (regular splatting at magnification > 1): each row is whole 8-lane
-/// vectors of interpolated weights; lanes past the window hold zeros. `out` is the top-left tap.
-inline void deposit_phase_window(double* out, int pitch, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
-    const int window = table.window(), row_floats = table.pitch();
-    const __m256 c0 = _mm256_set1_ps(b.coeff[0] * amp), c1 = _mm256_set1_ps(b.coeff[1] * amp);
-    const __m256 c2 = _mm256_set1_ps(b.coeff[2] * amp), c3 = _mm256_set1_ps(b.coeff[3] * amp);
-    for (int j = 0; j < window; ++j, out += pitch) {
-        const size_t row = size_t(j) * row_floats;
-        for (int i = 0; i < row_floats; i += 8) {
-            const size_t t = row + i;
-            const __m256 w = _mm256_fmadd_ps(c3, _mm256_loadu_ps(b.entry[3] + t),
-                             _mm256_fmadd_ps(c2, _mm256_loadu_ps(b.entry[2] + t),
-                             _mm256_fmadd_ps(c1, _mm256_loadu_ps(b.entry[1] + t), _mm256_mul_ps(c0, _mm256_loadu_ps(b.entry[0] + t)))));
-            double* o = out + i;
-            _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
-            _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
-        }
-    }
-}
-#endif
-
-/// A phase-table window tap by tap, clipped to the grid: for windows that stick out of it (the same
-/// table as the vector paths keeps the image shift-invariant up to the grid's edges), and the whole
-/// phase-table path of builds without AVX2.
-void deposit_phase_clipped(SplatGrid& g, int col, int row, float fx, float fy, float amp, const PhaseFootprintTable& table) {
-    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
-    const int window = table.window(), row_floats = table.pitch();
-    const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
-    const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
-    for (int j = j0; j < j1; ++j) {
-        double* out = g.row(row + j) + col;
-        for (int i = i0; i < i1; ++i) {
-            const size_t t = size_t(j) * row_floats + i;
-            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
-                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
-        }
-    }
-}
-
 /// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nearest nodes.
 inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
     const int c = int(std::floor(cx)), r = int(std::floor(cy));
@@ -198,26 +142,6 @@ inline void deposit_bilinear(SplatGrid& g, double cx, double cy, float mass) {
 }
 
 // ---------------------------------------------------------------------------------------------
-
-/// Calls fn(offset, value) for the active, finite, non-zero voxels of a block. Non-finite values
-/// are skipped so that one bad voxel cannot poison the pixels of everything else in the image.
-template <class Fn>
-inline void for_each_voxel(const VoxelBlock& block, Fn&& fn) {
-    for (int word = 0; word < 8; ++word) {
-        uint64_t bits = block.mask[word];
-        while (bits) {
-            const int offset = word * 64 + __builtin_ctzll(bits);
-            bits &= bits - 1;
-            const float v = block.value(offset);
-            if (v != 0.0f && std::isfinite(v)) fn(offset, v);
-        }
-    }
-}
-
-inline Vec3 voxel_position(const VoxelBlock& block, int offset) {
-    return {double(block.origin[0] + (offset >> 6)), double(block.origin[1] + ((offset >> 3) & 7)),
-            double(block.origin[2] + (offset & 7))};
-}
 
 /// Splats one voxel whose footprint is known, choosing the cheapest deposit that is exact for it.
 struct Depositor {
@@ -247,9 +171,7 @@ struct Depositor {
 /// that are an affine function of the index.
 struct OrthographicSetup {
     NodeShape shape;
-    float amp_per_value;
-    Vec3 gx, gy;    // node coordinates per index step
-    double bx, by;  // node coordinates of index (0, 0, 0)
+    OrthographicMapping map;
 };
 
 OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid& target, const SplatParams& params) {
@@ -262,70 +184,24 @@ OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid
     view.footprint_unclipped({0, 0, 1}, fk);
     OrthographicSetup o;
     o.shape = node_shape(f0, target.stride(), params.kernel_radius);
-    o.amp_per_value = float(params.density_scale * f0.line_scale);
-    o.gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
-    o.gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
-    o.bx = f0.px * inv_stride - target.first_node_x();
-    o.by = f0.py * inv_stride - target.first_node_y();
+    o.map.amp_per_value = float(params.density_scale * f0.line_scale);
+    o.map.gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
+    o.map.gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
+    o.map.bx = f0.px * inv_stride - target.first_node_x();
+    o.map.by = f0.py * inv_stride - target.first_node_y();
     return o;
 }
 
-/// Orthographic views: node coordinates by three multiply-adds per voxel. With a phase table, the
-/// whole splat is inline here: a handful of instructions plus the window's row updates.
-/// `Window4x4`: the table is PCVR's 4 x 4 window, so the hot loop runs on compile-time sizes.
-template <bool Window4x4>
+/// Orthographic views without a phase table (bilinear spreading, the box kernel, footprints too
+/// wide to tabulate): node coordinates by three multiply-adds per voxel, then the general deposit.
 uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
-                                  const OrthographicSetup& o, const PhaseFootprintTable* phases, Depositor& deposit) {
+                                  const OrthographicSetup& o, Depositor& deposit) {
     uint64_t count = 0;
-    SplatGrid& grid = deposit.grid;
-    [[maybe_unused]] double* const base = grid.row(0);
-    [[maybe_unused]] const int columns = grid.columns(), rows = grid.rows();
-    // Window corner offset, and the room it needs: the stores span `pitch` columns (zeros past the
-    // window), which the grid's row padding absorbs on the last row.
-    const int h = Window4x4 ? 2 : (phases ? phases->half_width() : 0);
-    [[maybe_unused]] const int span = Window4x4 ? 4 : (phases ? phases->window() : 0);
-    const double ox = o.bx + o.gx.x * block.origin[0] + o.gx.y * block.origin[1] + o.gx.z * block.origin[2];
-    const double oy = o.by + o.gy.x * block.origin[0] + o.gy.y * block.origin[1] + o.gy.z * block.origin[2];
-    auto splat = [&](double cx, double cy, float v) {
-        const float amp = o.amp_per_value * v;
-        ++count;
-        if (phases) {
-            const double fcx = std::floor(cx), fcy = std::floor(cy);
-            const int c = int(fcx) - h + 1, r = int(fcy) - h + 1;
-#ifdef PCVR_AVX2
-            // One unsigned compare per axis: the window lies inside the grid.
-            if (unsigned(c) < unsigned(columns - span + 1) && unsigned(r) < unsigned(rows - span + 1)) {
-                double* out = base + size_t(r) * columns + c;
-                if (Window4x4)
-                    deposit_phase_4x4(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
-                else
-                    deposit_phase_window(out, columns, float(cx - fcx), float(cy - fcy), amp, *phases);
-                return;
-            }
-#endif
-            deposit_phase_clipped(grid, c, r, float(cx - fcx), float(cy - fcy), amp, *phases);
-            return;
-        }
-        deposit(cx, cy, o.shape, amp);
-    };
-
-    const bool full = block.values && !clip_test &&
-                      std::all_of(block.mask.begin(), block.mask.end(), [](uint64_t w) { return w == ~uint64_t(0); });
-    if (full) {
-        // Dense blocks (most of a CT scan): walk the values in order, positions by increments.
-        const float* v = block.values;
-        for (int i = 0; i < 8; ++i)
-            for (int j = 0; j < 8; ++j) {
-                const double rx = ox + o.gx.x * i + o.gx.y * j, ry = oy + o.gy.x * i + o.gy.y * j;
-                for (int k = 0; k < 8; ++k, ++v)
-                    if (*v != 0.0f && std::isfinite(*v)) splat(rx + o.gx.z * k, ry + o.gy.z * k, *v);
-            }
-        return count;
-    }
     for_each_voxel(block, [&](int offset, float v) {
-        if (clip_test && !ViewProjection::inside_clip_range(view.to_clip(voxel_position(block, offset)))) return;
-        const int i = offset >> 6, j = (offset >> 3) & 7, k = offset & 7;
-        splat(ox + o.gx.x * i + o.gx.y * j + o.gx.z * k, oy + o.gy.x * i + o.gy.y * j + o.gy.z * k, v);
+        const Vec3 p = voxel_position(block, offset);
+        if (clip_test && !ViewProjection::inside_clip_range(view.to_clip(p))) return;
+        deposit(o.map.node_x(p), o.map.node_y(p), o.shape, o.map.amp_per_value * v);
+        ++count;
     });
     return count;
 }
@@ -359,8 +235,6 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
             phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy, std::max(half_width, 2));
     }
 
-    const bool window4x4 = phases && phases->window() == 4;
-
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
@@ -371,9 +245,9 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
             const VoxelBlock& block = grid_blocks[pb.index];
-            const uint64_t n = !ortho ? splat_block_perspective(block, view, stride, params, deposit)
-                               : window4x4 ? splat_block_orthographic<true>(block, pb.needs_clip_test, view, *ortho, &*phases, deposit)
-                                           : splat_block_orthographic<false>(block, pb.needs_clip_test, view, *ortho, phases ? &*phases : nullptr, deposit);
+            const uint64_t n = !ortho   ? splat_block_perspective(block, view, stride, params, deposit)
+                               : phases ? splat_block_phases(block, ortho->map, *phases, pb.needs_clip_test ? &view : nullptr, grid)
+                                        : splat_block_orthographic(block, pb.needs_clip_test, view, *ortho, deposit);
             if (n == 0) continue;
             count += n;
             // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.

@@ -35,6 +35,9 @@ public:
     /// Floats per tabulated row: the window rounded up to whole 8-lane vectors (4 for the 4 x 4 window).
     int pitch() const { return pitch_; }
     int phases() const { return phases_; }
+    /// Floats per tabulated phase (window rows x pitch), and the table: (phases + 1)^2 of them, x fastest.
+    size_t entry_size() const { return entry_size_; }
+    const float* data() const { return values_.data(); }
 
     /// The four tabulated phases around a centre and their bilinear blend weights.
     struct Blend {

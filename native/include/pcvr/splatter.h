@@ -6,8 +6,9 @@
 /// | Footprint       | every node within the kernel's ellipse gets value * P(rho^2), P from the table |
 /// | BilinearSpread  | the footprint's whole integral goes to the 2 x 2 nearest nodes with bilinear weights (Westenberg-Roerdink) |
 ///
-/// Orthographic footprints that fit 4 x 4 nodes (PCVR at integer magnification) take their 16
-/// weights from a PhaseFootprintTable; all others evaluate rho^2 per tap and look P up in the
+/// Orthographic footprints of smooth kernels up to 64 x 64 nodes (PCVR's 4 x 4 window, and regular
+/// splatting up to magnification 16) take whole windows from a PhaseFootprintTable, eight voxels at
+/// a time (src/phase_splat.h); all others evaluate rho^2 per tap and look P up in the
 /// FootprintTable, over the exact chord of the ellipse on each row.
 /// Used for every splatting method: "regular" splats into a stride-1 grid (the image), "pcvr" and
 /// "bilinear_spread" into the stride-L subgrid; the same code for both keeps the comparison honest.

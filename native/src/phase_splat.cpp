@@ -1,0 +1,260 @@
+#include "phase_splat.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "block_voxels.h"
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#define PCVR_AVX2 1
+#endif
+
+namespace pcvr {
+
+namespace {
+
+/// A window tap by tap, clipped to the grid: for windows that stick out of it (the same table as
+/// the vector path keeps the image shift-invariant up to the grid's edges), and the whole splat of
+/// builds without AVX2. (col, row): the window's top-left tap; (fx, fy): the centre's phase.
+void deposit_clipped(SplatGrid& g, int col, int row, float fx, float fy, float amp, const PhaseFootprintTable& table) {
+    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
+    const int window = table.window(), row_floats = table.pitch();
+    const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
+    const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
+    for (int j = j0; j < j1; ++j) {
+        double* out = g.row(row + j) + col;
+        for (int i = i0; i < i1; ++i) {
+            const size_t t = size_t(j) * row_floats + i;
+            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
+                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
+        }
+    }
+}
+
+#ifdef PCVR_AVX2
+
+/// A table's window sizes; compile-time constants for PCVR's 4 x 4 window (the hot path).
+struct WindowLayout {
+    int half_width, window, pitch, phases, entry_size;
+};
+
+template <bool Window4x4>
+inline WindowLayout window_layout(const PhaseFootprintTable& t) {
+    if constexpr (Window4x4)
+        return {2, 4, 4, PhaseFootprintTable::kPhases4x4, 16};
+    else
+        return {t.half_width(), t.window(), t.pitch(), t.phases(), int(t.entry_size())};
+}
+
+/// One block's part of the mapping as eight-lane constants. Positions are floats relative to the
+/// node holding the block's origin: within a block they stay below a few dozen nodes, where a
+/// float resolves about 1e-6 node, and the image stays exactly shift-invariant by whole nodes.
+struct BlockFrame {
+    __m256 ox, oy;  // the origin's position inside its node, in [0, 1)
+    __m256 gxi, gxj, gxk, gyi, gyj, gyk;
+    __m256 amp_per_value;
+    __m256i corner_x, corner_y;  // window corner of a voxel at the origin's node
+    __m256i last_x, last_y;      // the largest corner whose window fits the grid
+};
+
+BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, WindowLayout w, const SplatGrid& grid) {
+    const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
+    const double x = map.node_x(origin), y = map.node_y(origin);
+    const double node_x = std::floor(x), node_y = std::floor(y);
+    BlockFrame f;
+    f.ox = _mm256_set1_ps(float(x - node_x));
+    f.oy = _mm256_set1_ps(float(y - node_y));
+    f.gxi = _mm256_set1_ps(float(map.gx.x));
+    f.gxj = _mm256_set1_ps(float(map.gx.y));
+    f.gxk = _mm256_set1_ps(float(map.gx.z));
+    f.gyi = _mm256_set1_ps(float(map.gy.x));
+    f.gyj = _mm256_set1_ps(float(map.gy.y));
+    f.gyk = _mm256_set1_ps(float(map.gy.z));
+    f.amp_per_value = _mm256_set1_ps(map.amp_per_value);
+    f.corner_x = _mm256_set1_epi32(int(node_x) - w.half_width + 1);
+    f.corner_y = _mm256_set1_epi32(int(node_y) - w.half_width + 1);
+    f.last_x = _mm256_set1_epi32(grid.columns() - w.window);
+    f.last_y = _mm256_set1_epi32(grid.rows() - w.window);
+    return f;
+}
+
+/// Eight voxels ready to deposit.
+struct VoxelBatch {
+    alignas(32) int32_t col[8], row[8];  // window corner, storage nodes
+    alignas(32) int32_t entry[8];        // offset of the phase's window in the table, floats
+    alignas(32) float coeff[4][8];       // bilinear blend of the four phases around the centre, times amplitude
+    alignas(32) float fx[8], fy[8], amp[8];  // for windows the grid's edge clips
+    uint32_t live;    // lanes holding a finite, non-zero voxel
+    uint32_t inside;  // lanes whose window lies inside the grid
+};
+
+/// The vector pass: node positions (lx, ly) relative to the frame and values v of eight voxels.
+inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowLayout w, VoxelBatch& b) {
+    const __m256 node_x = _mm256_floor_ps(lx), node_y = _mm256_floor_ps(ly);
+    const __m256i col = _mm256_add_epi32(_mm256_cvttps_epi32(node_x), f.corner_x);
+    const __m256i row = _mm256_add_epi32(_mm256_cvttps_epi32(node_y), f.corner_y);
+    const __m256 fx = _mm256_sub_ps(lx, node_x), fy = _mm256_sub_ps(ly, node_y);
+    const __m256i outside = _mm256_or_si256(
+        _mm256_or_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), col), _mm256_cmpgt_epi32(_mm256_setzero_si256(), row)),
+        _mm256_or_si256(_mm256_cmpgt_epi32(col, f.last_x), _mm256_cmpgt_epi32(row, f.last_y)));
+
+    // The same phase arithmetic as PhaseFootprintTable::blend, eight lanes at once.
+    const __m256 phases = _mm256_set1_ps(float(w.phases));
+    const __m256i last_phase = _mm256_set1_epi32(w.phases - 1);
+    const __m256 sx = _mm256_mul_ps(fx, phases), sy = _mm256_mul_ps(fy, phases);
+    const __m256i px = _mm256_min_epi32(_mm256_cvttps_epi32(sx), last_phase);
+    const __m256i py = _mm256_min_epi32(_mm256_cvttps_epi32(sy), last_phase);
+    const __m256 ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(px)), ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(py));
+    const __m256i entry = _mm256_mullo_epi32(
+        _mm256_add_epi32(_mm256_mullo_epi32(py, _mm256_set1_epi32(w.phases + 1)), px), _mm256_set1_epi32(w.entry_size));
+
+    const __m256 amp = _mm256_mul_ps(v, f.amp_per_value);
+    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v);
+    const __m256 live = _mm256_and_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(INFINITY), _CMP_LT_OQ),
+                                      _mm256_cmp_ps(magnitude, _mm256_setzero_ps(), _CMP_GT_OQ));
+    const __m256 one = _mm256_set1_ps(1.0f);
+    const __m256 left = _mm256_sub_ps(one, ax);
+    const __m256 top = _mm256_mul_ps(_mm256_sub_ps(one, ay), amp), bottom = _mm256_mul_ps(ay, amp);
+
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.col), col);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.row), row);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.entry), entry);
+    _mm256_store_ps(b.coeff[0], _mm256_mul_ps(left, top));
+    _mm256_store_ps(b.coeff[1], _mm256_mul_ps(ax, top));
+    _mm256_store_ps(b.coeff[2], _mm256_mul_ps(left, bottom));
+    _mm256_store_ps(b.coeff[3], _mm256_mul_ps(ax, bottom));
+    _mm256_store_ps(b.fx, fx);
+    _mm256_store_ps(b.fy, fy);
+    _mm256_store_ps(b.amp, amp);
+    b.live = uint32_t(_mm256_movemask_ps(live));
+    b.inside = ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu;
+}
+
+/// The second pass: each live voxel's window, interpolated between its four phases, added row by row.
+/// Rows are whole vectors; lanes past the window hold zero weights, and the grid's padding takes the
+/// stores past its last column.
+template <bool Window4x4>
+inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, WindowLayout w, SplatGrid& grid) {
+    // Locals, so that the compiler need not reload them after every store into the grid.
+    double* const base = grid.row(0);
+    const size_t columns = size_t(grid.columns());
+    const float* const entries = table.data();
+    const size_t next_phase_row = size_t(w.phases + 1) * w.entry_size;
+    for (uint32_t todo = b.live & b.inside; todo; todo &= todo - 1) {
+        const int l = __builtin_ctz(todo);
+        const float* e0 = entries + b.entry[l];
+        const float* e1 = e0 + w.entry_size;
+        const float* e2 = e0 + next_phase_row;
+        const float* e3 = e2 + w.entry_size;
+        const __m256 c0 = _mm256_broadcast_ss(&b.coeff[0][l]), c1 = _mm256_broadcast_ss(&b.coeff[1][l]);
+        const __m256 c2 = _mm256_broadcast_ss(&b.coeff[2][l]), c3 = _mm256_broadcast_ss(&b.coeff[3][l]);
+        auto weights = [&](size_t t) {
+            return _mm256_fmadd_ps(c3, _mm256_loadu_ps(e3 + t),
+                   _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
+                   _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
+        };
+        auto accumulate = [](double* out, __m128 w4) {
+            _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_cvtps_pd(w4)));
+        };
+        double* out = base + size_t(b.row[l]) * columns + b.col[l];
+        if constexpr (Window4x4) {
+            for (int half = 0; half < 2; ++half, out += 2 * columns) {  // two rows of four taps per vector
+                const __m256 wv = weights(8 * half);
+                accumulate(out, _mm256_castps256_ps128(wv));
+                accumulate(out + columns, _mm256_extractf128_ps(wv, 1));
+            }
+        } else {
+            for (int j = 0; j < w.window; ++j, out += columns)
+                for (int i = 0; i < w.pitch; i += 8) {
+                    const __m256 wv = weights(size_t(j) * w.pitch + i);
+                    accumulate(out + i, _mm256_castps256_ps128(wv));
+                    accumulate(out + i + 4, _mm256_extractf128_ps(wv, 1));
+                }
+        }
+    }
+    for (uint32_t clipped = b.live & ~b.inside; clipped; clipped &= clipped - 1) {
+        const int l = __builtin_ctz(clipped);
+        deposit_clipped(grid, b.col[l], b.row[l], b.fx[l], b.fy[l], b.amp[l], table);
+    }
+}
+
+template <bool Window4x4>
+uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
+                     const ViewProjection* clip_view, SplatGrid& grid) {
+    const WindowLayout w = window_layout<Window4x4>(table);
+    const BlockFrame f = block_frame(block, map, w, grid);
+    VoxelBatch b;
+    uint64_t count = 0;
+    auto splat = [&](__m256 lx, __m256 ly, __m256 v) {
+        prepare(lx, ly, v, f, w, b);
+        count += __builtin_popcount(b.live);
+        deposit<Window4x4>(b, table, w, grid);
+    };
+
+    if (!clip_view && all_active(block)) {
+        // Dense blocks (most of a CT scan): one batch per column of eight voxels along k.
+        const __m256 k = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+        const __m256 column_x = _mm256_fmadd_ps(f.gxk, k, f.ox), column_y = _mm256_fmadd_ps(f.gyk, k, f.oy);
+        for (int i = 0; i < 8; ++i)
+            for (int j = 0; j < 8; ++j) {
+                const __m256 fi = _mm256_set1_ps(float(i)), fj = _mm256_set1_ps(float(j));
+                const __m256 v = block.values ? _mm256_loadu_ps(block.values + (i * 8 + j) * 8) : _mm256_set1_ps(block.constant);
+                splat(_mm256_fmadd_ps(f.gxj, fj, _mm256_fmadd_ps(f.gxi, fi, column_x)),
+                      _mm256_fmadd_ps(f.gyj, fj, _mm256_fmadd_ps(f.gyi, fi, column_y)), v);
+            }
+        return count;
+    }
+
+    // Sparse blocks: gather the voxels to splat, eight at a time (unused lanes hold zeros, which are not live).
+    alignas(32) int32_t offsets[8];
+    alignas(32) float values[8];
+    int n = 0;
+    auto flush = [&] {
+        std::fill(offsets + n, offsets + 8, 0);
+        std::fill(values + n, values + 8, 0.0f);
+        const __m256i offset = _mm256_load_si256(reinterpret_cast<const __m256i*>(offsets));
+        const __m256i seven = _mm256_set1_epi32(7);
+        const __m256 fi = _mm256_cvtepi32_ps(_mm256_srli_epi32(offset, 6));
+        const __m256 fj = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(offset, 3), seven));
+        const __m256 fk = _mm256_cvtepi32_ps(_mm256_and_si256(offset, seven));
+        splat(_mm256_fmadd_ps(f.gxk, fk, _mm256_fmadd_ps(f.gxj, fj, _mm256_fmadd_ps(f.gxi, fi, f.ox))),
+              _mm256_fmadd_ps(f.gyk, fk, _mm256_fmadd_ps(f.gyj, fj, _mm256_fmadd_ps(f.gyi, fi, f.oy))),
+              _mm256_load_ps(values));
+        n = 0;
+    };
+    for_each_voxel(block, [&](int offset, float v) {
+        if (clip_view && !ViewProjection::inside_clip_range(clip_view->to_clip(voxel_position(block, offset)))) return;
+        offsets[n] = offset;
+        values[n] = v;
+        if (++n == 8) flush();
+    });
+    if (n) flush();
+    return count;
+}
+
+#endif  // PCVR_AVX2
+
+}  // namespace
+
+uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
+                            const ViewProjection* clip_view, SplatGrid& grid) {
+#ifdef PCVR_AVX2
+    return table.window() == 4 ? splat_block<true>(block, map, table, clip_view, grid)
+                               : splat_block<false>(block, map, table, clip_view, grid);
+#else
+    uint64_t count = 0;
+    const int h = table.half_width();
+    for_each_voxel(block, [&](int offset, float v) {
+        const Vec3 p = voxel_position(block, offset);
+        if (clip_view && !ViewProjection::inside_clip_range(clip_view->to_clip(p))) return;
+        const double x = map.node_x(p), y = map.node_y(p), node_x = std::floor(x), node_y = std::floor(y);
+        deposit_clipped(grid, int(node_x) - h + 1, int(node_y) - h + 1, float(x - node_x), float(y - node_y),
+                        map.amp_per_value * v, table);
+        ++count;
+    });
+    return count;
+#endif
+}
+
+}  // namespace pcvr
