@@ -144,8 +144,8 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
         stats["seconds"] = xs.seconds;
     }
-    auto* pixels = new std::vector<float>(std::move(image.pixels));
-    nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    auto* pixels = new ZeroedBuffer<float>(std::move(image.pixels));
+    nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<ZeroedBuffer<float>*>(p); });
     return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<2>>(
         pixels->data(), {size_t(image.height), size_t(image.width)}, owner));
 }

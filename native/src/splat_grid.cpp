@@ -17,7 +17,7 @@ SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(st
     ny_ = floor_div(height - 1, stride) + 1 + 2 * margin;
     tiles_x_ = (nx_ + kTile - 1) / kTile;
     tiles_y_ = (ny_ + kTile - 1) / kTile;
-    values_.assign(size_t(nx_) * ny_ + kPadding, 0.0);
+    values_ = ZeroedBuffer<double>(size_t(nx_) * ny_ + kPadding);
     touched_.assign(size_t(tiles_x_) * tiles_y_, 0);
 }
 
@@ -30,7 +30,7 @@ SplatGrid SplatGrid::zero_like() const {
     out.ny_ = ny_;
     out.tiles_x_ = tiles_x_;
     out.tiles_y_ = tiles_y_;
-    out.values_.assign(values_.size(), 0.0);
+    out.values_ = ZeroedBuffer<double>(values_.size());
     out.touched_.assign(touched_.size(), 0);
     return out;
 }

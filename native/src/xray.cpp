@@ -2,6 +2,7 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <utility>
 
@@ -107,7 +108,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
             const std::vector<double> px = render_exact_xray(grids, cam, kernel, params.pixel_step, control);
             out.width = (cam.width() + params.pixel_step - 1) / params.pixel_step;
             out.height = (cam.height() + params.pixel_step - 1) / params.pixel_step;
-            out.pixels.assign(px.begin(), px.end());
+            out.pixels = ZeroedBuffer<float>(px.size());
+            std::copy(px.begin(), px.end(), out.pixels.begin());
             for (const auto& g : grids) stats.voxels_splatted += g.grid->active_voxel_count();
             return;
         }

@@ -18,6 +18,7 @@
 
 #include "pcvr/render_control.h"
 #include "pcvr/splat_grid.h"
+#include "pcvr/zeroed_buffer.h"
 
 namespace pcvr {
 
@@ -48,8 +49,8 @@ private:
 /// small contributions were already summed in double on the splat grid; a pixel gets one value per band.
 struct ImageAccumulator {
     int width = 0, height = 0;
-    std::vector<float> pixels;
-    ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h, 0.0f) {}
+    ZeroedBuffer<float> pixels;
+    ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h) {}
 };
 
 /// image += filter applied to grid. The grid must cover the image with PostFilter::kMarginNodes.

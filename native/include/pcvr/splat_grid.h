@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "pcvr/zeroed_buffer.h"
+
 namespace pcvr {
 
 class SplatGrid {
@@ -48,7 +50,7 @@ public:
 
 private:
     int stride_ = 1, node_x0_ = 0, node_y0_ = 0, nx_ = 0, ny_ = 0, tiles_x_ = 0, tiles_y_ = 0;
-    std::vector<double> values_;
+    ZeroedBuffer<double> values_;
     std::vector<uint8_t> touched_;
 };
 

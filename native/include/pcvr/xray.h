@@ -20,6 +20,7 @@
 #include "pcvr/exact_xray.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
+#include "pcvr/zeroed_buffer.h"
 
 namespace pcvr {
 
@@ -49,7 +50,7 @@ struct XrayStats {
 
 struct XrayImage {
     int width = 0, height = 0;
-    std::vector<float> pixels;  ///< row-major, row 0 on top
+    ZeroedBuffer<float> pixels;  ///< row-major, row 0 on top
 };
 
 XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& camera, const XrayParams& params,
