@@ -34,14 +34,23 @@ void deposit_clipped(SplatGrid& g, int col, int row, float fx, float fy, float a
 
 #ifdef PCVR_AVX2
 
-/// A table's window sizes; compile-time constants for PCVR's 4 x 4 window (the hot path).
+/// The windows the deposits are specialised for.
+enum class WindowKind {
+    Tent2x2,   ///< bilinear spreading: the blend coefficients are the four weights
+    Table4x4,  ///< PCVR: two rows of four taps per vector, sizes known at compile time
+    Table,     ///< any other window (regular splatting): rows of whole vectors
+};
+
+/// A table's window sizes; compile-time constants for the fixed windows.
 struct WindowLayout {
     int half_width, window, pitch, phases, entry_size;
 };
 
-template <bool Window4x4>
+template <WindowKind Kind>
 inline WindowLayout window_layout(const PhaseFootprintTable& t) {
-    if constexpr (Window4x4)
+    if constexpr (Kind == WindowKind::Tent2x2)
+        return {1, 2, 8, 1, 16};
+    else if constexpr (Kind == WindowKind::Table4x4)
         return {2, 4, 4, PhaseFootprintTable::kPhases4x4, 16};
     else
         return {t.half_width(), t.window(), t.pitch(), t.phases(), int(t.entry_size())};
@@ -131,46 +140,58 @@ inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowL
     b.inside = ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu;
 }
 
-/// The second pass: each live voxel's window, interpolated between its four phases, added row by row.
+/// Lane l's window interpolated between its four phases (table entries from e0), added row by row.
 /// Rows are whole vectors; lanes past the window hold zero weights, and the grid's padding takes the
 /// stores past its last column.
-template <bool Window4x4>
+template <WindowKind Kind>
+inline void add_window(double* out, size_t columns, const float* e0, const VoxelBatch& b, int l, WindowLayout w) {
+    const float* e1 = e0 + w.entry_size;
+    const float* e2 = e0 + size_t(w.phases + 1) * w.entry_size;
+    const float* e3 = e2 + w.entry_size;
+    const __m256 c0 = _mm256_broadcast_ss(&b.coeff[0][l]), c1 = _mm256_broadcast_ss(&b.coeff[1][l]);
+    const __m256 c2 = _mm256_broadcast_ss(&b.coeff[2][l]), c3 = _mm256_broadcast_ss(&b.coeff[3][l]);
+    auto weights = [&](size_t t) {
+        return _mm256_fmadd_ps(c3, _mm256_loadu_ps(e3 + t),
+               _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
+               _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
+    };
+    auto accumulate = [](double* row, __m128 w4) {
+        _mm256_storeu_pd(row, _mm256_add_pd(_mm256_loadu_pd(row), _mm256_cvtps_pd(w4)));
+    };
+    if constexpr (Kind == WindowKind::Table4x4) {
+        for (int half = 0; half < 2; ++half, out += 2 * columns) {  // two rows of four taps per vector
+            const __m256 wv = weights(8 * half);
+            accumulate(out, _mm256_castps256_ps128(wv));
+            accumulate(out + columns, _mm256_extractf128_ps(wv, 1));
+        }
+    } else {
+        for (int j = 0; j < w.window; ++j, out += columns)
+            for (int i = 0; i < w.pitch; i += 8) {
+                const __m256 wv = weights(size_t(j) * w.pitch + i);
+                accumulate(out + i, _mm256_castps256_ps128(wv));
+                accumulate(out + i + 4, _mm256_extractf128_ps(wv, 1));
+            }
+    }
+}
+
+/// The second pass: every live voxel's window added to the grid.
+template <WindowKind Kind>
 inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, WindowLayout w, SplatGrid& grid) {
     // Locals, so that the compiler need not reload them after every store into the grid.
     double* const base = grid.row(0);
     const size_t columns = size_t(grid.columns());
     const float* const entries = table.data();
-    const size_t next_phase_row = size_t(w.phases + 1) * w.entry_size;
     for (uint32_t todo = b.live & b.inside; todo; todo &= todo - 1) {
         const int l = __builtin_ctz(todo);
-        const float* e0 = entries + b.entry[l];
-        const float* e1 = e0 + w.entry_size;
-        const float* e2 = e0 + next_phase_row;
-        const float* e3 = e2 + w.entry_size;
-        const __m256 c0 = _mm256_broadcast_ss(&b.coeff[0][l]), c1 = _mm256_broadcast_ss(&b.coeff[1][l]);
-        const __m256 c2 = _mm256_broadcast_ss(&b.coeff[2][l]), c3 = _mm256_broadcast_ss(&b.coeff[3][l]);
-        auto weights = [&](size_t t) {
-            return _mm256_fmadd_ps(c3, _mm256_loadu_ps(e3 + t),
-                   _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
-                   _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
-        };
-        auto accumulate = [](double* out, __m128 w4) {
-            _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_cvtps_pd(w4)));
-        };
         double* out = base + size_t(b.row[l]) * columns + b.col[l];
-        if constexpr (Window4x4) {
-            for (int half = 0; half < 2; ++half, out += 2 * columns) {  // two rows of four taps per vector
-                const __m256 wv = weights(8 * half);
-                accumulate(out, _mm256_castps256_ps128(wv));
-                accumulate(out + columns, _mm256_extractf128_ps(wv, 1));
-            }
+        if constexpr (Kind == WindowKind::Tent2x2) {
+            // The tent's phase windows are unit impulses, so the blend coefficients are the weights.
+            out[0] += b.coeff[0][l];
+            out[1] += b.coeff[1][l];
+            out[columns] += b.coeff[2][l];
+            out[columns + 1] += b.coeff[3][l];
         } else {
-            for (int j = 0; j < w.window; ++j, out += columns)
-                for (int i = 0; i < w.pitch; i += 8) {
-                    const __m256 wv = weights(size_t(j) * w.pitch + i);
-                    accumulate(out + i, _mm256_castps256_ps128(wv));
-                    accumulate(out + i + 4, _mm256_extractf128_ps(wv, 1));
-                }
+            add_window<Kind>(out, columns, entries + b.entry[l], b, l, w);
         }
     }
     for (uint32_t clipped = b.live & ~b.inside; clipped; clipped &= clipped - 1) {
@@ -179,17 +200,17 @@ inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, Windo
     }
 }
 
-template <bool Window4x4>
+template <WindowKind Kind>
 uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
                      const ViewProjection* clip_view, SplatGrid& grid) {
-    const WindowLayout w = window_layout<Window4x4>(table);
+    const WindowLayout w = window_layout<Kind>(table);
     const BlockFrame f = block_frame(block, map, w, grid);
     VoxelBatch b;
     uint64_t count = 0;
     auto splat = [&](__m256 lx, __m256 ly, __m256 v) {
         prepare(lx, ly, v, f, w, b);
         count += __builtin_popcount(b.live);
-        deposit<Window4x4>(b, table, w, grid);
+        deposit<Kind>(b, table, w, grid);
     };
 
     if (!clip_view && all_active(block)) {
@@ -240,8 +261,9 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
                             const ViewProjection* clip_view, SplatGrid& grid) {
 #ifdef PCVR_AVX2
-    return table.window() == 4 ? splat_block<true>(block, map, table, clip_view, grid)
-                               : splat_block<false>(block, map, table, clip_view, grid);
+    return table.window() == 4 ? splat_block<WindowKind::Table4x4>(block, map, table, clip_view, grid)
+           : table.is_bilinear_spread() ? splat_block<WindowKind::Tent2x2>(block, map, table, clip_view, grid)
+                                        : splat_block<WindowKind::Table>(block, map, table, clip_view, grid);
 #else
     uint64_t count = 0;
     const int h = table.half_width();

@@ -1,5 +1,6 @@
 #include "pcvr/phase_table.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace pcvr {
@@ -8,16 +9,34 @@ namespace {
 constexpr size_t kTargetBytes = 256 * 1024;
 constexpr int kMostPhases = PhaseFootprintTable::kPhases4x4;
 constexpr int kFewestPhases = 4;
+
+/// Floats per tabulated row: 4 for PCVR's window (two rows per vector), else whole 8-lane vectors.
+int pitch_for(int window) { return window == 4 ? 4 : (window + 7) / 8 * 8; }
+
+int phases_for(int half_width) {
+    const int window = 2 * half_width;
+    if (window == 4) return PhaseFootprintTable::kPhases4x4;
+    const int fit = int(std::sqrt(double(kTargetBytes) / (double(window) * pitch_for(window) * sizeof(float)))) - 1;
+    return std::clamp(fit, kFewestPhases, kMostPhases);
+}
 }  // namespace
 
-PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width)
-    : half_width_(half_width) {
-    const int window = 2 * half_width;
-    pitch_ = window == 4 ? 4 : (window + 7) / 8 * 8;
-    entry_size_ = size_t(window) * pitch_;
-    const int fit = int(std::sqrt(double(kTargetBytes) / (entry_size_ * sizeof(float)))) - 1;
-    phases_ = window == 4 ? kPhases4x4 : std::clamp(fit, kFewestPhases, kMostPhases);
+PhaseFootprintTable::PhaseFootprintTable(int half_width, int phases)
+    : half_width_(half_width), pitch_(pitch_for(2 * half_width)), phases_(phases) {
+    entry_size_ = size_t(2 * half_width) * pitch_;
     values_.assign(size_t(phases_ + 1) * (phases_ + 1) * entry_size_, 0.0f);
+}
+
+PhaseFootprintTable PhaseFootprintTable::bilinear_spread() {
+    PhaseFootprintTable t(1, 1);
+    for (int py = 0; py <= 1; ++py)
+        for (int px = 0; px <= 1; ++px) t.values_[(size_t(py) * 2 + px) * t.entry_size_ + size_t(py) * t.pitch_ + px] = 1.0f;
+    return t;
+}
+
+PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width)
+    : PhaseFootprintTable(half_width, phases_for(half_width)) {
+    const int window = 2 * half_width;
     for (int py = 0; py <= phases_; ++py)
         for (int px = 0; px <= phases_; ++px) {
             const double fx = double(px) / phases_, fy = double(py) / phases_;

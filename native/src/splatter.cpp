@@ -192,8 +192,9 @@ OrthographicSetup orthographic_setup(const ViewProjection& view, const SplatGrid
     return o;
 }
 
-/// Orthographic views without a phase table (bilinear spreading, the box kernel, footprints too
-/// wide to tabulate): node coordinates by three multiply-adds per voxel, then the general deposit.
+/// Orthographic views without a phase table (the box kernel, whose footprint has an edge that
+/// interpolation between phases would blur, and footprints too wide to tabulate): node coordinates
+/// by three multiply-adds per voxel, then the general deposit.
 uint64_t splat_block_orthographic(const VoxelBlock& block, bool clip_test, const ViewProjection& view,
                                   const OrthographicSetup& o, Depositor& deposit) {
     uint64_t count = 0;
@@ -230,9 +231,13 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     if (view.orthographic()) {
         ortho = orthographic_setup(view, target, params);
         const int half_width = int(std::ceil(std::max(ortho->shape.ext_x, ortho->shape.ext_y) - 1e-4f));
-        if (params.mode == SplatMode::Footprint && params.kernel->smooth_footprint() &&
-            half_width <= PhaseFootprintTable::kMaxHalfWidth)
+        if (params.mode == SplatMode::BilinearSpread) {
+            // The footprint's whole integral goes to the 2 x 2 nearest nodes: the amplitude becomes a mass.
+            phases.emplace(PhaseFootprintTable::bilinear_spread());
+            ortho->map.amp_per_value *= ortho->shape.area;
+        } else if (params.kernel->smooth_footprint() && half_width <= PhaseFootprintTable::kMaxHalfWidth) {
             phases.emplace(*params.kernel, ortho->shape.qxx, ortho->shape.qxy, ortho->shape.qyy, std::max(half_width, 2));
+        }
     }
 
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });

@@ -30,6 +30,12 @@ public:
     /// of 2 * half_width taps per axis (half_width >= the footprint's extent in nodes).
     PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width);
 
+    /// Bilinear spreading (Westenberg-Roerdink) in the same form: a 2 x 2 window with one phase per
+    /// node, whose window at each corner phase holds 1 on the node the centre sits on. Interpolating
+    /// between the four corners spreads a voxel bilinearly over its 2 x 2 nearest nodes.
+    static PhaseFootprintTable bilinear_spread();
+    bool is_bilinear_spread() const { return phases_ == 1 && half_width_ == 1; }
+
     int half_width() const { return half_width_; }
     int window() const { return 2 * half_width_; }
     /// Floats per tabulated row: the window rounded up to whole 8-lane vectors (4 for the 4 x 4 window).
@@ -54,6 +60,8 @@ public:
     Blend blend_4x4(float fx, float fy) const { return blend_sized(fx, fy, kPhases4x4, 16); }
 
 private:
+    PhaseFootprintTable(int half_width, int phases);
+
     Blend blend_sized(float fx, float fy, int phases, size_t entry_size) const {
         const float sx = fx * phases, sy = fy * phases;
         const int px = std::min(phases - 1, int(sx)), py = std::min(phases - 1, int(sy));
