@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
+#include <utility>
 
 #include "block_voxels.h"
 
@@ -56,6 +58,21 @@ inline WindowLayout window_layout(const PhaseFootprintTable& t) {
         return {t.half_width(), t.window(), t.pitch(), t.phases(), int(t.entry_size())};
 }
 
+/// Where a block's deposits go. Small windows (PCVR's 4 x 4, bilinear spreading's 2 x 2) are added
+/// into a block-sized float tile first. Consecutive voxels of a column land less than a node apart,
+/// so each one's rows overlap the previous one's at a shifted address, and a load cannot take its
+/// data from such a store before it is written: every voxel's updates would wait on the voxel
+/// before. Lanes take turns over kTileCopies copies of the tile, so an update waits only on the
+/// voxel four places back, and the tile stays in L1. Float is enough there (a node gets at most a
+/// few dozen contributions from one block); the copies are added into the double grid per block.
+constexpr int kTileCopies = 4;
+constexpr int kTileFloats = 64 * 64;  // per copy: blocks whose windows span more go to the grid directly
+
+struct DepositRegion {
+    int col0 = 0, row0 = 0;  // grid node of the region's (0, 0)
+    int width = 0, height = 0;
+};
+
 /// One block's part of the mapping as eight-lane constants. Positions are floats relative to the
 /// node holding the block's origin: within a block they stay below a few dozen nodes, where a
 /// float resolves about 1e-6 node, and the image stays exactly shift-invariant by whole nodes.
@@ -63,10 +80,14 @@ struct BlockFrame {
     __m256 ox, oy;  // the origin's position inside its node, in [0, 1)
     __m256 gxi, gxj, gxk, gyi, gyj, gyk;
     __m256 amp_per_value;
-    __m256i corner_x, corner_y;  // window corner of a voxel at the origin's node
-    __m256i last_x, last_y;      // the largest corner whose window fits the grid
+    __m256i corner_x, corner_y;  // window corner of a voxel at the origin's node, in the region
+    __m256i last_x, last_y;      // the largest corner whose window fits the region
+    DepositRegion region;        // the block's tile, or the whole grid
+    bool tiled = false;
 };
 
+/// The frame of `block`, with a tile around its windows when `Tiled` and they fit one.
+template <bool Tiled>
 BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, WindowLayout w, const SplatGrid& grid) {
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
     const double x = map.node_x(origin), y = map.node_y(origin);
@@ -81,21 +102,59 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
     f.gyj = _mm256_set1_ps(float(map.gy.y));
     f.gyk = _mm256_set1_ps(float(map.gy.z));
     f.amp_per_value = _mm256_set1_ps(map.amp_per_value);
-    f.corner_x = _mm256_set1_epi32(int(node_x) - w.half_width + 1);
-    f.corner_y = _mm256_set1_epi32(int(node_y) - w.half_width + 1);
-    f.last_x = _mm256_set1_epi32(grid.columns() - w.window);
-    f.last_y = _mm256_set1_epi32(grid.rows() - w.window);
+
+    int shift_x = 0, shift_y = 0;  // region (0, 0) relative to the origin's node
+    f.region = {0, 0, grid.columns(), grid.rows()};
+    if constexpr (Tiled) {
+        // The nodes the block's voxels fall in, from its corners, one node wider on each side for
+        // the rounding of float positions; windows reach window - 1 nodes beyond their corner.
+        const int span = VoxelBlock::kDim - 1;
+        auto node_range = [&](double frac, const Vec3& g) {
+            const double lo = frac + span * (std::min(g.x, 0.0) + std::min(g.y, 0.0) + std::min(g.z, 0.0));
+            const double hi = frac + span * (std::max(g.x, 0.0) + std::max(g.y, 0.0) + std::max(g.z, 0.0));
+            return std::pair<int, int>{int(std::floor(lo)) - 1, int(std::floor(hi)) + 1};
+        };
+        const auto [x0, x1] = node_range(x - node_x, map.gx);
+        const auto [y0, y1] = node_range(y - node_y, map.gy);
+        const int width = x1 - x0 + w.window, height = y1 - y0 + w.window;
+        if (width * height <= kTileFloats) {
+            f.tiled = true;
+            shift_x = x0 - w.half_width + 1;
+            shift_y = y0 - w.half_width + 1;
+            f.region = {int(node_x) + shift_x, int(node_y) + shift_y, width, height};
+        }
+    }
+    if (!f.tiled) shift_x = -int(node_x), shift_y = -int(node_y);
+    f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
+    f.corner_y = _mm256_set1_epi32(1 - w.half_width - shift_y);
+    f.last_x = _mm256_set1_epi32(f.region.width - w.window);
+    f.last_y = _mm256_set1_epi32(f.region.height - w.window);
     return f;
+}
+
+/// Adds the tile copies into the grid (clipped to it) and leaves them zero for the next block.
+void flush_tile(const DepositRegion& r, float* tiles, SplatGrid& grid) {
+    const int c0 = std::max(0, -r.col0), c1 = std::min(r.width, grid.columns() - r.col0);
+    for (int j = 0; j < r.height; ++j) {
+        float* t[kTileCopies];
+        for (int k = 0; k < kTileCopies; ++k) t[k] = tiles + size_t(k) * kTileFloats + size_t(j) * r.width;
+        const int row = r.row0 + j;
+        if (row >= 0 && row < grid.rows()) {
+            double* out = grid.row(row) + r.col0;
+            for (int c = c0; c < c1; ++c) out[c] += double((t[0][c] + t[1][c]) + (t[2][c] + t[3][c]));
+        }
+        for (int k = 0; k < kTileCopies; ++k) std::fill(t[k], t[k] + r.width, 0.0f);
+    }
 }
 
 /// Eight voxels ready to deposit.
 struct VoxelBatch {
-    alignas(32) int32_t col[8], row[8];  // window corner, storage nodes
+    alignas(32) int32_t col[8], row[8];  // window corner in the region
     alignas(32) int32_t entry[8];        // offset of the phase's window in the table, floats
     alignas(32) float coeff[4][8];       // bilinear blend of the four phases around the centre, times amplitude
     alignas(32) float fx[8], fy[8], amp[8];  // for windows the grid's edge clips
     uint32_t live;    // lanes holding a finite, non-zero voxel
-    uint32_t inside;  // lanes whose window lies inside the grid
+    uint32_t inside;  // lanes whose window lies inside the region
 };
 
 /// The vector pass: node positions (lx, ly) relative to the frame and values v of eight voxels.
@@ -140,11 +199,12 @@ inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowL
     b.inside = ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu;
 }
 
-/// Lane l's window interpolated between its four phases (table entries from e0), added row by row.
-/// Rows are whole vectors; lanes past the window hold zero weights, and the grid's padding takes the
-/// stores past its last column.
-template <WindowKind Kind>
-inline void add_window(double* out, size_t columns, const float* e0, const VoxelBatch& b, int l, WindowLayout w) {
+/// Lane l's window interpolated between its four phases (table entries from e0), added row by row
+/// into doubles (the grid) or floats (a tile) with a row pitch of `pitch`. Rows are whole vectors;
+/// lanes past the window hold zero weights, and the grid's padding takes the stores past its last
+/// column.
+template <WindowKind Kind, class T>
+inline void add_window(T* out, size_t pitch, const float* e0, const VoxelBatch& b, int l, WindowLayout w) {
     const float* e1 = e0 + w.entry_size;
     const float* e2 = e0 + size_t(w.phases + 1) * w.entry_size;
     const float* e3 = e2 + w.entry_size;
@@ -155,17 +215,20 @@ inline void add_window(double* out, size_t columns, const float* e0, const Voxel
                _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
                _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
     };
-    auto accumulate = [](double* row, __m128 w4) {
-        _mm256_storeu_pd(row, _mm256_add_pd(_mm256_loadu_pd(row), _mm256_cvtps_pd(w4)));
+    auto accumulate = [](T* row, __m128 w4) {
+        if constexpr (std::is_same_v<T, float>)
+            _mm_storeu_ps(row, _mm_add_ps(_mm_loadu_ps(row), w4));
+        else
+            _mm256_storeu_pd(row, _mm256_add_pd(_mm256_loadu_pd(row), _mm256_cvtps_pd(w4)));
     };
     if constexpr (Kind == WindowKind::Table4x4) {
-        for (int half = 0; half < 2; ++half, out += 2 * columns) {  // two rows of four taps per vector
+        for (int half = 0; half < 2; ++half, out += 2 * pitch) {  // two rows of four taps per vector
             const __m256 wv = weights(8 * half);
             accumulate(out, _mm256_castps256_ps128(wv));
-            accumulate(out + columns, _mm256_extractf128_ps(wv, 1));
+            accumulate(out + pitch, _mm256_extractf128_ps(wv, 1));
         }
     } else {
-        for (int j = 0; j < w.window; ++j, out += columns)
+        for (int j = 0; j < w.window; ++j, out += pitch)
             for (int i = 0; i < w.pitch; i += 8) {
                 const __m256 wv = weights(size_t(j) * w.pitch + i);
                 accumulate(out + i, _mm256_castps256_ps128(wv));
@@ -174,44 +237,76 @@ inline void add_window(double* out, size_t columns, const float* e0, const Voxel
     }
 }
 
-/// The second pass: every live voxel's window added to the grid.
+/// Lane l's window added at `out` (row pitch `pitch`).
+template <WindowKind Kind, class T>
+inline void add_lane(T* out, size_t pitch, const float* entries, const VoxelBatch& b, int l, WindowLayout w) {
+    if constexpr (Kind == WindowKind::Tent2x2) {
+        // The tent's phase windows are unit impulses, so the blend coefficients are the weights.
+        out[0] += b.coeff[0][l];
+        out[1] += b.coeff[1][l];
+        out[pitch] += b.coeff[2][l];
+        out[pitch + 1] += b.coeff[3][l];
+    } else {
+        add_window<Kind>(out, pitch, entries + b.entry[l], b, l, w);
+    }
+}
+
+/// The second pass: every live voxel's window added to the block's tile (lanes taking turns over
+/// its copies) or straight to the grid.
 template <WindowKind Kind>
-inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, WindowLayout w, SplatGrid& grid) {
-    // Locals, so that the compiler need not reload them after every store into the grid.
-    double* const base = grid.row(0);
-    const size_t columns = size_t(grid.columns());
+inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, WindowLayout w, const BlockFrame& f,
+                    float* tiles, SplatGrid& grid) {
+    // Locals, so that the compiler need not reload them after every store.
     const float* const entries = table.data();
-    for (uint32_t todo = b.live & b.inside; todo; todo &= todo - 1) {
-        const int l = __builtin_ctz(todo);
-        double* out = base + size_t(b.row[l]) * columns + b.col[l];
-        if constexpr (Kind == WindowKind::Tent2x2) {
-            // The tent's phase windows are unit impulses, so the blend coefficients are the weights.
-            out[0] += b.coeff[0][l];
-            out[1] += b.coeff[1][l];
-            out[columns] += b.coeff[2][l];
-            out[columns + 1] += b.coeff[3][l];
-        } else {
-            add_window<Kind>(out, columns, entries + b.entry[l], b, l, w);
+    const uint32_t inside = b.live & b.inside;
+    if (f.tiled) {
+        const size_t pitch = size_t(f.region.width);
+        for (uint32_t todo = inside; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            float* tile = tiles + size_t(l % kTileCopies) * kTileFloats;
+            add_lane<Kind>(tile + size_t(b.row[l]) * pitch + b.col[l], pitch, entries, b, l, w);
+        }
+    } else {
+        double* const base = grid.row(0);
+        const size_t columns = size_t(grid.columns());
+        for (uint32_t todo = inside; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            add_lane<Kind>(base + size_t(b.row[l]) * columns + b.col[l], columns, entries, b, l, w);
         }
     }
     for (uint32_t clipped = b.live & ~b.inside; clipped; clipped &= clipped - 1) {
         const int l = __builtin_ctz(clipped);
-        deposit_clipped(grid, b.col[l], b.row[l], b.fx[l], b.fy[l], b.amp[l], table);
+        deposit_clipped(grid, f.region.col0 + b.col[l], f.region.row0 + b.row[l], b.fx[l], b.fy[l], b.amp[l], table);
     }
 }
 
 template <WindowKind Kind>
 uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
-                     const ViewProjection* clip_view, SplatGrid& grid) {
+                     const ViewProjection* clip_view, SplatGrid& grid, PhaseScratch& scratch) {
+    constexpr bool kSmallWindow = Kind != WindowKind::Table;
     const WindowLayout w = window_layout<Kind>(table);
-    const BlockFrame f = block_frame(block, map, w, grid);
+    const BlockFrame f = block_frame<kSmallWindow>(block, map, w, grid);
+    float* tiles = nullptr;
+    if (f.tiled) {
+        if (scratch.tiles.empty()) scratch.tiles.assign(size_t(kTileCopies) * kTileFloats, 0.0f);
+        tiles = scratch.tiles.data();
+    }
     VoxelBatch b;
     uint64_t count = 0;
     auto splat = [&](__m256 lx, __m256 ly, __m256 v) {
         prepare(lx, ly, v, f, w, b);
         count += __builtin_popcount(b.live);
-        deposit<Kind>(b, table, w, grid);
+        deposit<Kind>(b, table, w, f, tiles, grid);
     };
+    // Runs when the block is done, whichever way it returns.
+    struct Flush {
+        const BlockFrame& f;
+        float* tiles;
+        SplatGrid& grid;
+        ~Flush() {
+            if (tiles) flush_tile(f.region, tiles, grid);
+        }
+    } flush_at_end{f, tiles, grid};
 
     if (!clip_view && all_active(block)) {
         // Dense blocks (most of a CT scan): one batch per column of eight voxels along k.
@@ -231,7 +326,7 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
     alignas(32) int32_t offsets[8];
     alignas(32) float values[8];
     int n = 0;
-    auto flush = [&] {
+    auto splat_gathered = [&] {
         std::fill(offsets + n, offsets + 8, 0);
         std::fill(values + n, values + 8, 0.0f);
         const __m256i offset = _mm256_load_si256(reinterpret_cast<const __m256i*>(offsets));
@@ -248,9 +343,9 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
         if (clip_view && !ViewProjection::inside_clip_range(clip_view->to_clip(voxel_position(block, offset)))) return;
         offsets[n] = offset;
         values[n] = v;
-        if (++n == 8) flush();
+        if (++n == 8) splat_gathered();
     });
-    if (n) flush();
+    if (n) splat_gathered();
     return count;
 }
 
@@ -259,11 +354,11 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
 }  // namespace
 
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
-                            const ViewProjection* clip_view, SplatGrid& grid) {
+                            const ViewProjection* clip_view, SplatGrid& grid, PhaseScratch& scratch) {
 #ifdef PCVR_AVX2
-    return table.window() == 4 ? splat_block<WindowKind::Table4x4>(block, map, table, clip_view, grid)
-           : table.is_bilinear_spread() ? splat_block<WindowKind::Tent2x2>(block, map, table, clip_view, grid)
-                                        : splat_block<WindowKind::Table>(block, map, table, clip_view, grid);
+    return table.window() == 4 ? splat_block<WindowKind::Table4x4>(block, map, table, clip_view, grid, scratch)
+           : table.is_bilinear_spread() ? splat_block<WindowKind::Tent2x2>(block, map, table, clip_view, grid, scratch)
+                                        : splat_block<WindowKind::Table>(block, map, table, clip_view, grid, scratch);
 #else
     uint64_t count = 0;
     const int h = table.half_width();

@@ -242,16 +242,18 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
 
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
+    tbb::enumerable_thread_specific<PhaseScratch> scratches;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
         SplatGrid& grid = locals.local();
         Depositor deposit{grid, params, 1.0 / stride};
         uint64_t& count = counts.local();
+        PhaseScratch& scratch = scratches.local();
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
             const VoxelBlock& block = grid_blocks[pb.index];
             const uint64_t n = !ortho   ? splat_block_perspective(block, view, stride, params, deposit)
-                               : phases ? splat_block_phases(block, ortho->map, *phases, pb.needs_clip_test ? &view : nullptr, grid)
+                               : phases ? splat_block_phases(block, ortho->map, *phases, pb.needs_clip_test ? &view : nullptr, grid, scratch)
                                         : splat_block_orthographic(block, pb.needs_clip_test, view, *ortho, deposit);
             if (n == 0) continue;
             count += n;

@@ -156,6 +156,9 @@ LINEAR_PARTS = {
     "sheared": np.array([[1.0, 0.35, 0.0], [0.0, 1.0, -0.25], [0.2, 0.0, 1.0]]),
     "scaled": np.diag([1.0, 1.6, 0.7]),
     "mirrored": rotation((0.3, -1.0, 0.5), 0.4) @ np.diag([1.0, -1.0, 1.0]),
+    # Voxels 20x longer along k, tilted: a block's footprints span more nodes than PCVR's block
+    # tiles hold (about 100 x 70 at magnification 2), so those blocks are splatted straight into the grid.
+    "stretched": rotation((1.0, 0.0, 0.0), 0.785) @ np.diag([0.3, 0.3, 6.0]),
 }
 
 

@@ -47,6 +47,7 @@ CASES = [
     ("ortho-scaled-m2", "scaled", 2.0, "ortho", (1.0, 0.3, -0.2)),
     ("ortho-mirrored-m4", "mirrored", 4.0, "ortho", (0.5, 0.5, -1.0)),
     ("ortho-identity-m8", "identity", 8.0, "ortho", (0.1, -0.2, -1.0)),
+    ("ortho-stretched-m2", "stretched", 2.0, "ortho", (0.6, 0.2, -0.5)),
     ("persp-identity-m4", "identity", 4.0, "persp", (0.0, 0.0, -1.0)),
     ("persp-rotated-m3", "rotated", 3.0, "persp", (0.3, -0.5, -1.0)),
     ("persp-sheared-m2", "sheared", 2.0, "persp", (-0.4, 0.2, -1.0)),
