@@ -32,6 +32,13 @@ inline Vec3 voxel_position(const VoxelBlock& block, int offset) {
             double(block.origin[2] + (offset & 7))};
 }
 
+/// Number of active voxels in the block.
+inline int active_count(const VoxelBlock& block) {
+    int n = 0;
+    for (uint64_t w : block.mask) n += __builtin_popcountll(w);
+    return n;
+}
+
 /// Every voxel of the block is active (most blocks of a CT scan or a dense simulation).
 inline bool all_active(const VoxelBlock& block) {
     return std::all_of(block.mask.begin(), block.mask.end(), [](uint64_t w) { return w == ~uint64_t(0); });

@@ -67,6 +67,9 @@ inline WindowLayout window_layout(const PhaseFootprintTable& t) {
 /// few dozen contributions from one block); the copies are added into the double grid per block.
 constexpr int kTileCopies = 4;
 constexpr int kTileFloats = 64 * 64;  // per copy: blocks whose windows span more go to the grid directly
+// Adding a tile into the grid costs about as much as splatting a few hundred voxels saves: sparser
+// blocks go to the grid directly.
+constexpr int kTileMinVoxels = VoxelBlock::kSize / 2;
 
 struct DepositRegion {
     int col0 = 0, row0 = 0;  // grid node of the region's (0, 0)
@@ -105,7 +108,7 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
 
     int shift_x = 0, shift_y = 0;  // region (0, 0) relative to the origin's node
     f.region = {0, 0, grid.columns(), grid.rows()};
-    if constexpr (Tiled) {
+    if (Tiled && active_count(block) >= kTileMinVoxels) {
         // The nodes the block's voxels fall in, from its corners, one node wider on each side for
         // the rounding of float positions; windows reach window - 1 nodes beyond their corner.
         const int span = VoxelBlock::kDim - 1;

@@ -2,10 +2,10 @@
 /// @brief Image-sized arrays that start out as zeros without being written.
 ///
 /// An image at magnification 8 is tens of megabytes, and so is a regular splat grid. A std::vector
-/// of zeros faults in every page and then writes every byte, although the kernel hands out pages
-/// that are already zero. A ZeroedBuffer maps its storage straight from the kernel, advised as
-/// transparent huge pages (a 50 MB image then costs about 25 page faults instead of 12,000), and
-/// writes nothing until the renderer does.
+/// of zeros faults in every 4 KiB page and then writes every byte again, although the kernel hands
+/// out pages that are already zero. A ZeroedBuffer maps its storage straight from the kernel as
+/// transparent huge pages where it can (a 50 MB image then takes about 25 faults instead of
+/// 12,000), faults them in up front on all cores, and writes nothing itself.
 #pragma once
 
 #include <cstddef>
