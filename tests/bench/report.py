@@ -214,11 +214,10 @@ def goal_lines(results: dict, sd: SolData) -> list[str]:
               if str(mag) in cfgs and cfgs[str(mag)]["methods"]["pcvr_bilinear"]["speedup"] < GOALS[key]]
     if missed:
         out += ["", "The speed-up goals assume a `regular` that pays about as much per tap as pcvr. In orthographic views "
-                "`regular` takes its whole footprint window from a phase table (plain loads, no per-tap gathers), "
-                "which makes its taps about three times cheaper than pcvr's, whose fixed per-voxel work is spread "
-                "over 16 taps only. Against that baseline the ratios above are what PCVR earns on this machine; "
-                "with per-tap gathers (the renderer's earlier `regular`, still used under perspective) this "
-                "benchmark measured 31.6x at m=4 and 79.3x at m=8 (commit 2d30717). See *What limits us*."]
+                "`regular` takes its whole footprint window from a phase table (plain loads, no per-tap gathers) in "
+                "the same batched splat as pcvr, which makes its taps cheaper than pcvr's, whose fixed per-voxel "
+                "work is spread over 16 taps only. Against that baseline the ratios above are what PCVR earns on "
+                "this machine. See *What limits us*."]
     return out
 
 
@@ -404,7 +403,8 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
                            + (f" Part of the gap is first touch of fresh buffers: a pcvr render at m={m_hi} faults in "
                               f"{lim['configs'][str(m_hi)]['pcvr_fault_mb']:.0f} MB and spends "
                               f"{1e3 * lim['configs'][str(m_hi)]['pcvr_sys_s']:.0f} ms of CPU time in the kernel "
-                              f"(transparent huge pages: `{lim.get('thp', '?')}`, so 4 KiB pages unless the renderer asks)."
+                              f"(transparent huge pages: `{lim.get('thp', '?')}`; the renderer maps image-sized buffers "
+                              f"as huge pages where the kernel allows and faults them in on all cores before use)."
                               if "pcvr_fault_mb" in lim["configs"].get(str(m_hi), {}) else ""))
             c_avx = sd.get("splat_avx2", "voxels_per_s", 1) / 1e6
             c_nog = sd.get("splat_nogather", "voxels_per_s", 1) / 1e6
@@ -424,7 +424,11 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
                 best_m, best_t = min(one, key=lambda x: x[1])
                 r1 = v["active_voxels"] / best_t / 1e6
                 text += (f" The renderer on one thread (whole pcvr render, m={best_m}) does {r1:.0f} M vox/s: "
-                         f"{100 * r1 / c_ph:.0f}% of the C phase-table loop, {100 * r1 / c_avx:.0f}% of the C gather loop.")
+                         f"{100 * r1 / c_ph:.0f}% of the C phase-table loop, {100 * r1 / c_avx:.0f}% of the C gather loop. "
+                         f"Those loops handle one voxel at a time, so each voxel's long chain (position, floor, phase, "
+                         f"blend, weights, accumulate) leaves the core waiting; the renderer computes positions, phases "
+                         f"and blend weights for eight voxels in one vector pass and then adds the windows, whose "
+                         f"chains are short and independent (`native/src/phase_splat.h`).")
             bullets.append(text)
             b = sd.bounds(sol.pcvr_taps())
             bullets.append(f"**Stores: the port bound is far, the accumulate pattern is not.** 4 stores per voxel at the "
@@ -432,7 +436,10 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
                            f"read-modify-write {sd.rate('rmw_ymm', 'stores_per_s') / 4e6:,.0f} M vox/s; but consecutive "
                            f"voxels of a block land less than one node apart, so each voxel's rows overlap the previous "
                            f"voxel's at a misaligned offset, and that pattern measures only "
-                           f"{sd.rate('rmw_overlap_ymm', 'stores_per_s') / 4e6:,.0f} M vox/s (all cores). "
+                           f"{sd.rate('rmw_overlap_ymm', 'stores_per_s') / 4e6:,.0f} M vox/s (all cores): a load "
+                           f"waits until the overlapping store is written. The renderer lets consecutive voxels take "
+                           f"turns over four float copies of a block-sized tile in L1, so an update waits only on the "
+                           f"voxel four places back, and adds the copies into the double grid once per block. "
                            f"Memory bandwidth ({b['memory'] / 1e6:,.0f} M vox/s) is no limit at all.")
     reg = [(int(m), v["configs"][m]["methods"]["regular"]["median_s"], lim["configs"][m]["regular"]) for m in mags]
     if reg and pc and sd.ok:
@@ -443,11 +450,12 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
         bullets.append(f"**Regular splatting pays per pixel**: at m={m_hi} a voxel's footprint window has "
                        f"{window_hi:.0f} taps ({sol.regular_taps(m_hi):.0f} of them inside the disc) instead of 16. "
                        f"In orthographic views regular takes its weights from the same kind of phase table as pcvr "
-                       f"(plain loads and a blend, no gathers), so it is as optimised: its splat stage runs at "
+                       f"(plain loads and a blend, no gathers) in the same batched splat, so it is as optimised: "
+                       f"its splat stage runs at "
                        f"{reg_rate:.2f} G window taps/s, pcvr's 16-tap loop at {pc_rate:.2f} G taps/s. The speed-ups "
                        f"above are the tap ratio ({window_hi / 16:.0f}x at m={m_hi}) divided by regular's per-tap "
                        f"advantage ({reg_rate / pc_rate:.2f}x): pcvr's per-voxel work (position, phase blend, four "
-                       f"overlapping row updates) is spread over 16 taps only, less what pcvr's image-sized work takes back.")
+                       f"row updates) is spread over 16 taps only, less what pcvr's image-sized work takes back.")
     th = [(int(m), r["pcvr_1thread"], r["pcvr_all_threads"]) for m, r in lim["configs"].items() if "pcvr_1thread" in r]
     if th:
         nt = os.cpu_count() or 2
