@@ -138,16 +138,15 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
 /// Adds the tile copies into the grid (clipped to it) and leaves them zero for the next block.
 void flush_tile(const DepositRegion& r, float* tiles, SplatGrid& grid) {
     const int c0 = std::max(0, -r.col0), c1 = std::min(r.width, grid.columns() - r.col0);
-    for (int j = 0; j < r.height; ++j) {
-        float* t[kTileCopies];
-        for (int k = 0; k < kTileCopies; ++k) t[k] = tiles + size_t(k) * kTileFloats + size_t(j) * r.width;
-        const int row = r.row0 + j;
-        if (row >= 0 && row < grid.rows()) {
-            double* out = grid.row(row) + r.col0;
-            for (int c = c0; c < c1; ++c) out[c] += double((t[0][c] + t[1][c]) + (t[2][c] + t[3][c]));
-        }
-        for (int k = 0; k < kTileCopies; ++k) std::fill(t[k], t[k] + r.width, 0.0f);
+    const int j0 = std::max(0, -r.row0), j1 = std::min(r.height, grid.rows() - r.row0);
+    const float* t[kTileCopies];
+    for (int k = 0; k < kTileCopies; ++k) t[k] = tiles + size_t(k) * kTileFloats;
+    for (int j = j0; j < j1; ++j) {
+        const size_t row = size_t(j) * r.width;
+        double* out = grid.row(r.row0 + j) + r.col0;
+        for (int c = c0; c < c1; ++c) out[c] += double((t[0][row + c] + t[1][row + c]) + (t[2][row + c] + t[3][row + c]));
     }
+    for (int k = 0; k < kTileCopies; ++k) std::fill_n(tiles + size_t(k) * kTileFloats, size_t(r.width) * r.height, 0.0f);
 }
 
 /// Eight voxels ready to deposit.
