@@ -5,12 +5,8 @@
 #include <type_traits>
 #include <utility>
 
+#include "block_tile.h"
 #include "block_voxels.h"
-
-#if defined(__AVX2__) && defined(__FMA__)
-#include <immintrin.h>
-#define PCVR_AVX2 1
-#endif
 
 namespace pcvr {
 
@@ -58,24 +54,6 @@ inline WindowLayout window_layout(const PhaseFootprintTable& t) {
         return {t.half_width(), t.window(), t.pitch(), t.phases(), int(t.entry_size())};
 }
 
-/// Where a block's deposits go. Small windows (PCVR's 4 x 4, bilinear spreading's 2 x 2) are added
-/// into a block-sized float tile first. Consecutive voxels of a column land less than a node apart,
-/// so each one's rows overlap the previous one's at a shifted address, and a load cannot take its
-/// data from such a store before it is written: every voxel's updates would wait on the voxel
-/// before. Lanes take turns over kTileCopies copies of the tile, so an update waits only on the
-/// voxel four places back, and the tile stays in L1. Float is enough there (a node gets at most a
-/// few dozen contributions from one block); the copies are added into the double grid per block.
-constexpr int kTileCopies = 4;
-constexpr int kTileFloats = 64 * 64;  // per copy: blocks whose windows span more go to the grid directly
-// Adding a tile into the grid costs about as much as splatting a few hundred voxels saves: sparser
-// blocks go to the grid directly.
-constexpr int kTileMinVoxels = VoxelBlock::kSize / 2;
-
-struct DepositRegion {
-    int col0 = 0, row0 = 0;  // grid node of the region's (0, 0)
-    int width = 0, height = 0;
-};
-
 /// One block's part of the mapping as eight-lane constants. Positions are floats relative to the
 /// node holding the block's origin: within a block they stay below a few dozen nodes, where a
 /// float resolves about 1e-6 node, and the image stays exactly shift-invariant by whole nodes.
@@ -86,7 +64,6 @@ struct BlockFrame {
     __m256i corner_x, corner_y;  // window corner of a voxel at the origin's node, in the region
     __m256i last_x, last_y;      // the largest corner whose window fits the region
     DepositRegion region;        // the block's tile, or the whole grid
-    bool tiled = false;
 };
 
 /// The frame of `block`, with a tile around its windows when `Tiled` and they fit one.
@@ -106,8 +83,9 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
     f.gyk = _mm256_set1_ps(float(map.gy.z));
     f.amp_per_value = _mm256_set1_ps(map.amp_per_value);
 
-    int shift_x = 0, shift_y = 0;  // region (0, 0) relative to the origin's node
-    f.region = {0, 0, grid.columns(), grid.rows()};
+    // Region (0, 0) relative to the origin's node.
+    int shift_x = -int(node_x), shift_y = -int(node_y);
+    f.region = DepositRegion::whole(grid);
     if (Tiled && active_count(block) >= kTileMinVoxels) {
         // The nodes the block's voxels fall in, from its corners, one node wider on each side for
         // the rounding of float positions; windows reach window - 1 nodes beyond their corner.
@@ -119,34 +97,16 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
         };
         const auto [x0, x1] = node_range(x - node_x, map.gx);
         const auto [y0, y1] = node_range(y - node_y, map.gy);
-        const int width = x1 - x0 + w.window, height = y1 - y0 + w.window;
-        if (width * height <= kTileFloats) {
-            f.tiled = true;
-            shift_x = x0 - w.half_width + 1;
-            shift_y = y0 - w.half_width + 1;
-            f.region = {int(node_x) + shift_x, int(node_y) + shift_y, width, height};
-        }
+        const int tx = x0 - w.half_width + 1, ty = y0 - w.half_width + 1;
+        f.region = DepositRegion::tile_or_grid(int(node_x) + tx, int(node_y) + ty, x1 - x0 + w.window,
+                                               y1 - y0 + w.window, 0, grid);
+        if (f.region.tiled) shift_x = tx, shift_y = ty;
     }
-    if (!f.tiled) shift_x = -int(node_x), shift_y = -int(node_y);
     f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
     f.corner_y = _mm256_set1_epi32(1 - w.half_width - shift_y);
     f.last_x = _mm256_set1_epi32(f.region.width - w.window);
     f.last_y = _mm256_set1_epi32(f.region.height - w.window);
     return f;
-}
-
-/// Adds the tile copies into the grid (clipped to it) and leaves them zero for the next block.
-void flush_tile(const DepositRegion& r, float* tiles, SplatGrid& grid) {
-    const int c0 = std::max(0, -r.col0), c1 = std::min(r.width, grid.columns() - r.col0);
-    const int j0 = std::max(0, -r.row0), j1 = std::min(r.height, grid.rows() - r.row0);
-    const float* t[kTileCopies];
-    for (int k = 0; k < kTileCopies; ++k) t[k] = tiles + size_t(k) * kTileFloats;
-    for (int j = j0; j < j1; ++j) {
-        const size_t row = size_t(j) * r.width;
-        double* out = grid.row(r.row0 + j) + r.col0;
-        for (int c = c0; c < c1; ++c) out[c] += double((t[0][row + c] + t[1][row + c]) + (t[2][row + c] + t[3][row + c]));
-    }
-    for (int k = 0; k < kTileCopies; ++k) std::fill_n(tiles + size_t(k) * kTileFloats, size_t(r.width) * r.height, 0.0f);
 }
 
 /// Eight voxels ready to deposit.
@@ -261,8 +221,8 @@ inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, Windo
     // Locals, so that the compiler need not reload them after every store.
     const float* const entries = table.data();
     const uint32_t inside = b.live & b.inside;
-    if (f.tiled) {
-        const size_t pitch = size_t(f.region.width);
+    if (f.region.tiled) {
+        const size_t pitch = size_t(f.region.pitch);
         for (uint32_t todo = inside; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             float* tile = tiles + size_t(l % kTileCopies) * kTileFloats;
@@ -284,70 +244,22 @@ inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, Windo
 
 template <WindowKind Kind>
 uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
-                     const ViewProjection* clip_view, SplatGrid& grid, PhaseScratch& scratch) {
-    constexpr bool kSmallWindow = Kind != WindowKind::Table;
+                     const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch) {
     const WindowLayout w = window_layout<Kind>(table);
-    const BlockFrame f = block_frame<kSmallWindow>(block, map, w, grid);
-    float* tiles = nullptr;
-    if (f.tiled) {
-        if (scratch.tiles.empty()) scratch.tiles.assign(size_t(kTileCopies) * kTileFloats, 0.0f);
-        tiles = scratch.tiles.data();
-    }
+    const BlockFrame f = block_frame<Kind != WindowKind::Table>(block, map, w, grid);
+    float* tiles = f.region.tiled ? scratch.tile_copies() : nullptr;
+    const TileFlush flush(f.region, tiles, grid);
     VoxelBatch b;
     uint64_t count = 0;
-    auto splat = [&](__m256 lx, __m256 ly, __m256 v) {
-        prepare(lx, ly, v, f, w, b);
+    auto keep = [&](int offset) {
+        return !clip_view || ViewProjection::inside_clip_range(clip_view->to_clip(voxel_position(block, offset)));
+    };
+    for_each_batch(block, !clip_view && all_active(block), keep, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
+        prepare(_mm256_fmadd_ps(f.gxk, k, _mm256_fmadd_ps(f.gxj, j, _mm256_fmadd_ps(f.gxi, i, f.ox))),
+                _mm256_fmadd_ps(f.gyk, k, _mm256_fmadd_ps(f.gyj, j, _mm256_fmadd_ps(f.gyi, i, f.oy))), v, f, w, b);
         count += __builtin_popcount(b.live);
         deposit<Kind>(b, table, w, f, tiles, grid);
-    };
-    // Runs when the block is done, whichever way it returns.
-    struct Flush {
-        const BlockFrame& f;
-        float* tiles;
-        SplatGrid& grid;
-        ~Flush() {
-            if (tiles) flush_tile(f.region, tiles, grid);
-        }
-    } flush_at_end{f, tiles, grid};
-
-    if (!clip_view && all_active(block)) {
-        // Dense blocks (most of a CT scan): one batch per column of eight voxels along k.
-        const __m256 k = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
-        const __m256 column_x = _mm256_fmadd_ps(f.gxk, k, f.ox), column_y = _mm256_fmadd_ps(f.gyk, k, f.oy);
-        for (int i = 0; i < 8; ++i)
-            for (int j = 0; j < 8; ++j) {
-                const __m256 fi = _mm256_set1_ps(float(i)), fj = _mm256_set1_ps(float(j));
-                const __m256 v = block.values ? _mm256_loadu_ps(block.values + (i * 8 + j) * 8) : _mm256_set1_ps(block.constant);
-                splat(_mm256_fmadd_ps(f.gxj, fj, _mm256_fmadd_ps(f.gxi, fi, column_x)),
-                      _mm256_fmadd_ps(f.gyj, fj, _mm256_fmadd_ps(f.gyi, fi, column_y)), v);
-            }
-        return count;
-    }
-
-    // Sparse blocks: gather the voxels to splat, eight at a time (unused lanes hold zeros, which are not live).
-    alignas(32) int32_t offsets[8];
-    alignas(32) float values[8];
-    int n = 0;
-    auto splat_gathered = [&] {
-        std::fill(offsets + n, offsets + 8, 0);
-        std::fill(values + n, values + 8, 0.0f);
-        const __m256i offset = _mm256_load_si256(reinterpret_cast<const __m256i*>(offsets));
-        const __m256i seven = _mm256_set1_epi32(7);
-        const __m256 fi = _mm256_cvtepi32_ps(_mm256_srli_epi32(offset, 6));
-        const __m256 fj = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(offset, 3), seven));
-        const __m256 fk = _mm256_cvtepi32_ps(_mm256_and_si256(offset, seven));
-        splat(_mm256_fmadd_ps(f.gxk, fk, _mm256_fmadd_ps(f.gxj, fj, _mm256_fmadd_ps(f.gxi, fi, f.ox))),
-              _mm256_fmadd_ps(f.gyk, fk, _mm256_fmadd_ps(f.gyj, fj, _mm256_fmadd_ps(f.gyi, fi, f.oy))),
-              _mm256_load_ps(values));
-        n = 0;
-    };
-    for_each_voxel(block, [&](int offset, float v) {
-        if (clip_view && !ViewProjection::inside_clip_range(clip_view->to_clip(voxel_position(block, offset)))) return;
-        offsets[n] = offset;
-        values[n] = v;
-        if (++n == 8) splat_gathered();
     });
-    if (n) splat_gathered();
     return count;
 }
 
@@ -356,7 +268,7 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
 }  // namespace
 
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
-                            const ViewProjection* clip_view, SplatGrid& grid, PhaseScratch& scratch) {
+                            const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch) {
 #ifdef PCVR_AVX2
     return table.window() == 4 ? splat_block<WindowKind::Table4x4>(block, map, table, clip_view, grid, scratch)
            : table.is_bilinear_spread() ? splat_block<WindowKind::Tent2x2>(block, map, table, clip_view, grid, scratch)

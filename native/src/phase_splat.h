@@ -12,7 +12,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
+
+#include "block_tile.h"
 
 #include "pcvr/grid.h"
 #include "pcvr/math.h"
@@ -32,15 +33,10 @@ struct OrthographicMapping {
     double node_y(const Vec3& index) const { return by + gy.x * index.x + gy.y * index.y + gy.z * index.z; }
 };
 
-/// A worker's scratch memory for splat_block_phases, reused from block to block.
-struct PhaseScratch {
-    std::vector<float> tiles;  ///< block tiles of the small windows, zero between blocks
-};
-
 /// Splats the active, finite, non-zero voxels of `block` with the windows of `table` into `grid`,
 /// clipping windows at the grid's edge. With `clip_view`, only voxels whose centre lies between its
 /// clip planes count. Returns the number of voxels splatted.
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
-                            const ViewProjection* clip_view, SplatGrid& grid, PhaseScratch& scratch);
+                            const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch);
 
 }  // namespace pcvr

@@ -52,25 +52,14 @@ bool ViewProjection::footprint_unclipped(const Vec3& c, Footprint& out) const {
 }
 
 void ViewProjection::footprint_at(const Vec3& c, const Vec4& clip, Footprint& out) const {
-    out.px = camera_.pixel_x(clip.x / clip.w);
-    out.py = camera_.pixel_y(clip.y / clip.w);
-
-    // The ray through the centre's pixel, in index space: origin o, direction d (passes through c).
-    const Vec3 o = o0_ + ox_ * out.px + oy_ * out.py;
-    const Vec3 d = d0_ + dx_ * out.px + dy_ * out.py;
-    const double dd = dot(d, d);
-    const double t = dot(c - o, d) / dd;
-    // Crossing points of neighbouring rays with the plane through c perpendicular to d move by
-    // U per pixel in x and V per pixel in y (derivative of o + t d, projected onto the plane).
-    Vec3 u = ox_ + dx_ * t, v = oy_ + dy_ * t;
-    u = u - d * (dot(u, d) / dd);
-    v = v - d * (dot(v, d) / dd);
-    out.qxx = dot(u, u);
-    out.qxy = dot(u, v);
-    out.qyy = dot(v, v);
-
-    const Vec3 wd = wd0_ + wdx_ * out.px + wdy_ * out.py;
-    out.line_scale = length(wd) / std::sqrt(dd);
+    const FootprintLanes<double> f =
+        footprint_lanes(c.x, c.y, c.z, clip.x, clip.y, clip.w, [](double v) { return std::sqrt(v); });
+    out.px = f.px;
+    out.py = f.py;
+    out.qxx = f.qxx;
+    out.qxy = f.qxy;
+    out.qyy = f.qyy;
+    out.line_scale = f.line_scale;
 }
 
 }  // namespace pcvr

@@ -14,6 +14,15 @@
 
 namespace pcvr {
 
+/// The footprint arithmetic's inputs and outputs for one voxel (T = double) or several at once
+/// (T = a GCC vector of doubles), so that the scalar and the batched splats share one formula.
+template <class T>
+struct FootprintLanes {
+    T px, py;            ///< projected centre, pixel coordinates
+    T qxx, qxy, qyy;     ///< see Footprint
+    T line_scale;
+};
+
 struct Footprint {
     double px = 0, py = 0;              ///< projected centre, pixel coordinates
     double qxx = 0, qxy = 0, qyy = 0;   ///< rho^2 in index units^2 per pixel offset, see above
@@ -47,6 +56,11 @@ public:
     /// The same, ignoring the near and far planes; false only behind the eye.
     bool footprint_unclipped(const Vec3& index_pos, Footprint& out) const;
 
+    /// The footprint of the voxel(s) at index position (x, y, z) whose clip coordinates are
+    /// (clip_x, clip_y, ., clip_w), clip_w > 0. `sqrt` takes and returns a T.
+    template <class T, class Sqrt>
+    FootprintLanes<T> footprint_lanes(T x, T y, T z, T clip_x, T clip_y, T clip_w, Sqrt sqrt) const;
+
 private:
     void footprint_at(const Vec3& c, const Vec4& clip, Footprint& out) const;
 
@@ -57,5 +71,39 @@ private:
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
 };
+
+template <class T, class Sqrt>
+FootprintLanes<T> ViewProjection::footprint_lanes(T x, T y, T z, T clip_x, T clip_y, T clip_w, Sqrt sqrt) const {
+    struct V {  // three lanes of T, with what the formula needs
+        T x, y, z;
+        V operator+(const V& o) const { return {x + o.x, y + o.y, z + o.z}; }
+        V operator-(const V& o) const { return {x - o.x, y - o.y, z - o.z}; }
+        V operator*(T s) const { return {x * s, y * s, z * s}; }
+        T dot(const V& o) const { return x * o.x + y * o.y + z * o.z; }
+    };
+    auto lanes = [](const Vec3& v) { return V{T{} + v.x, T{} + v.y, T{} + v.z}; };
+    FootprintLanes<T> out;
+    const double half_w = 0.5 * camera_.width(), half_h = 0.5 * camera_.height();
+    out.px = (clip_x / clip_w + 1.0) * half_w - 0.5;  // Camera::pixel_x and pixel_y
+    out.py = (1.0 - clip_y / clip_w) * half_h - 0.5;
+
+    // The ray through the centre's pixel, in index space: origin o, direction d (passes through c).
+    const V o = lanes(o0_) + lanes(ox_) * out.px + lanes(oy_) * out.py;
+    const V d = lanes(d0_) + lanes(dx_) * out.px + lanes(dy_) * out.py;
+    const T dd = d.dot(d);
+    const T t = (V{x, y, z} - o).dot(d) / dd;
+    // Crossing points of neighbouring rays with the plane through c perpendicular to d move by
+    // U per pixel in x and V per pixel in y (derivative of o + t d, projected onto the plane).
+    V u = lanes(ox_) + lanes(dx_) * t, v = lanes(oy_) + lanes(dy_) * t;
+    u = u - d * (u.dot(d) / dd);
+    v = v - d * (v.dot(d) / dd);
+    out.qxx = u.dot(u);
+    out.qxy = u.dot(v);
+    out.qyy = v.dot(v);
+
+    const V wd = lanes(wd0_) + lanes(wdx_) * out.px + lanes(wdy_) * out.py;
+    out.line_scale = sqrt(wd.dot(wd)) / sqrt(dd);
+    return out;
+}
 
 }  // namespace pcvr

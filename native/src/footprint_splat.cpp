@@ -1,0 +1,247 @@
+#include "footprint_splat.h"
+
+#include <algorithm>
+#include <cmath>
+#include <type_traits>
+
+#include "block_voxels.h"
+
+namespace pcvr {
+
+namespace {
+
+/// A footprint in node units of the target grid, as floats for the tap loops.
+struct NodeShape {
+    float qxx, qxy, qyy;
+    float ext_x, ext_y;  // bounding half-widths of the ellipse rho <= radius
+};
+
+/// Footprint taps on every row of the ellipse's bounding box around (cx, cy), clipped to
+/// rows x columns nodes at `base` (row pitch `pitch`): the grid (T = double) or a block tile
+/// (T = float). Wide footprints (regular splatting at high magnification) visit only each row's
+/// chord of the ellipse; for narrow ones a row is one or two vectors anyway, and the chord's square
+/// root would cost more than it saves. Rows are written in whole 8-lane vectors, lanes past the
+/// footprint holding zero weight: the grid's padding and the tile's slack take those stores.
+template <class T>
+void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, double cy, const NodeShape& s, float amp,
+                   const FootprintTable& table) {
+    constexpr float kChordWidth = 8.0f;  // half-width in nodes from which rows are trimmed to the chord
+    const int r0 = std::max(0, int(std::ceil(cy - s.ext_y)));
+    const int r1 = std::min(rows - 1, int(std::floor(cy + s.ext_y)));
+    const int box_c0 = std::max(0, int(std::ceil(cx - s.ext_x)));
+    const int box_c1 = std::min(columns - 1, int(std::floor(cx + s.ext_x)));
+    const bool trim_rows = s.ext_x > kChordWidth;
+    const double radius2 = table.radius2();
+    [[maybe_unused]] const float* tab = table.data();
+    [[maybe_unused]] const float scale = table.scale(), max_index = table.max_index();
+    for (int r = r0; r <= r1; ++r) {
+        const double dy = r - cy;
+        int c0 = box_c0, c1 = box_c1;
+        if (trim_rows) {
+            // Solve qxx dx^2 + 2 qxy dy dx + qyy dy^2 <= R^2 for the columns inside the ellipse.
+            const double b = double(s.qxy) * dy, c = double(s.qyy) * dy * dy - radius2;
+            const double disc = b * b - double(s.qxx) * c;
+            if (disc <= 0) continue;
+            const double root = std::sqrt(disc);
+            c0 = std::max(c0, int(std::ceil(cx + (-b - root) / s.qxx)));
+            c1 = std::min(c1, int(std::floor(cx + (-b + root) / s.qxx)));
+        }
+        T* out = base + size_t(r) * pitch;
+        const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, row_base = s.qyy * fdy * fdy;
+        const float first_dx = float(c0 - cx);
+#ifdef PCVR_AVX2
+        const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+        for (int col = c0; col <= c1; col += 8) {
+            const __m256 dx = _mm256_add_ps(_mm256_set1_ps(first_dx + float(col - c0)), lanes);
+            const __m256 r2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qxx), dx, _mm256_set1_ps(lin)), dx,
+                                              _mm256_set1_ps(row_base));
+            const __m256i idx = _mm256_cvttps_epi32(
+                _mm256_max_ps(_mm256_min_ps(_mm256_mul_ps(r2, _mm256_set1_ps(scale)), _mm256_set1_ps(max_index)),
+                              _mm256_setzero_ps()));
+            const __m256 inside = _mm256_cmp_ps(lanes, _mm256_set1_ps(float(c1 - col)), _CMP_LE_OQ);
+            const __m256 w = _mm256_and_ps(_mm256_mul_ps(_mm256_i32gather_ps(tab, idx, 4), _mm256_set1_ps(amp)), inside);
+            T* o = out + col;
+            if constexpr (std::is_same_v<T, float>) {
+                _mm256_storeu_ps(o, _mm256_add_ps(_mm256_loadu_ps(o), w));
+            } else {
+                _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+                _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+            }
+        }
+#else
+        for (int col = c0; col <= c1; ++col) {
+            const float dx = first_dx + float(col - c0);
+            out[col] += T(amp * table.at_rho2(std::max(0.0f, (s.qxx * dx + lin) * dx + row_base)));
+        }
+#endif
+    }
+}
+
+/// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nodes around
+/// (cx, cy), clipped to rows x columns nodes at `base`.
+template <class T>
+void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, double cy, float mass) {
+    const int c = int(std::floor(cx)), r = int(std::floor(cy));
+    const double fx = cx - c, fy = cy - r;
+    const double w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
+    for (int j = 0; j < 2; ++j) {
+        if (r + j < 0 || r + j >= rows) continue;
+        T* out = base + size_t(r + j) * pitch;
+        for (int i = 0; i < 2; ++i)
+            if (c + i >= 0 && c + i < columns) out[c + i] += T(mass * w[j][i]);
+    }
+}
+
+/// Storage node coordinates of pixel coordinates.
+struct NodeFrame {
+    double inv_stride, first_x, first_y;
+    double x(double px) const { return px * inv_stride - first_x; }
+    double y(double py) const { return py * inv_stride - first_y; }
+};
+
+/// Where a block's footprints go: a tile around the block's planned bounds when the block is dense
+/// enough and they fit one, else the grid. (ref_x, ref_y): the storage node that lane positions are
+/// relative to, so that floats keep them exact to about 1e-6 node.
+struct BlockTarget {
+    DepositRegion region;
+    int ref_x = 0, ref_y = 0;
+};
+
+BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, const NodeFrame& nodes, const SplatGrid& grid) {
+    BlockTarget t;
+    t.region = DepositRegion::whole(grid);
+    const bool bounded = planned.min_x > -1e29f && planned.max_x < 1e29f && planned.min_y > -1e29f && planned.max_y < 1e29f;
+    if (!bounded) return t;
+    // One node of margin around the plan's bounds for rounding; 8 floats of slack for whole-vector rows.
+    const int x0 = int(std::floor(nodes.x(planned.min_x))) - 1, x1 = int(std::ceil(nodes.x(planned.max_x))) + 1;
+    const int y0 = int(std::floor(nodes.y(planned.min_y))) - 1, y1 = int(std::ceil(nodes.y(planned.max_y))) + 1;
+    if (active_count(block) >= kTileMinVoxels) t.region = DepositRegion::tile_or_grid(x0, y0, x1 - x0 + 1, y1 - y0 + 1, 8, grid);
+    t.ref_x = x0;
+    t.ref_y = y0;
+    return t;
+}
+
+/// Adds one footprint, given relative to the block target's reference node, into its tile when it
+/// lies inside, else into the grid.
+void add_lane(const BlockTarget& t, float* tile, SplatGrid& grid, float cx, float cy, const NodeShape& s, float amp,
+              const FootprintSplatParams& params) {
+    const DepositRegion& r = t.region;
+    if (r.tiled) {
+        const bool inside = params.bilinear_spread
+                                ? cx >= 0 && cy >= 0 && cx < r.width - 1 && cy < r.height - 1
+                                : cx - s.ext_x > 0 && cy - s.ext_y > 0 && cx + s.ext_x < r.width - 1 && cy + s.ext_y < r.height - 1;
+        if (inside) {
+            if (params.bilinear_spread)
+                add_bilinear(tile, r.pitch, r.height, r.width, cx, cy, amp);
+            else
+                add_footprint(tile, r.pitch, r.height, r.width, cx, cy, s, amp, *params.table);
+            return;
+        }
+    }
+    const double gx = double(cx) + t.ref_x, gy = double(cy) + t.ref_y;
+    if (params.bilinear_spread)
+        add_bilinear(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, amp);
+    else
+        add_footprint(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, s, amp, *params.table);
+}
+
+#ifdef PCVR_AVX2
+
+typedef double double4 __attribute__((vector_size(32)));
+typedef long long long4 __attribute__((vector_size(32)));  // what comparisons of double4 give
+
+inline double4 lanes_of(__m128 v) { return double4(_mm256_cvtps_pd(v)); }
+inline __m128 floats_of(double4 v) { return _mm256_cvtpd_ps(__m256d(v)); }
+inline uint32_t mask_of(long4 condition) { return uint32_t(_mm256_movemask_pd(__m256d(condition))); }
+
+/// Eight voxels projected: positions relative to the target's reference node, shape, amplitude.
+struct ProjectedBatch {
+    alignas(32) float cx[8], cy[8], qxx[8], qxy[8], qyy[8], ext_x[8], ext_y[8], amp[8];
+    uint32_t live;  // lanes holding a finite, non-zero voxel inside the clip range
+};
+
+/// The vector pass: index offsets (i, j, k) within the block and values v of eight voxels.
+void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, const FootprintSplatParams& params,
+             const NodeFrame& nodes, const BlockTarget& target, ProjectedBatch& out) {
+    const ViewProjection& view = *params.view;
+    const Mat4& m = view.index_to_clip();
+    const double stride2 = 1.0 / (nodes.inv_stride * nodes.inv_stride), radius = params.kernel_radius;
+    const double4 zero = {0, 0, 0, 0};
+    auto sqrt4 = [](double4 x) { return double4(_mm256_sqrt_pd(__m256d(x))); };
+    uint32_t inside_clip = 0;
+    for (int half = 0; half < 2; ++half) {
+        auto part = [half](__m256 x) { return lanes_of(half ? _mm256_extractf128_ps(x, 1) : _mm256_castps256_ps128(x)); };
+        const double4 x = part(i) + double(block.origin[0]), y = part(j) + double(block.origin[1]),
+                      z = part(k) + double(block.origin[2]);
+        auto row = [&](int r) { return x * m.m[r][0] + y * m.m[r][1] + z * m.m[r][2] + m.m[r][3]; };
+        const double4 clip_x = row(0), clip_y = row(1), clip_z = row(2), clip_w = row(3);
+        inside_clip |= mask_of((clip_w > zero) & (clip_z >= -clip_w) & (clip_z <= clip_w)) << (4 * half);
+
+        const FootprintLanes<double4> f = view.footprint_lanes(x, y, z, clip_x, clip_y, clip_w, sqrt4);
+        const double4 qxx = f.qxx * stride2, qxy = f.qxy * stride2, qyy = f.qyy * stride2;
+        const double4 det = qxx * qyy - qxy * qxy;
+        double4 amp = f.line_scale * double(params.density_scale);
+        if (params.bilinear_spread) amp = amp / sqrt4(det);  // the footprint's integral, node^2
+        const int o = 4 * half;
+        _mm_store_ps(out.cx + o, floats_of(f.px * nodes.inv_stride - (nodes.first_x + target.ref_x)));
+        _mm_store_ps(out.cy + o, floats_of(f.py * nodes.inv_stride - (nodes.first_y + target.ref_y)));
+        _mm_store_ps(out.qxx + o, floats_of(qxx));
+        _mm_store_ps(out.qxy + o, floats_of(qxy));
+        _mm_store_ps(out.qyy + o, floats_of(qyy));
+        _mm_store_ps(out.ext_x + o, floats_of(radius * sqrt4(qyy / det)));
+        _mm_store_ps(out.ext_y + o, floats_of(radius * sqrt4(qxx / det)));
+        _mm_store_ps(out.amp + o, floats_of(amp));
+    }
+    _mm256_store_ps(out.amp, _mm256_mul_ps(_mm256_load_ps(out.amp), v));
+    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v);
+    const __m256 finite_non_zero = _mm256_and_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(INFINITY), _CMP_LT_OQ),
+                                                 _mm256_cmp_ps(magnitude, _mm256_setzero_ps(), _CMP_GT_OQ));
+    out.live = inside_clip & uint32_t(_mm256_movemask_ps(finite_non_zero));
+}
+
+#endif  // PCVR_AVX2
+
+}  // namespace
+
+uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
+                                SplatGrid& grid, SplatScratch& scratch) {
+    const NodeFrame nodes{1.0 / grid.stride(), double(grid.first_node_x()), double(grid.first_node_y())};
+    const BlockTarget target = block_target(block, planned, nodes, grid);
+    float* tiles = target.region.tiled ? scratch.tile_copies() : nullptr;
+    const TileFlush flush(target.region, tiles, grid);
+    uint64_t count = 0;
+#ifdef PCVR_AVX2
+    ProjectedBatch b;
+    for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
+        project(block, i, j, k, v, params, nodes, target, b);
+        count += __builtin_popcount(b.live);
+        for (uint32_t todo = b.live; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            float* tile = tiles ? tiles + size_t(l % kTileCopies) * kTileFloats : nullptr;
+            add_lane(target, tile, grid, b.cx[l], b.cy[l], {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l]}, b.amp[l],
+                     params);
+        }
+    });
+#else
+    const double stride2 = double(grid.stride()) * grid.stride();
+    int turn = 0;
+    for_each_voxel(block, [&](int offset, float v) {
+        Footprint fp;
+        if (!params.view->footprint(voxel_position(block, offset), fp)) return;
+        Footprint f = fp;
+        f.qxx *= stride2;
+        f.qxy *= stride2;
+        f.qyy *= stride2;
+        const NodeShape s{float(f.qxx), float(f.qxy), float(f.qyy), float(f.extent_x(params.kernel_radius)),
+                          float(f.extent_y(params.kernel_radius))};
+        float amp = float(v * params.density_scale * fp.line_scale);
+        if (params.bilinear_spread) amp *= float(f.area_integral());
+        float* tile = tiles ? tiles + size_t(turn++ % kTileCopies) * kTileFloats : nullptr;
+        add_lane(target, tile, grid, float(nodes.x(fp.px) - target.ref_x), float(nodes.y(fp.py) - target.ref_y), s, amp, params);
+        ++count;
+    });
+#endif
+    return count;
+}
+
+}  // namespace pcvr

@@ -1,0 +1,38 @@
+/// @file footprint_splat.h
+/// @brief Splats in which every voxel has its own footprint, eight voxels at a time.
+///
+/// Perspective views (a footprint's size and shape change with depth and position), the box
+/// kernel, whose rim a phase table would blur, and footprints too wide to tabulate. A vector pass
+/// projects eight voxels at once in double precision with ViewProjection's own formula (centre,
+/// clip test, quadratic form, line scale) and turns them into node units of the target grid; then
+/// each footprint is added row by row, its weights gathered from the FootprintTable eight taps at
+/// a time: into the block's tile (block_tile.h) when the block is dense and its footprints fit one,
+/// else straight into the grid. Bilinear spreading takes the same pass and puts each footprint's
+/// integral on its 2 x 2 nearest nodes.
+#pragma once
+
+#include <cstdint>
+
+#include "block_tile.h"
+#include "pcvr/block_plan.h"
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "pcvr/splat_grid.h"
+#include "pcvr/view_projection.h"
+
+namespace pcvr {
+
+struct FootprintSplatParams {
+    const ViewProjection* view = nullptr;
+    const FootprintTable* table = nullptr;
+    double kernel_radius = 2.0;   ///< index units
+    float density_scale = 1.0f;
+    bool bilinear_spread = false;  ///< each footprint's integral to its 2 x 2 nearest nodes instead
+};
+
+/// Splats the active, finite, non-zero voxels of `block` whose centres lie between the clip planes
+/// into `grid`. `planned` bounds what the block can touch. Returns the number of voxels splatted.
+uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
+                                SplatGrid& grid, SplatScratch& scratch);
+
+}  // namespace pcvr
