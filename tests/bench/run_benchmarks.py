@@ -18,6 +18,8 @@ For each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each
 |          | (VmHWM reset through /proc/self/clear_refs after the grid is built)                      |
 | limits   | 256^3 only: the same camera on a grid with one voxel per 8^3 block, which leaves the work |
 |          | that scales with the image (buffers, post-convolution, reduction); and threads=1         |
+| persp.   | the largest dense volume through a pinhole camera (4 pixels per voxel at its centre):    |
+|          | timing and accuracy as above, with a depth band per stride                                |
 
 Then the speed-of-light micro-benchmarks (speed_of_light.py) and the report with two plots under
 docs/img/. Raw numbers go to out/bench/results.json. Progress goes to stderr.
@@ -45,7 +47,7 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 
-from pcvr_native.cameras import look_at, ortho  # noqa: E402
+from pcvr_native.cameras import frustum, look_at, ortho  # noqa: E402
 import speed_of_light as sol  # noqa: E402
 
 PIXEL_STEP = 7
@@ -54,6 +56,10 @@ VIEW_DIRECTION = (-0.62, 0.47, -0.63)   # oblique: no axis of the volume is para
 VIEW_UP = (0.6, -0.3, 1.0)      # rolled, so no volume axis projects parallel to an image axis
 KERNEL_RADIUS = 2.0
 MARGIN_PIXELS = 2
+# The perspective view: pixels per voxel at the volume's centre, and the eye's distance from it in
+# volume diagonals (the near side is then magnified about 1.5x more than the far side).
+PERSPECTIVE_MAGNIFICATION = 4.0
+PERSPECTIVE_DISTANCE = 1.5
 
 # (key, label, method, post_filter)
 METHODS = [
@@ -111,6 +117,33 @@ def camera_spec(shape, index_to_world, magnification: float) -> dict:
     # Subgrid node coordinates per index step (for the C splat harness): camera xy per index / pixel.
     return {"world_to_camera": w2c.tolist(), "projection": proj.tolist(), "width": width, "height": height,
             "node_gx": (jac[0] / pixel / magnification).tolist(), "node_gy": (-jac[1] / pixel / magnification).tolist()}
+
+
+def perspective_spec(shape, index_to_world, magnification: float) -> dict:
+    """Pinhole camera along VIEW_DIRECTION, PERSPECTIVE_DISTANCE volume diagonals from the volume's
+    centre, with `magnification` pixels per voxel at the centre (more on the near side, fewer on the
+    far side), framing the whole volume plus the kernel radius."""
+    xf = np.asarray(index_to_world, dtype=np.float64)
+    lo = np.zeros(3) - KERNEL_RADIUS
+    hi = np.asarray(shape, dtype=np.float64) - 1 + KERNEL_RADIUS
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    world = corners @ xf[:3, :3].T + xf[:3, 3]
+    centre = world.mean(axis=0)
+    diag = float(np.linalg.norm(world.max(axis=0) - world.min(axis=0)))
+    d = np.asarray(VIEW_DIRECTION, dtype=np.float64)
+    d /= np.linalg.norm(d)
+    distance = PERSPECTIVE_DISTANCE * diag
+    w2c = look_at(centre - d * distance, centre, VIEW_UP)
+    voxel = float(np.linalg.svd(w2c[:2, :3] @ xf[:3, :3], compute_uv=False).min())  # world size of a voxel
+    focal = magnification * distance / voxel  # pixels per unit of x / depth
+    cam = world @ w2c[:3, :3].T + w2c[:3, 3]
+    half = (np.abs(cam[:, :2]) / -cam[:, 2:3]).max(axis=0) * focal
+    width = int(math.ceil(2.0 * half[0])) + 2 * MARGIN_PIXELS
+    height = int(math.ceil(2.0 * half[1])) + 2 * MARGIN_PIXELS
+    near, far = distance - 0.75 * diag, distance + 0.75 * diag
+    w2, h2 = width / (2.0 * focal), height / (2.0 * focal)  # the window at unit depth
+    proj = frustum(-w2 * near, w2 * near, -h2 * near, h2 * near, near, far)
+    return {"world_to_camera": w2c.tolist(), "projection": proj.tolist(), "width": width, "height": height}
 
 
 def make_camera(spec: dict):
@@ -221,6 +254,57 @@ def plan_reps(first_times: dict, args) -> dict:
     return reps
 
 
+def measure_config(grid, spec: dict, active: int, args, label: str) -> dict:
+    """Every method on one camera: the exact reference (every PIXEL_STEP-th pixel), then timed runs of
+    the methods in an order rotated every repetition, with their errors against exact."""
+    cam = make_camera(spec)
+    cfg = {"width": spec["width"], "height": spec["height"], "methods": {}}
+    exact, t_exact, _ = render(grid, cam, "exact", "bilinear", args.threads, pixel_step=PIXEL_STEP)
+    cfg["exact_s"] = t_exact
+    exact = np.asarray(exact, dtype=np.float64)
+    times = {k: [] for k in METHOD_KEYS}
+    reps = None
+    rep = 0
+    while True:
+        order = METHOD_KEYS[rep % len(METHODS):] + METHOD_KEYS[:rep % len(METHODS)]
+        ran = False
+        for key in order:
+            if reps is not None and len(times[key]) >= reps[key]:
+                continue
+            _, _, method, post = METHODS[METHOD_KEYS.index(key)]
+            img, t, stats = render(grid, cam, method, post, args.threads)
+            times[key].append(t)
+            ran = True
+            if rep == 0:
+                cfg["methods"][key] = {"stride": stats.get("stride"), "strides": stats.get("strides"),
+                                       "voxels": stats.get("voxels"), "native_seconds": [], "cpu_seconds": [],
+                                       **error_metrics(img, exact)}
+                if img.shape != (spec["height"], spec["width"]):
+                    raise RuntimeError(f"{method}: image {img.shape}, camera {spec['height']}x{spec['width']}")
+            cfg["methods"][key]["native_seconds"].append(stats.get("seconds"))
+            cfg["methods"][key]["cpu_seconds"].append(stats["cpu_s"])
+            del img
+        if not ran:
+            break
+        if rep == 0:
+            reps = plan_reps({k: v[0] for k, v in times.items()}, args)
+        rep += 1
+    for key in METHOD_KEYS:
+        m = cfg["methods"][key]
+        m["times"] = times[key]
+        m["runs"] = len(times[key])
+        m["median_s"] = statistics.median(times[key])
+        m["mvox_per_s"] = active / m["median_s"] / 1e6
+        m["cores_busy"] = statistics.median(c / t for c, t in zip(m["cpu_seconds"], times[key]))
+    t_reg = cfg["methods"]["regular"]["median_s"]
+    for key in METHOD_KEYS:
+        cfg["methods"][key]["speedup"] = t_reg / cfg["methods"][key]["median_s"]
+    log(f"  {label}: " + ", ".join(
+        f"{k} {1e3 * cfg['methods'][k]['median_s']:.0f} ms x{cfg['methods'][k]['runs']} "
+        f"({cfg['methods'][k]['speedup']:.1f}x, {100 * cfg['methods'][k]['rel_rmse']:.2f}%)" for k in METHOD_KEYS))
+    return cfg
+
+
 def bench_volume(kind: str, n: int, args, workdir: Path, results: dict) -> None:
     import pcvr_native as pn
     name = f"{kind} {n}^3"
@@ -247,58 +331,22 @@ def bench_volume(kind: str, n: int, args, workdir: Path, results: dict) -> None:
 
     for mag in args.magnifications:
         spec = camera_spec((n, n, n), xf, float(mag))
-        cam = make_camera(spec)
-        cfg = {"magnification": mag, "width": spec["width"], "height": spec["height"], "methods": {}}
-        vol["configs"][str(mag)] = cfg
         log(f"  m={mag}: {spec['width']}x{spec['height']} pixels; exact reference at pixel_step={PIXEL_STEP}")
-        exact, t_exact, _ = render(grid, cam, "exact", "bilinear", args.threads, pixel_step=PIXEL_STEP)
-        cfg["exact_s"] = t_exact
-        exact = np.asarray(exact, dtype=np.float64)
-        times = {k: [] for k in METHOD_KEYS}
-        reps = None
-        rep = 0
-        while True:
-            order = METHOD_KEYS[rep % len(METHODS):] + METHOD_KEYS[:rep % len(METHODS)]
-            ran = False
-            for key in order:
-                if reps is not None and len(times[key]) >= reps[key]:
-                    continue
-                _, _, method, post = METHODS[METHOD_KEYS.index(key)]
-                img, t, stats = render(grid, cam, method, post, args.threads)
-                times[key].append(t)
-                ran = True
-                if rep == 0:
-                    m = cfg["methods"][key] = {"stride": stats.get("stride"), "voxels": stats.get("voxels"),
-                                               "native_seconds": [], "cpu_seconds": [], **error_metrics(img, exact)}
-                    if img.shape != (spec["height"], spec["width"]):
-                        raise RuntimeError(f"{method}: image {img.shape}, camera {spec['height']}x{spec['width']}")
-                cfg["methods"][key]["native_seconds"].append(stats.get("seconds"))
-                cfg["methods"][key]["cpu_seconds"].append(stats["cpu_s"])
-                del img
-            if not ran:
-                break
-            if rep == 0:
-                reps = plan_reps({k: v[0] for k, v in times.items()}, args)
-            rep += 1
-        for key in METHOD_KEYS:
-            m = cfg["methods"][key]
-            m["times"] = times[key]
-            m["runs"] = len(times[key])
-            m["median_s"] = statistics.median(times[key])
-            m["mvox_per_s"] = active / m["median_s"] / 1e6
-            m["cores_busy"] = statistics.median(c / t for c, t in zip(m["cpu_seconds"], times[key]))
-        t_reg = cfg["methods"]["regular"]["median_s"]
-        for key in METHOD_KEYS:
-            cfg["methods"][key]["speedup"] = t_reg / cfg["methods"][key]["median_s"]
-        log("  m=%d: " % mag + ", ".join(
-            f"{k} {1e3 * cfg['methods'][k]['median_s']:.0f} ms x{cfg['methods'][k]['runs']} "
-            f"({cfg['methods'][k]['speedup']:.1f}x, {100 * cfg['methods'][k]['rel_rmse']:.2f}%)" for k in METHOD_KEYS))
-
+        cfg = vol["configs"][str(mag)] = measure_config(grid, spec, active, args, f"m={mag}")
+        cfg["magnification"] = mag
         if not args.no_memory:
             for key, _, method, post in METHODS:
                 cfg["methods"][key]["memory"] = measure_memory(values_path, xf, spec, method, post, args.threads, workdir)
             log("  m=%d memory: " % mag + ", ".join(
                 f"{k} {cfg['methods'][k]['memory'].get('extra_mb', float('nan')):.0f} MB" for k in METHOD_KEYS))
+
+    if n == max(args.sizes) and kind == "dense" and args.perspective:
+        spec = perspective_spec((n, n, n), xf, PERSPECTIVE_MAGNIFICATION)
+        low, high = pn.effective_magnification(grid, make_camera(spec))
+        log(f"  perspective: {spec['width']}x{spec['height']} pixels, {low:.1f} to {high:.1f} pixels per voxel")
+        cfg = vol["perspective"] = measure_config(grid, spec, active, args, "perspective")
+        cfg.update(magnification=PERSPECTIVE_MAGNIFICATION, min_magnification=low, max_magnification=high,
+                   distance_diagonals=PERSPECTIVE_DISTANCE)
 
     values_path.unlink(missing_ok=True)  # only the memory children needed it
     if n == max(args.sizes) and kind == "dense":
@@ -415,6 +463,8 @@ def parse_args(argv=None):
     p.add_argument("--threads", type=int, default=0, help="render threads (0 = all cores)")
     p.add_argument("--no-memory", action="store_true", help="skip the per-configuration memory children")
     p.add_argument("--no-sol", action="store_true", help="skip the speed-of-light micro-benchmarks")
+    p.add_argument("--no-perspective", dest="perspective", action="store_false",
+                   help="skip the perspective view of the largest dense volume")
     p.add_argument("--results", default=str(REPO / "out" / "bench" / "results.json"), help="raw results (JSON)")
     p.add_argument("--from-results", help="only write the report from a results.json of an earlier run")
     p.add_argument("--child-memory", help=argparse.SUPPRESS)
