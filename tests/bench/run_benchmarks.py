@@ -94,18 +94,22 @@ def lattice_volume(n: int, index_to_world):
     return values, index_to_world
 
 
-def camera_spec(shape, index_to_world, magnification: float) -> dict:
-    """Orthographic camera along VIEW_DIRECTION framing the whole volume (plus the kernel radius),
-    `magnification` pixels per voxel in the least magnified image direction."""
-    xf = np.asarray(index_to_world, dtype=np.float64)
+def framing(shape, xf: np.ndarray):
+    """The world corners of the volume grown by the kernel radius, their centre, the diagonal, and
+    the unit view direction."""
     lo = np.zeros(3) - KERNEL_RADIUS
     hi = np.asarray(shape, dtype=np.float64) - 1 + KERNEL_RADIUS
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     world = corners @ xf[:3, :3].T + xf[:3, 3]
-    centre = world.mean(axis=0)
-    diag = float(np.linalg.norm(world.max(axis=0) - world.min(axis=0)))
     d = np.asarray(VIEW_DIRECTION, dtype=np.float64)
-    d /= np.linalg.norm(d)
+    return world, world.mean(axis=0), float(np.linalg.norm(world.max(axis=0) - world.min(axis=0))), d / np.linalg.norm(d)
+
+
+def camera_spec(shape, index_to_world, magnification: float) -> dict:
+    """Orthographic camera along VIEW_DIRECTION framing the whole volume (plus the kernel radius),
+    `magnification` pixels per voxel in the least magnified image direction."""
+    xf = np.asarray(index_to_world, dtype=np.float64)
+    world, centre, diag, d = framing(shape, xf)
     w2c = look_at(centre - d * diag, centre, VIEW_UP)
     jac = w2c[:2, :3] @ xf[:3, :3]
     pixel = float(np.linalg.svd(jac, compute_uv=False).min()) / magnification
@@ -124,14 +128,7 @@ def perspective_spec(shape, index_to_world, magnification: float) -> dict:
     centre, with `magnification` pixels per voxel at the centre (more on the near side, fewer on the
     far side), framing the whole volume plus the kernel radius."""
     xf = np.asarray(index_to_world, dtype=np.float64)
-    lo = np.zeros(3) - KERNEL_RADIUS
-    hi = np.asarray(shape, dtype=np.float64) - 1 + KERNEL_RADIUS
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    world = corners @ xf[:3, :3].T + xf[:3, 3]
-    centre = world.mean(axis=0)
-    diag = float(np.linalg.norm(world.max(axis=0) - world.min(axis=0)))
-    d = np.asarray(VIEW_DIRECTION, dtype=np.float64)
-    d /= np.linalg.norm(d)
+    world, centre, diag, d = framing(shape, xf)
     distance = PERSPECTIVE_DISTANCE * diag
     w2c = look_at(centre - d * distance, centre, VIEW_UP)
     voxel = float(np.linalg.svd(w2c[:2, :3] @ xf[:3, :3], compute_uv=False).min())  # world size of a voxel
