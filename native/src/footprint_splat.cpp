@@ -16,6 +16,27 @@ struct NodeShape {
     float ext_x, ext_y;  // bounding half-widths of the ellipse rho <= radius
 };
 
+#ifdef PCVR_AVX2
+/// Footprint weights amp * P(rho^2) of eight taps, zero in lanes not `inside`.
+inline __m256 tap_weights(__m256 rho2, float amp, __m256 inside, const FootprintTable& table) {
+    const __m256i idx = _mm256_cvttps_epi32(_mm256_max_ps(
+        _mm256_min_ps(_mm256_mul_ps(rho2, _mm256_set1_ps(table.scale())), _mm256_set1_ps(table.max_index())),
+        _mm256_setzero_ps()));
+    return _mm256_and_ps(_mm256_mul_ps(_mm256_i32gather_ps(table.data(), idx, 4), _mm256_set1_ps(amp)), inside);
+}
+
+/// out[0..7] += w, in float (a tile) or double (the grid).
+template <class T>
+inline void accumulate8(T* out, __m256 w) {
+    if constexpr (std::is_same_v<T, float>) {
+        _mm256_storeu_ps(out, _mm256_add_ps(_mm256_loadu_ps(out), w));
+    } else {
+        _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
+        _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
+    }
+}
+#endif
+
 /// Footprint taps on every row of the ellipse's bounding box around (cx, cy), clipped to
 /// rows x columns nodes at `base` (row pitch `pitch`): the grid (T = double) or a block tile
 /// (T = float). Wide footprints (regular splatting at high magnification) visit only each row's
@@ -30,10 +51,25 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
     const int r1 = std::min(rows - 1, int(std::floor(cy + s.ext_y)));
     const int box_c0 = std::max(0, int(std::ceil(cx - s.ext_x)));
     const int box_c1 = std::min(columns - 1, int(std::floor(cx + s.ext_x)));
+#ifdef PCVR_AVX2
+    const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+    if (box_c1 - box_c0 < 8) {
+        // One vector per row (PCVR's footprints): the terms in dx are the same on every row.
+        const __m256 dx = _mm256_add_ps(_mm256_set1_ps(float(box_c0 - cx)), lanes);
+        const __m256 qxx_dx2 = _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(s.qxx), dx), dx);
+        const __m256 qxy2_dx = _mm256_mul_ps(_mm256_set1_ps(2.0f * s.qxy), dx);
+        const __m256 inside = _mm256_cmp_ps(lanes, _mm256_set1_ps(float(box_c1 - box_c0)), _CMP_LE_OQ);
+        for (int r = r0; r <= r1; ++r) {
+            const __m256 dy = _mm256_set1_ps(float(r - cy));
+            // rho^2 = qxx dx^2 + (2 qxy dx + qyy dy) dy
+            const __m256 rho2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qyy), dy, qxy2_dx), dy, qxx_dx2);
+            accumulate8(base + size_t(r) * pitch + box_c0, tap_weights(rho2, amp, inside, table));
+        }
+        return;
+    }
+#endif
     const bool trim_rows = s.ext_x > kChordWidth;
     const double radius2 = table.radius2();
-    [[maybe_unused]] const float* tab = table.data();
-    [[maybe_unused]] const float scale = table.scale(), max_index = table.max_index();
     for (int r = r0; r <= r1; ++r) {
         const double dy = r - cy;
         int c0 = box_c0, c1 = box_c1;
@@ -50,23 +86,12 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, row_base = s.qyy * fdy * fdy;
         const float first_dx = float(c0 - cx);
 #ifdef PCVR_AVX2
-        const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
         for (int col = c0; col <= c1; col += 8) {
             const __m256 dx = _mm256_add_ps(_mm256_set1_ps(first_dx + float(col - c0)), lanes);
-            const __m256 r2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qxx), dx, _mm256_set1_ps(lin)), dx,
-                                              _mm256_set1_ps(row_base));
-            const __m256i idx = _mm256_cvttps_epi32(
-                _mm256_max_ps(_mm256_min_ps(_mm256_mul_ps(r2, _mm256_set1_ps(scale)), _mm256_set1_ps(max_index)),
-                              _mm256_setzero_ps()));
+            const __m256 rho2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qxx), dx, _mm256_set1_ps(lin)), dx,
+                                                _mm256_set1_ps(row_base));
             const __m256 inside = _mm256_cmp_ps(lanes, _mm256_set1_ps(float(c1 - col)), _CMP_LE_OQ);
-            const __m256 w = _mm256_and_ps(_mm256_mul_ps(_mm256_i32gather_ps(tab, idx, 4), _mm256_set1_ps(amp)), inside);
-            T* o = out + col;
-            if constexpr (std::is_same_v<T, float>) {
-                _mm256_storeu_ps(o, _mm256_add_ps(_mm256_loadu_ps(o), w));
-            } else {
-                _mm256_storeu_pd(o, _mm256_add_pd(_mm256_loadu_pd(o), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
-                _mm256_storeu_pd(o + 4, _mm256_add_pd(_mm256_loadu_pd(o + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
-            }
+            accumulate8(out + col, tap_weights(rho2, amp, inside, table));
         }
 #else
         for (int col = c0; col <= c1; ++col) {
