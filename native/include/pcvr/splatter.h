@@ -7,9 +7,10 @@
 /// | BilinearSpread  | the footprint's whole integral goes to the 2 x 2 nearest nodes with bilinear weights (Westenberg-Roerdink) |
 ///
 /// Orthographic footprints of smooth kernels up to 64 x 64 nodes (PCVR's 4 x 4 window, and regular
-/// splatting up to magnification 16) take whole windows from a PhaseFootprintTable, eight voxels at
-/// a time (src/phase_splat.h); all others evaluate rho^2 per tap and look P up in the
-/// FootprintTable, over the exact chord of the ellipse on each row.
+/// splatting up to magnification 16) and orthographic bilinear spreading take whole windows from a
+/// PhaseFootprintTable (src/phase_splat.h); all others (perspective views, the box kernel, wider
+/// footprints) project each voxel's own footprint and look P up in the FootprintTable per tap
+/// (src/footprint_splat.h). Both run eight voxels at a time.
 /// Used for every splatting method: "regular" splats into a stride-1 grid (the image), "pcvr" and
 /// "bilinear_spread" into the stride-L subgrid; the same code for both keeps the comparison honest.
 /// It is equally usable per sheet and per tile: it only needs blocks, a view and a target grid.
