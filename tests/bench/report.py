@@ -462,10 +462,11 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
                 r1 = v["active_voxels"] / best_t / 1e6
                 text += (f" The renderer on one thread (whole pcvr render, m={best_m}) does {r1:.0f} M vox/s: "
                          f"{100 * r1 / c_ph:.0f}% of the C phase-table loop, {100 * r1 / c_avx:.0f}% of the C gather loop. "
-                         f"Those loops handle one voxel at a time, so each voxel's long chain (position, floor, phase, "
-                         f"blend, weights, accumulate) leaves the core waiting; the renderer computes positions, phases "
-                         f"and blend weights for eight voxels in one vector pass and then adds the windows, whose "
-                         f"chains are short and independent (`native/src/phase_splat.h`).")
+                         f"The C loops take one voxel at a time through a long dependent chain (position, floor, phase, "
+                         f"blend, weights, accumulate); the renderer computes positions, phases and blend weights for "
+                         f"eight voxels in one vector pass and then adds the windows, whose chains are short and "
+                         f"independent (`native/src/phase_splat.h`), and its time also covers planning, the "
+                         f"post-convolution and the image, which the C loops do not do.")
             bullets.append(text)
             b = sd.bounds(sol.pcvr_taps())
             bullets.append(f"**Stores: the port bound is far, the accumulate pattern is not.** 4 stores per voxel at the "
