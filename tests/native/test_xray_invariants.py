@@ -11,7 +11,7 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import phantoms
 
-from conftest import (KERNELS, LINEAR_PARTS, CameraSpec, frame_ortho, image_mass, look_at, ortho,
+from conftest import (KERNELS, LINEAR_PARTS, CameraSpec, frame_ortho, frame_perspective, image_mass, look_at, ortho,
                       predict_bilinear_spread, reference_xray, rel_rmse, render, sampling_mass_error, volume_mass)
 
 METHODS = ("exact", "regular", "pcvr", "bilinear_spread")
@@ -213,22 +213,44 @@ def test_thread_count_does_not_change_the_image(method):
 # Precision: 20000 voxels on one pixel
 
 @pytest.mark.parametrize("method", METHODS)
-def test_many_voxels_on_one_pixel_keep_precision(method):
-    """A 1 x 1 x 20000 column seen end-on: every voxel has the same footprint, so the image is one
-    voxel's image times the column's sum. Float32 accumulation of 20000 equal terms would lose ~1e-4
-    (each addition rounds by up to 2^-24 of the running sum, the same way within an octave)."""
+@pytest.mark.parametrize("width", [1, 8])
+def test_many_voxels_on_one_pixel_keep_precision(method, width):
+    """A width x width x 20000 column seen end-on: every voxel row along the column has the same
+    footprint, so the image is one row's image times the column's sum. Float32 accumulation of
+    20000 equal terms would lose ~1e-4 (each addition rounds by up to 2^-24 of the running sum, the
+    same way within an octave). Width 8 fills every block, which the splats add up in block tiles."""
     n = 20000
-    column = np.full((1, 1, n), 0.7, dtype=np.float32)
-    column[0, 0, ::7] = 0.3
+    column = np.full((width, width, n), 0.7, dtype=np.float32)
+    column[:, :, ::7] = 0.3
     xf = np.eye(4)
-    single = np.zeros((1, 1, 1), dtype=np.float32)
-    single[0, 0, 0] = 1.0
+    xf[:2, 3] = -(width - 1) / 2.0
+    row = np.ones((width, width, 1), dtype=np.float32)
     w2c = look_at((0.0, 0.0, n + 10.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
     px = 1.0 / 4.0
-    cam = CameraSpec(w2c, ortho(-10 * px + 0.1 * px, 10 * px + 0.1 * px, -10 * px, 10 * px, 1.0, n + 20.0), 20, 20)
-    total = float(np.sum(column, dtype=np.float64))
+    half = 10 + 2 * width
+    cam = CameraSpec(w2c, ortho(-half * px + 0.1 * px, half * px + 0.1 * px, -half * px, half * px, 1.0, n + 20.0),
+                     2 * half, 2 * half)
+    total = float(np.sum(column[0, 0], dtype=np.float64))
     img = render(pn.Grid.from_dense(column, xf), cam, method)
-    one = render(pn.Grid.from_dense(single, xf), cam, method)
+    one = render(pn.Grid.from_dense(row, xf), cam, method)
     mask = one > 1e-3 * one.max()
     err = np.abs(img[mask] / (one[mask] * total) - 1.0).max()
     assert err < 1e-5, f"{method}: relative error {err:.2e} after {n} voxels"
+
+
+@pytest.mark.parametrize("method", METHODS[1:])
+@pytest.mark.parametrize("projection", ["ortho", "persp"])
+def test_pixels_out_of_reach_are_exactly_zero(method, projection):
+    """Splat grids and images start as zeros on every render: beyond the reach of the footprints
+    (and of pcvr's post filter), pixels hold exactly 0, render after render."""
+    ph = phantoms.dense_volume(16, seed=5)
+    grid = ph.grid()
+    cam = frame_ortho(ph, 2.0, (0.3, -0.5, -1.0)) if projection == "ortho" else frame_perspective(ph, 2.0, (0.3, -0.5, -1.0))
+    pad = 24  # far beyond the footprint radius (4 px) and the post filter (2 nodes = 4 px)
+    big = cam.padded(pad)
+    ring = np.ones((big.height, big.width), dtype=bool)
+    ring[pad // 2:-(pad // 2), pad // 2:-(pad // 2)] = False
+    for scale in (1.0, 3.0):
+        img = render(grid, big, method, density_scale=scale)
+        assert img.max() > 0
+        assert np.count_nonzero(img[ring]) == 0, f"{method}: {np.count_nonzero(img[ring])} pixels out of reach"
