@@ -10,6 +10,10 @@ namespace pcvr {
 
 namespace {
 
+/// A rounded coordinate as an int, clamped to [lo, hi] first: a footprint far off the grid (a
+/// voxel close to the eye plane) can lie beyond int's range.
+inline int clamped(double rounded, int lo, int hi) { return int(std::clamp(rounded, double(lo), double(hi))); }
+
 /// A footprint in node units of the target grid, as floats for the tap loops.
 struct NodeShape {
     float qxx, qxy, qyy;
@@ -47,10 +51,9 @@ template <class T>
 void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, double cy, const NodeShape& s, float amp,
                    const FootprintTable& table) {
     constexpr float kChordWidth = 8.0f;  // half-width in nodes from which rows are trimmed to the chord
-    const int r0 = std::max(0, int(std::ceil(cy - s.ext_y)));
-    const int r1 = std::min(rows - 1, int(std::floor(cy + s.ext_y)));
-    const int box_c0 = std::max(0, int(std::ceil(cx - s.ext_x)));
-    const int box_c1 = std::min(columns - 1, int(std::floor(cx + s.ext_x)));
+    const int r0 = clamped(std::ceil(cy - s.ext_y), 0, rows), r1 = clamped(std::floor(cy + s.ext_y), -1, rows - 1);
+    const int box_c0 = clamped(std::ceil(cx - s.ext_x), 0, columns);
+    const int box_c1 = clamped(std::floor(cx + s.ext_x), -1, columns - 1);
 #ifdef PCVR_AVX2
     const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
     if (box_c1 - box_c0 < 8) {
@@ -79,8 +82,8 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
             const double disc = b * b - double(s.qxx) * c;
             if (disc <= 0) continue;
             const double root = std::sqrt(disc);
-            c0 = std::max(c0, int(std::ceil(cx + (-b - root) / s.qxx)));
-            c1 = std::min(c1, int(std::floor(cx + (-b + root) / s.qxx)));
+            c0 = clamped(std::ceil(cx + (-b - root) / s.qxx), c0, columns);
+            c1 = clamped(std::floor(cx + (-b + root) / s.qxx), -1, c1);
         }
         T* out = base + size_t(r) * pitch;
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, row_base = s.qyy * fdy * fdy;
@@ -106,7 +109,7 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
 /// (cx, cy), clipped to rows x columns nodes at `base`.
 template <class T>
 void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, double cy, float mass) {
-    const int c = int(std::floor(cx)), r = int(std::floor(cy));
+    const int c = clamped(std::floor(cx), -2, columns), r = clamped(std::floor(cy), -2, rows);
     const double fx = cx - c, fy = cy - r;
     const double w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
     for (int j = 0; j < 2; ++j) {
@@ -135,14 +138,18 @@ struct BlockTarget {
 BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, const NodeFrame& nodes, const SplatGrid& grid) {
     BlockTarget t;
     t.region = DepositRegion::whole(grid);
-    const bool bounded = planned.min_x > -1e29f && planned.max_x < 1e29f && planned.min_y > -1e29f && planned.max_y < 1e29f;
-    if (!bounded) return t;
-    // One node of margin around the plan's bounds for rounding; 8 floats of slack for whole-vector rows.
-    const int x0 = int(std::floor(nodes.x(planned.min_x))) - 1, x1 = int(std::ceil(nodes.x(planned.max_x))) + 1;
-    const int y0 = int(std::floor(nodes.y(planned.min_y))) - 1, y1 = int(std::ceil(nodes.y(planned.max_y))) + 1;
-    if (active_count(block) >= kTileMinVoxels) t.region = DepositRegion::tile_or_grid(x0, y0, x1 - x0 + 1, y1 - y0 + 1, 8, grid);
-    t.ref_x = x0;
-    t.ref_y = y0;
+    // One node of margin around the plan's bounds for rounding.
+    const double x0 = std::floor(nodes.x(planned.min_x)) - 1, x1 = std::ceil(nodes.x(planned.max_x)) + 1;
+    const double y0 = std::floor(nodes.y(planned.min_y)) - 1, y1 = std::ceil(nodes.y(planned.max_y)) + 1;
+    t.ref_x = clamped(x0, 0, grid.columns());
+    t.ref_y = clamped(y0, 0, grid.rows());
+    // The plan culls blocks that miss the grid, so bounds this narrow lie on it (unknown ones are +-1e30).
+    const bool narrow = x1 - x0 < kTileFloats && y1 - y0 < kTileFloats;
+    if (narrow && active_count(block) >= kTileMinVoxels) {
+        // 8 floats of slack after each row for whole-vector rows.
+        t.region = DepositRegion::tile_or_grid(int(x0), int(y0), int(x1 - x0) + 1, int(y1 - y0) + 1, 8, grid);
+        if (t.region.tiled) t.ref_x = int(x0), t.ref_y = int(y0);
+    }
     return t;
 }
 
