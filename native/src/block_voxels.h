@@ -50,6 +50,13 @@ inline bool all_active(const VoxelBlock& block) {
 }
 
 #ifdef PCVR_AVX2
+/// All-ones in the lanes whose value is finite and non-zero: the voxels a splat adds.
+inline __m256 finite_non_zero(__m256 v) {
+    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v);
+    return _mm256_and_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(INFINITY), _CMP_LT_OQ),
+                         _mm256_cmp_ps(magnitude, _mm256_setzero_ps(), _CMP_GT_OQ));
+}
+
 /// Calls fn(i, j, k, v) for the voxels of a block eight at a time: their index offsets within the
 /// block and their values, as eight float lanes. Lanes that hold no voxel have value 0, which
 /// every splat skips (as it skips zero and non-finite values). `full`: every voxel is to be

@@ -225,10 +225,7 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
         _mm_store_ps(out.amp + o, floats_of(amp));
     }
     _mm256_store_ps(out.amp, _mm256_mul_ps(_mm256_load_ps(out.amp), v));
-    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v);
-    const __m256 finite_non_zero = _mm256_and_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(INFINITY), _CMP_LT_OQ),
-                                                 _mm256_cmp_ps(magnitude, _mm256_setzero_ps(), _CMP_GT_OQ));
-    out.live = inside_clip & uint32_t(_mm256_movemask_ps(finite_non_zero));
+    out.live = inside_clip & uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
 }
 
 #endif  // PCVR_AVX2

@@ -140,9 +140,6 @@ inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowL
         _mm256_add_epi32(_mm256_mullo_epi32(py, _mm256_set1_epi32(w.phases + 1)), px), _mm256_set1_epi32(w.entry_size));
 
     const __m256 amp = _mm256_mul_ps(v, f.amp_per_value);
-    const __m256 magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v);
-    const __m256 live = _mm256_and_ps(_mm256_cmp_ps(magnitude, _mm256_set1_ps(INFINITY), _CMP_LT_OQ),
-                                      _mm256_cmp_ps(magnitude, _mm256_setzero_ps(), _CMP_GT_OQ));
     const __m256 one = _mm256_set1_ps(1.0f);
     const __m256 left = _mm256_sub_ps(one, ax);
     const __m256 top = _mm256_mul_ps(_mm256_sub_ps(one, ay), amp), bottom = _mm256_mul_ps(ay, amp);
@@ -157,7 +154,7 @@ inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowL
     _mm256_store_ps(b.fx, fx);
     _mm256_store_ps(b.fy, fy);
     _mm256_store_ps(b.amp, amp);
-    b.live = uint32_t(_mm256_movemask_ps(live));
+    b.live = uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
     b.inside = ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu;
 }
 
