@@ -49,9 +49,21 @@ $(VENV)/.native-stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 
 native: $(VENV)/.native-stamp
 
+# The same module built for CPUs without AVX2 (its scalar paths), unpacked where the native tests
+# can import it from; its own build tree keeps both builds incremental.
+PORTABLE := build/portable
+$(PORTABLE)/.stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
+	rm -rf $(PORTABLE) && mkdir -p $(PORTABLE)
+	flock native/.build.lock $(PY) -m pip wheel -q --no-build-isolation --no-deps -w $(PORTABLE) ./native \
+	  --config-settings=cmake.define.PCVR_ARCH=x86-64 --config-settings=build-dir=build/portable-{wheel_tag}
+	$(PY) -m zipfile -e $(PORTABLE)/pcvr_native-*.whl $(PORTABLE)
+	touch $@
+
 # The add-on tests install the packaged extension, so the zip is built first.
-test: $(VENV)/.native-stamp $(EXTENSION_ZIP)
+test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp
 	$(PY) -m pytest
+	@echo "Native tests again, on the build without AVX2:"
+	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native
 
 # The phantom through the native module (timed, checked against exact), then through Blender's
 # PCVR engine by the command line.
