@@ -23,7 +23,7 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import phantoms
 
-from conftest import (KERNELS, LINEAR_PARTS, frame_ortho, frame_perspective, predict_pcvr, reference_xray,
+from conftest import (KERNELS, LINEAR_PARTS, frame_ortho, frame_perspective, predict_bilinear_spread, predict_pcvr, reference_xray,
                       regular_tolerance, rel_rmse, render)
 
 # Max |closed form - truth| relative to the image's peak, per kernel (see the module docstring).
@@ -161,7 +161,18 @@ def test_clipping_is_per_voxel(proj, rng):
     exact = render(grid, clipped, "exact")
     np.testing.assert_allclose(exact, ref, rtol=1e-5, atol=1e-6 * np.abs(ref).max())
     regular = render(grid, clipped, "regular")
-    assert np.abs(regular - ref).max() < regular_tolerance(values, xf, cam) * np.abs(ref).max()
+    tol = regular_tolerance(values, xf, cam) * np.abs(ref).max()
+    assert np.abs(regular - ref).max() < tol
+    # pcvr: the clipped reference sampled at its subgrid nodes and post-convolved.
+    stride, pad = 3, 6
+    model = predict_pcvr(reference_xray(values, xf, clipped.padded(pad)), pad, stride, "bilinear", cam.height, cam.width)
+    assert np.abs(render(grid, clipped, "pcvr", stride=stride) - model).max() < tol
+    if proj == "ortho":  # bilinear spreading's model, of the voxels the planes keep
+        clip = (np.c_[np.argwhere(np.ones(values.shape)), np.ones(values.size)] @ xf.T) @ (p @ cam.world_to_camera).T
+        kept = np.where(((np.abs(clip[:, 2]) <= clip[:, 3]) & (clip[:, 3] > 0)).reshape(values.shape), values, 0)
+        model = predict_bilinear_spread(kept, xf, clipped, stride, "bilinear")
+        spread = render(grid, clipped, "bilinear_spread", stride=stride)
+        np.testing.assert_allclose(spread, model, rtol=1e-4, atol=1e-5 * np.abs(model).max())
 
 
 @pytest.mark.parametrize("proj", ["ortho", "persp"])
