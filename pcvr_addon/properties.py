@@ -51,7 +51,28 @@ enum_post_filters = (
 )
 
 
-class PCVRSceneSettings(bpy.types.PropertyGroup):
+class DatablockSettings:
+    """A property group stored as `pcvr` on every datablock of the type `owner`."""
+    owner = None  # the bpy.types class, set by each group
+    label = ""
+
+    @classmethod
+    def register(cls):
+        cls.owner.pcvr = PointerProperty(
+            name=f"PCVR {cls.label} Settings",
+            description=f"PCVR {cls.label.lower()} settings",
+            type=cls,
+        )
+
+    @classmethod
+    def unregister(cls):
+        del cls.owner.pcvr
+
+
+class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
+    owner = bpy.types.Scene
+    label = "Render"
+
     mode: EnumProperty(
         name="Mode",
         description="What the image shows",
@@ -89,25 +110,16 @@ class PCVRSceneSettings(bpy.types.PropertyGroup):
         default=1.0,
     )
 
-    @classmethod
-    def register(cls):
-        bpy.types.Scene.pcvr = PointerProperty(
-            name="PCVR Render Settings",
-            description="PCVR render settings",
-            type=cls,
-        )
-
-    @classmethod
-    def unregister(cls):
-        del bpy.types.Scene.pcvr
-
 
 def update_render_passes(self, context):
     # So that the Render Layers node of the compositor shows the pass right away.
     context.view_layer.update_render_passes()
 
 
-class PCVRViewLayerSettings(bpy.types.PropertyGroup):
+class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
+    owner = bpy.types.ViewLayer
+    label = "View Layer"
+
     use_pass_xray: BoolProperty(
         name="X-Ray",
         description="Raw line integral of the density, one channel, for the compositor",
@@ -115,20 +127,11 @@ class PCVRViewLayerSettings(bpy.types.PropertyGroup):
         update=update_render_passes,
     )
 
-    @classmethod
-    def register(cls):
-        bpy.types.ViewLayer.pcvr = PointerProperty(
-            name="PCVR ViewLayer Settings",
-            description="PCVR view layer settings",
-            type=cls,
-        )
 
-    @classmethod
-    def unregister(cls):
-        del bpy.types.ViewLayer.pcvr
+class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
+    owner = bpy.types.Volume
+    label = "Volume"
 
-
-class PCVRVolumeSettings(bpy.types.PropertyGroup):
     grid: StringProperty(
         name="Grid",
         description="Name of the grid to render; empty uses 'density', or else the first float grid",
@@ -140,18 +143,6 @@ class PCVRVolumeSettings(bpy.types.PropertyGroup):
         min=0.0, soft_max=10.0,
         default=1.0,
     )
-
-    @classmethod
-    def register(cls):
-        bpy.types.Volume.pcvr = PointerProperty(
-            name="PCVR Volume Settings",
-            description="PCVR volume settings",
-            type=cls,
-        )
-
-    @classmethod
-    def unregister(cls):
-        del bpy.types.Volume.pcvr
 
 
 classes = (

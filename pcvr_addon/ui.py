@@ -8,6 +8,13 @@ from bpy.types import Panel
 from . import engine
 
 
+def property_split(layout):
+    """`layout` in the property-split style of Blender's own render panels."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
 class PCVRButtonsPanel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -23,10 +30,7 @@ class PCVR_RENDER_PT_xray(PCVRButtonsPanel, Panel):
     bl_label = "X-Ray"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-
+        layout = property_split(self.layout)
         settings = context.scene.pcvr
         layout.prop(settings, "mode")
         layout.prop(settings, "xray_gain")
@@ -36,10 +40,7 @@ class PCVR_RENDER_PT_splatting(PCVRButtonsPanel, Panel):
     bl_label = "Splatting"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-
+        layout = property_split(self.layout)
         settings = context.scene.pcvr
         col = layout.column()
         col.prop(settings, "method")
@@ -84,10 +85,7 @@ class PCVR_RENDER_PT_film(PCVRButtonsPanel, Panel):
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-
+        layout = property_split(self.layout)
         layout.prop(context.scene.render, "film_transparent", text="Transparent")
 
 
@@ -96,10 +94,7 @@ class PCVR_RENDER_PT_passes(PCVRButtonsPanel, Panel):
     bl_context = "view_layer"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-
+        layout = property_split(self.layout)
         col = layout.column(heading="Include", align=True)
         col.prop(context.view_layer.pcvr, "use_pass_xray")
 
@@ -113,10 +108,7 @@ class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
         return context.volume and super().poll(context)
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-
+        layout = property_split(self.layout)
         volume = context.volume
         settings = volume.pcvr
         layout.prop_search(settings, "grid", volume, "grids", icon='VOLUME_DATA')
