@@ -254,3 +254,21 @@ def test_pixels_out_of_reach_are_exactly_zero(method, projection):
         img = render(grid, big, method, density_scale=scale)
         assert img.max() > 0
         assert np.count_nonzero(img[ring]) == 0, f"{method}: {np.count_nonzero(img[ring])} pixels out of reach"
+
+
+@pytest.mark.parametrize("method", METHODS[1:])
+@pytest.mark.parametrize("projection", ["ortho", "persp"])
+def test_constant_tiles_render_like_the_leaves_they_stand_for(method, projection):
+    """OpenVDB stores a constant, leaf-aligned region as a tile, which the splats read as blocks
+    with one value and no voxel array: the image equals that of the same region stored voxel by
+    voxel (one voxel per leaf nudged, so that nothing is pruned), up to the nudge."""
+    const = np.full((16, 16, 16), 2.5, dtype=np.float32)
+    nudged = const.copy()
+    nudged[::8, ::8, ::8] += 1e-4
+    xf = phantoms.centred_transform(const.shape, 0.5, LINEAR_PARTS["rotated"])
+    tiles, leaves = pn.Grid.from_dense(const, xf), pn.Grid.from_dense(nudged, xf)
+    cam = (frame_ortho((const, xf), 3.0, (0.2, -0.3, -1.0)) if projection == "ortho"
+           else frame_perspective((const, xf), 3.0, (0.2, -0.3, -1.0)))
+    a, b = render(tiles, cam, method), render(leaves, cam, method)
+    assert a.max() > 0
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-4 * np.abs(b).max(), err_msg=method)
