@@ -272,3 +272,18 @@ def test_constant_tiles_render_like_the_leaves_they_stand_for(method, projection
     a, b = render(tiles, cam, method), render(leaves, cam, method)
     assert a.max() > 0
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-4 * np.abs(b).max(), err_msg=method)
+
+
+@pytest.mark.parametrize("mag", [2.0, 5.0])
+def test_bilinear_spread_in_perspective_follows_exact(mag):
+    """Bilinear spreading has no numpy model under perspective (each voxel's mass depends on its
+    own footprint there), so it is held to exact on a smooth volume instead: the image's sum within
+    0.1% (measured 0.03%) and its relative RMSE, mostly the subgrid's aliasing, under 3% (measured
+    1.2 to 1.4%)."""
+    ph = phantoms.dense_volume(24, seed=2)
+    grid = ph.grid()
+    cam = frame_perspective(ph, mag, (0.3, -0.5, -1.0))
+    exact = render(grid, cam, "exact")
+    spread = render(grid, cam, "bilinear_spread")
+    assert spread.sum() == pytest.approx(exact.sum(), rel=1e-3)
+    assert rel_rmse(spread, exact) < 0.03
