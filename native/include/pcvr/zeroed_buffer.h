@@ -5,7 +5,7 @@
 /// of zeros faults in every 4 KiB page and then writes every byte again, although the kernel hands
 /// out pages that are already zero. A ZeroedBuffer maps its storage straight from the kernel as
 /// transparent huge pages where it can (a 50 MB image then takes about 25 faults instead of
-/// 12,000), faults them in up front on all cores, and writes nothing itself.
+/// 12,000), and faults them in up front on all cores: the kernel clears them, once.
 #pragma once
 
 #include <cstddef>
