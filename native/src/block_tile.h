@@ -11,9 +11,14 @@
 #pragma once
 
 #include <algorithm>
+#include <type_traits>
 #include <vector>
 
 #include "pcvr/splat_grid.h"
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 
 namespace pcvr {
 
@@ -50,19 +55,44 @@ struct SplatScratch {
     }
 };
 
+/// The tile copy that the voxel taking turn `turn` adds into.
+inline float* tile_copy(float* tiles, int turn) { return tiles + size_t(turn % kTileCopies) * kTileFloats; }
+
 /// Adds the tile copies into the grid (clipped to it) and leaves them zero for the next block.
 inline void flush_tile(const DepositRegion& r, float* tiles, SplatGrid& grid) {
     const int c0 = std::max(0, -r.col0), c1 = std::min(r.width, grid.columns() - r.col0);
     const int j0 = std::max(0, -r.row0), j1 = std::min(r.height, grid.rows() - r.row0);
     const float* t[kTileCopies];
-    for (int k = 0; k < kTileCopies; ++k) t[k] = tiles + size_t(k) * kTileFloats;
+    for (int k = 0; k < kTileCopies; ++k) t[k] = tile_copy(tiles, k);
     for (int j = j0; j < j1; ++j) {
         const size_t row = size_t(j) * r.pitch;
         double* out = grid.row(r.row0 + j) + r.col0;
         for (int c = c0; c < c1; ++c) out[c] += double((t[0][row + c] + t[1][row + c]) + (t[2][row + c] + t[3][row + c]));
     }
-    for (int k = 0; k < kTileCopies; ++k) std::fill_n(tiles + size_t(k) * kTileFloats, size_t(r.pitch) * r.height, 0.0f);
+    for (int k = 0; k < kTileCopies; ++k) std::fill_n(tile_copy(tiles, k), size_t(r.pitch) * r.height, 0.0f);
 }
+
+#if defined(__AVX2__) && defined(__FMA__)
+/// out[0..3] += w, into a tile (float) or the grid (double).
+template <class T>
+inline void accumulate4(T* out, __m128 w) {
+    if constexpr (std::is_same_v<T, float>)
+        _mm_storeu_ps(out, _mm_add_ps(_mm_loadu_ps(out), w));
+    else
+        _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_cvtps_pd(w)));
+}
+
+/// out[0..7] += w, into a tile (float) or the grid (double).
+template <class T>
+inline void accumulate8(T* out, __m256 w) {
+    if constexpr (std::is_same_v<T, float>) {
+        _mm256_storeu_ps(out, _mm256_add_ps(_mm256_loadu_ps(out), w));
+    } else {
+        accumulate4(out, _mm256_castps256_ps128(w));
+        accumulate4(out + 4, _mm256_extractf128_ps(w, 1));
+    }
+}
+#endif
 
 /// Flushes a block's tile when the block is done, whichever way its splat returns.
 class TileFlush {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <type_traits>
 
 #include "block_voxels.h"
 
@@ -27,17 +26,6 @@ inline __m256 tap_weights(__m256 rho2, float amp, __m256 inside, const Footprint
         _mm256_min_ps(_mm256_mul_ps(rho2, _mm256_set1_ps(table.scale())), _mm256_set1_ps(table.max_index())),
         _mm256_setzero_ps()));
     return _mm256_and_ps(_mm256_mul_ps(_mm256_i32gather_ps(table.data(), idx, 4), _mm256_set1_ps(amp)), inside);
-}
-
-/// out[0..7] += w, in float (a tile) or double (the grid).
-template <class T>
-inline void accumulate8(T* out, __m256 w) {
-    if constexpr (std::is_same_v<T, float>) {
-        _mm256_storeu_ps(out, _mm256_add_ps(_mm256_loadu_ps(out), w));
-    } else {
-        _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_cvtps_pd(_mm256_castps256_ps128(w))));
-        _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(w, 1))));
-    }
 }
 #endif
 
@@ -120,13 +108,6 @@ void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, doubl
     }
 }
 
-/// Storage node coordinates of pixel coordinates.
-struct NodeFrame {
-    double inv_stride, first_x, first_y;
-    double x(double px) const { return px * inv_stride - first_x; }
-    double y(double py) const { return py * inv_stride - first_y; }
-};
-
 /// Where a block's footprints go: a tile around the block's planned bounds when the block is dense
 /// enough and they fit one, else the grid. (ref_x, ref_y): the storage node that lane positions are
 /// relative to, so that floats keep them exact to about 1e-6 node.
@@ -135,12 +116,12 @@ struct BlockTarget {
     int ref_x = 0, ref_y = 0;
 };
 
-BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, const NodeFrame& nodes, const SplatGrid& grid) {
+BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, const SplatGrid& grid) {
     BlockTarget t;
     t.region = DepositRegion::whole(grid);
     // One node of margin around the plan's bounds for rounding.
-    const double x0 = std::floor(nodes.x(planned.min_x)) - 1, x1 = std::ceil(nodes.x(planned.max_x)) + 1;
-    const double y0 = std::floor(nodes.y(planned.min_y)) - 1, y1 = std::ceil(nodes.y(planned.max_y)) + 1;
+    const double x0 = std::floor(grid.node_x(double(planned.min_x))) - 1, x1 = std::ceil(grid.node_x(double(planned.max_x))) + 1;
+    const double y0 = std::floor(grid.node_y(double(planned.min_y))) - 1, y1 = std::ceil(grid.node_y(double(planned.max_y))) + 1;
     t.ref_x = clamped(x0, 0, grid.columns());
     t.ref_y = clamped(y0, 0, grid.rows());
     // The plan culls blocks that miss the grid, so bounds this narrow lie on it (unknown ones are +-1e30).
@@ -194,10 +175,10 @@ struct ProjectedBatch {
 
 /// The vector pass: index offsets (i, j, k) within the block and values v of eight voxels.
 void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, const FootprintSplatParams& params,
-             const NodeFrame& nodes, const BlockTarget& target, ProjectedBatch& out) {
+             const SplatGrid& grid, const BlockTarget& target, ProjectedBatch& out) {
     const ViewProjection& view = *params.view;
     const Mat4& m = view.index_to_clip();
-    const double stride2 = 1.0 / (nodes.inv_stride * nodes.inv_stride), radius = params.kernel_radius;
+    const double stride2 = double(grid.stride()) * grid.stride(), radius = params.kernel_radius;
     const double4 zero = {0, 0, 0, 0};
     auto sqrt4 = [](double4 x) { return double4(_mm256_sqrt_pd(__m256d(x))); };
     uint32_t inside_clip = 0;
@@ -215,8 +196,8 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
         double4 amp = f.line_scale * double(params.density_scale);
         if (params.bilinear_spread) amp = amp / sqrt4(det);  // the footprint's integral, node^2
         const int o = 4 * half;
-        _mm_store_ps(out.cx + o, floats_of(f.px * nodes.inv_stride - (nodes.first_x + target.ref_x)));
-        _mm_store_ps(out.cy + o, floats_of(f.py * nodes.inv_stride - (nodes.first_y + target.ref_y)));
+        _mm_store_ps(out.cx + o, floats_of(grid.node_x(f.px) - double(target.ref_x)));
+        _mm_store_ps(out.cy + o, floats_of(grid.node_y(f.py) - double(target.ref_y)));
         _mm_store_ps(out.qxx + o, floats_of(qxx));
         _mm_store_ps(out.qxy + o, floats_of(qxy));
         _mm_store_ps(out.qyy + o, floats_of(qyy));
@@ -234,19 +215,18 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
 
 uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
                                 SplatGrid& grid, SplatScratch& scratch) {
-    const NodeFrame nodes{1.0 / grid.stride(), double(grid.first_node_x()), double(grid.first_node_y())};
-    const BlockTarget target = block_target(block, planned, nodes, grid);
+    const BlockTarget target = block_target(block, planned, grid);
     float* tiles = target.region.tiled ? scratch.tile_copies() : nullptr;
     const TileFlush flush(target.region, tiles, grid);
     uint64_t count = 0;
 #ifdef PCVR_AVX2
     ProjectedBatch b;
     for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
-        project(block, i, j, k, v, params, nodes, target, b);
+        project(block, i, j, k, v, params, grid, target, b);
         count += __builtin_popcount(b.live);
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
-            float* tile = tiles ? tiles + size_t(l % kTileCopies) * kTileFloats : nullptr;
+            float* tile = tiles ? tile_copy(tiles, l) : nullptr;
             add_lane(target, tile, grid, b.cx[l], b.cy[l], {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l]}, b.amp[l],
                      params);
         }
@@ -265,8 +245,8 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
                           float(f.extent_y(params.kernel_radius))};
         float amp = float(v * params.density_scale * fp.line_scale);
         if (params.bilinear_spread) amp *= float(f.area_integral());
-        float* tile = tiles ? tiles + size_t(turn++ % kTileCopies) * kTileFloats : nullptr;
-        add_lane(target, tile, grid, float(nodes.x(fp.px) - target.ref_x), float(nodes.y(fp.py) - target.ref_y), s, amp, params);
+        float* tile = tiles ? tile_copy(tiles, turn++) : nullptr;
+        add_lane(target, tile, grid, float(grid.node_x(fp.px) - target.ref_x), float(grid.node_y(fp.py) - target.ref_y), s, amp, params);
         ++count;
     });
 #endif

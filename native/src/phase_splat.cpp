@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <type_traits>
 #include <utility>
 
 #include "block_tile.h"
@@ -174,25 +173,15 @@ inline void add_window(T* out, size_t pitch, const float* e0, const VoxelBatch& 
                _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
                _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
     };
-    auto accumulate = [](T* row, __m128 w4) {
-        if constexpr (std::is_same_v<T, float>)
-            _mm_storeu_ps(row, _mm_add_ps(_mm_loadu_ps(row), w4));
-        else
-            _mm256_storeu_pd(row, _mm256_add_pd(_mm256_loadu_pd(row), _mm256_cvtps_pd(w4)));
-    };
     if constexpr (Kind == WindowKind::Table4x4) {
         for (int half = 0; half < 2; ++half, out += 2 * pitch) {  // two rows of four taps per vector
             const __m256 wv = weights(8 * half);
-            accumulate(out, _mm256_castps256_ps128(wv));
-            accumulate(out + pitch, _mm256_extractf128_ps(wv, 1));
+            accumulate4(out, _mm256_castps256_ps128(wv));
+            accumulate4(out + pitch, _mm256_extractf128_ps(wv, 1));
         }
     } else {
         for (int j = 0; j < w.window; ++j, out += pitch)
-            for (int i = 0; i < w.pitch; i += 8) {
-                const __m256 wv = weights(size_t(j) * w.pitch + i);
-                accumulate(out + i, _mm256_castps256_ps128(wv));
-                accumulate(out + i + 4, _mm256_extractf128_ps(wv, 1));
-            }
+            for (int i = 0; i < w.pitch; i += 8) accumulate8(out + i, weights(size_t(j) * w.pitch + i));
     }
 }
 
@@ -222,8 +211,7 @@ inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, Windo
         const size_t pitch = size_t(f.region.pitch);
         for (uint32_t todo = inside; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
-            float* tile = tiles + size_t(l % kTileCopies) * kTileFloats;
-            add_lane<Kind>(tile + size_t(b.row[l]) * pitch + b.col[l], pitch, entries, b, l, w);
+            add_lane<Kind>(tile_copy(tiles, l) + size_t(b.row[l]) * pitch + b.col[l], pitch, entries, b, l, w);
         }
     } else {
         double* const base = grid.row(0);

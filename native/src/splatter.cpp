@@ -36,8 +36,8 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
     map.amp_per_value = float(params.density_scale * f0.line_scale);
     map.gx = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
     map.gy = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
-    map.bx = f0.px * inv_stride - target.first_node_x();
-    map.by = f0.py * inv_stride - target.first_node_y();
+    map.bx = target.node_x(f0.px);
+    map.by = target.node_y(f0.py);
 
     if (params.mode == SplatMode::BilinearSpread) {
         // The footprint's whole integral (pixel^2 -> node^2) goes to the 2 x 2 nearest nodes.
@@ -63,10 +63,6 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     footprints.density_scale = params.density_scale;
     footprints.bilinear_spread = params.mode == SplatMode::BilinearSpread;
 
-    const double inv_stride = 1.0 / target.stride();
-    auto node_x = [&](float px) { return px * inv_stride - target.first_node_x(); };
-    auto node_y = [&](float py) { return py * inv_stride - target.first_node_y(); };
-
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::enumerable_thread_specific<SplatScratch> scratches;
@@ -83,8 +79,10 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
             if (n == 0) continue;
             count += n;
             // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.
-            grid.mark(int(std::floor(node_x(std::max(pb.min_x, -1e9f)))), int(std::floor(node_y(std::max(pb.min_y, -1e9f)))),
-                      int(std::ceil(node_x(std::min(pb.max_x, 1e9f)))), int(std::ceil(node_y(std::min(pb.max_y, 1e9f)))));
+            grid.mark(int(std::floor(grid.node_x(double(std::max(pb.min_x, -1e9f))))),
+                      int(std::floor(grid.node_y(double(std::max(pb.min_y, -1e9f))))),
+                      int(std::ceil(grid.node_x(double(std::min(pb.max_x, 1e9f))))),
+                      int(std::ceil(grid.node_y(double(std::min(pb.max_y, 1e9f))))));
         }
         control.advance(range.size());
     });

@@ -33,8 +33,11 @@ public:
     const Mat4& world_to_clip() const { return world_to_clip_; }
     const Mat4& clip_to_world() const { return clip_to_world_; }
 
-    double pixel_x(double ndc_x) const { return (ndc_x + 1.0) * 0.5 * width_ - 0.5; }
-    double pixel_y(double ndc_y) const { return (1.0 - ndc_y) * 0.5 * height_ - 0.5; }
+    /// T: double, or a vector of doubles (several points at once).
+    template <class T>
+    T pixel_x(T ndc_x) const { return (ndc_x + 1.0) * 0.5 * double(width_) - 0.5; }
+    template <class T>
+    T pixel_y(T ndc_y) const { return (1.0 - ndc_y) * 0.5 * double(height_) - 0.5; }
     double ndc_x(double px) const { return (px + 0.5) / width_ * 2.0 - 1.0; }
     double ndc_y(double py) const { return 1.0 - (py + 0.5) / height_ * 2.0; }
 

@@ -32,6 +32,11 @@ public:
     int first_node_x() const { return node_x0_; }  ///< node index of column 0 (negative: margin)
     int first_node_y() const { return node_y0_; }
     int columns() const { return nx_; }
+    /// Storage node coordinates of pixel coordinates (T: double, or a vector of doubles).
+    template <class T>
+    T node_x(T px) const { return px / double(stride_) - double(node_x0_); }
+    template <class T>
+    T node_y(T py) const { return py / double(stride_) - double(node_y0_); }
     int rows() const { return ny_; }
 
     double* row(int r) { return values_.data() + size_t(r) * nx_; }

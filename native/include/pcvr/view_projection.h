@@ -83,9 +83,8 @@ FootprintLanes<T> ViewProjection::footprint_lanes(T x, T y, T z, T clip_x, T cli
     };
     auto lanes = [](const Vec3& v) { return V{T{} + v.x, T{} + v.y, T{} + v.z}; };
     FootprintLanes<T> out;
-    const double half_w = 0.5 * camera_.width(), half_h = 0.5 * camera_.height();
-    out.px = (clip_x / clip_w + 1.0) * half_w - 0.5;  // Camera::pixel_x and pixel_y
-    out.py = (1.0 - clip_y / clip_w) * half_h - 0.5;
+    out.px = camera_.pixel_x(clip_x / clip_w);
+    out.py = camera_.pixel_y(clip_y / clip_w);
 
     // The ray through the centre's pixel, in index space: origin o, direction d (passes through c).
     const V o = lanes(o0_) + lanes(ox_) * out.px + lanes(oy_) * out.py;
