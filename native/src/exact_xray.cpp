@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "block_voxels.h"
 #include "pcvr/errors.h"
+#include "pcvr/view_projection.h"
 
 namespace pcvr {
 
@@ -71,10 +73,8 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
                     if (!block.active(offset)) continue;
                     const double v = double(block.value(offset)) * weighted.density_scale;
                     if (v == 0.0 || !std::isfinite(v)) continue;
-                    const Vec3 c{double(block.origin[0] + (offset >> 6)), double(block.origin[1] + ((offset >> 3) & 7)),
-                                 double(block.origin[2] + (offset & 7))};
-                    const Vec4 cc = to_clip * Vec4{c.x, c.y, c.z, 1.0};
-                    if (!(cc.w > 0 && cc.z >= -cc.w && cc.z <= cc.w)) continue;
+                    const Vec3 c = voxel_position(block, offset);
+                    if (!ViewProjection::inside_clip_range(to_clip * Vec4{c.x, c.y, c.z, 1.0})) continue;
 
                     // Pixels whose rays can meet the kernel sphere: inside the projection of its bounding cube.
                     int c0 = 0, c1 = cols - 1, r0 = 0, r1 = rows - 1;
@@ -90,10 +90,10 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
                         y1 = std::max(y1, cam.pixel_y(p.y / p.w));
                     }
                     if (bounded) {
-                        c0 = std::max(c0, int(std::ceil(x0 / pixel_step)));
-                        c1 = std::min(c1, int(std::floor(x1 / pixel_step)));
-                        r0 = std::max(r0, int(std::ceil(y0 / pixel_step)));
-                        r1 = std::min(r1, int(std::floor(y1 / pixel_step)));
+                        c0 = clamp_to_int(std::ceil(x0 / pixel_step), 0, cols);
+                        c1 = clamp_to_int(std::floor(x1 / pixel_step), -1, cols - 1);
+                        r0 = clamp_to_int(std::ceil(y0 / pixel_step), 0, rows);
+                        r1 = clamp_to_int(std::floor(y1 / pixel_step), -1, rows - 1);
                     }
                     for (int r = r0; r <= r1; ++r)
                         for (int col = c0; col <= c1; ++col) {

@@ -9,10 +9,6 @@ namespace pcvr {
 
 namespace {
 
-/// A rounded coordinate as an int, clamped to [lo, hi] first: a footprint far off the grid (a
-/// voxel close to the eye plane) can lie beyond int's range.
-inline int clamped(double rounded, int lo, int hi) { return int(std::clamp(rounded, double(lo), double(hi))); }
-
 /// A footprint in node units of the target grid, as floats for the tap loops.
 struct NodeShape {
     float qxx, qxy, qyy;
@@ -39,9 +35,9 @@ template <class T>
 void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, double cy, const NodeShape& s, float amp,
                    const FootprintTable& table) {
     constexpr float kChordWidth = 8.0f;  // half-width in nodes from which rows are trimmed to the chord
-    const int r0 = clamped(std::ceil(cy - s.ext_y), 0, rows), r1 = clamped(std::floor(cy + s.ext_y), -1, rows - 1);
-    const int box_c0 = clamped(std::ceil(cx - s.ext_x), 0, columns);
-    const int box_c1 = clamped(std::floor(cx + s.ext_x), -1, columns - 1);
+    const int r0 = clamp_to_int(std::ceil(cy - s.ext_y), 0, rows), r1 = clamp_to_int(std::floor(cy + s.ext_y), -1, rows - 1);
+    const int box_c0 = clamp_to_int(std::ceil(cx - s.ext_x), 0, columns);
+    const int box_c1 = clamp_to_int(std::floor(cx + s.ext_x), -1, columns - 1);
 #ifdef PCVR_AVX2
     const __m256 lanes = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
     if (box_c1 - box_c0 < 8) {
@@ -70,8 +66,8 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
             const double disc = b * b - double(s.qxx) * c;
             if (disc <= 0) continue;
             const double root = std::sqrt(disc);
-            c0 = clamped(std::ceil(cx + (-b - root) / s.qxx), c0, columns);
-            c1 = clamped(std::floor(cx + (-b + root) / s.qxx), -1, c1);
+            c0 = clamp_to_int(std::ceil(cx + (-b - root) / s.qxx), c0, columns);
+            c1 = clamp_to_int(std::floor(cx + (-b + root) / s.qxx), -1, c1);
         }
         T* out = base + size_t(r) * pitch;
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, row_base = s.qyy * fdy * fdy;
@@ -97,7 +93,7 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
 /// (cx, cy), clipped to rows x columns nodes at `base`.
 template <class T>
 void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, double cy, float mass) {
-    const int c = clamped(std::floor(cx), -2, columns), r = clamped(std::floor(cy), -2, rows);
+    const int c = clamp_to_int(std::floor(cx), -2, columns), r = clamp_to_int(std::floor(cy), -2, rows);
     const double fx = cx - c, fy = cy - r;
     const double w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
     for (int j = 0; j < 2; ++j) {
@@ -122,8 +118,8 @@ BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, c
     // One node of margin around the plan's bounds for rounding.
     const double x0 = std::floor(grid.node_x(double(planned.min_x))) - 1, x1 = std::ceil(grid.node_x(double(planned.max_x))) + 1;
     const double y0 = std::floor(grid.node_y(double(planned.min_y))) - 1, y1 = std::ceil(grid.node_y(double(planned.max_y))) + 1;
-    t.ref_x = clamped(x0, 0, grid.columns());
-    t.ref_y = clamped(y0, 0, grid.rows());
+    t.ref_x = clamp_to_int(x0, 0, grid.columns());
+    t.ref_y = clamp_to_int(y0, 0, grid.rows());
     // The plan culls blocks that miss the grid, so bounds this narrow lie on it (unknown ones are +-1e30).
     const bool narrow = x1 - x0 < kTileFloats && y1 - y0 < kTileFloats;
     if (narrow && active_count(block) >= kTileMinVoxels) {

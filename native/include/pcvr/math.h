@@ -5,6 +5,7 @@
 /// `world = M * [i, j, k, 1]`, stored row-major (`m[row][col]`).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <optional>
@@ -28,6 +29,10 @@ inline Vec3 cross(const Vec3& a, const Vec3& b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 inline double length(const Vec3& a) { return std::sqrt(dot(a, a)); }
+
+/// A rounded coordinate as an int, clamped to [lo, hi] first: a point projected from close to the
+/// eye plane can lie far beyond int's range.
+inline int clamp_to_int(double rounded, int lo, int hi) { return int(std::clamp(rounded, double(lo), double(hi))); }
 
 struct Vec4 {
     double x = 0, y = 0, z = 0, w = 0;
