@@ -52,25 +52,23 @@ public:
     };
 
     /// For taps (c - h + 1 + i, r - h + 1 + j), i, j in [0, window), h = half_width, of a centre at
-    /// (c + fx, r + fy) with integer c, r and fx, fy in [0, 1].
-    Blend blend(float fx, float fy) const { return blend_sized(fx, fy, phases_, entry_size_); }
+    /// (c + fx, r + fy) with integer c, r and fx, fy in [0, 1]. (The batched splat repeats this
+    /// arithmetic for eight centres at once: src/phase_splat.cpp, prepare.)
+    Blend blend(float fx, float fy) const {
+        const float sx = fx * phases_, sy = fy * phases_;
+        const int px = std::min(phases_ - 1, int(sx)), py = std::min(phases_ - 1, int(sy));
+        const float ax = sx - px, ay = sy - py;
+        const float* e = values_.data() + (size_t(py) * (phases_ + 1) + px) * entry_size_;
+        const size_t row = size_t(phases_ + 1) * entry_size_;
+        return {{e, e + entry_size_, e + row, e + row + entry_size_},
+                {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}};
+    }
 
-    /// The same for PCVR's 4 x 4 window, whose sizes are known at compile time (the hot path).
+    /// Phases per node of PCVR's 4 x 4 window (the batched splat knows its sizes at compile time).
     static constexpr int kPhases4x4 = 32;
-    Blend blend_4x4(float fx, float fy) const { return blend_sized(fx, fy, kPhases4x4, 16); }
 
 private:
     PhaseFootprintTable(int half_width, int phases);
-
-    Blend blend_sized(float fx, float fy, int phases, size_t entry_size) const {
-        const float sx = fx * phases, sy = fy * phases;
-        const int px = std::min(phases - 1, int(sx)), py = std::min(phases - 1, int(sy));
-        const float ax = sx - px, ay = sy - py;
-        const float* e = values_.data() + (size_t(py) * (phases + 1) + px) * entry_size;
-        const size_t row = size_t(phases + 1) * entry_size;
-        return {{e, e + entry_size, e + row, e + row + entry_size},
-                {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}};
-    }
 
     int half_width_, pitch_, phases_;
     size_t entry_size_;
