@@ -377,7 +377,7 @@ def sol_section(results: dict, sd: SolData) -> list[str]:
                 cells.append(f"{100 * m['mvox_per_s'] * 1e6 / b['sol']:.1f}%")
             out.append(f"| {vol_name(v)} | {mag} | " + " | ".join(cells) + " |")
     splat_rows = [("splat_scalar", "plain C, 16 taps (compiler's code)"),
-                  ("splat_avx2", "AVX2 as in the renderer: 2 gathers + 4 load-add-store per voxel"),
+                  ("splat_avx2", "AVX2, the renderer's first formulation: 2 gathers + 4 load-add-store per voxel"),
                   ("splat_noscatter", "… weights only (gathers), no stores"),
                   ("splat_nogather", "… stores only, constant weights"),
                   ("splat_phase", "weights from a per-view table of 32×32 sub-node phases (no gathers)")]
