@@ -5,13 +5,9 @@
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 
-#include <chrono>
-#include <condition_variable>
-#include <mutex>
-#include <optional>
-#include <thread>
 
 #include "bindings.h"
+#include "render_call.h"
 #include "pcvr/block_plan.h"
 #include "pcvr/camera.h"
 #include "pcvr/errors.h"
@@ -26,95 +22,12 @@ namespace pcvr::python {
 
 namespace {
 
-constexpr auto kPollInterval = std::chrono::milliseconds(20);
-
-/// `grids` is one Grid or a sequence of them; `scales` one number or one per grid.
-std::vector<Grid> grids_from_python(nb::handle grids) {
-    if (nb::isinstance<Grid>(grids)) return {nb::cast<Grid>(grids)};
-    std::vector<Grid> out;
-    try {
-        for (nb::handle item : grids) out.push_back(nb::cast<Grid>(item));
-    } catch (const std::exception&) {
-        throw nb::type_error("render_xray: `grid` must be a pcvr_native.Grid or a sequence of them");
-    }
-    return out;
-}
-
-std::vector<double> scales_from_python(nb::handle scales, size_t count) {
-    if (nb::isinstance<nb::float_>(scales) || nb::isinstance<nb::int_>(scales))
-        return std::vector<double>(count, nb::cast<double>(scales));
-    std::vector<double> out;
-    for (nb::handle item : scales) out.push_back(nb::cast<double>(item));
-    if (out.size() != count)
-        throw nb::value_error("render_xray: density_scale must be one number or one per grid");
-    return out;
-}
-
-bool cancel_requested(nb::handle cancel) {
-    if (nb::hasattr(cancel, "is_set")) return nb::cast<bool>(cancel.attr("is_set")());
-    return nb::cast<bool>(nb::bool_(cancel()));
-}
-
-/// Runs `work` with the GIL released. With callbacks, the work runs on a worker thread while this
-/// thread polls them every few milliseconds, holding the GIL only for the calls.
-template <class Work>
-void run_polled(Work&& work, RenderControl& control, nb::handle progress, nb::handle cancel) {
-    std::exception_ptr failure;
-    std::optional<nb::python_error> callback_error;
-    const bool polled = !progress.is_none() || !cancel.is_none();
-    {
-        nb::gil_scoped_release release;
-        if (!polled) {
-            try {
-                work();
-            } catch (...) {
-                failure = std::current_exception();
-            }
-        } else {
-            std::mutex mutex;
-            std::condition_variable done_cv;
-            bool done = false;
-            std::thread worker([&] {
-                try {
-                    work();
-                } catch (...) {
-                    failure = std::current_exception();
-                }
-                std::lock_guard<std::mutex> lock(mutex);
-                done = true;
-                done_cv.notify_all();
-            });
-            std::unique_lock<std::mutex> lock(mutex);
-            while (!done_cv.wait_for(lock, kPollInterval, [&] { return done; })) {
-                lock.unlock();
-                {
-                    nb::gil_scoped_acquire acquire;
-                    try {
-                        if (!progress.is_none()) progress(control.fraction());
-                        if (!cancel.is_none() && cancel_requested(cancel)) control.request_cancel();
-                    } catch (nb::python_error& e) {
-                        // A failing callback stops the render; its exception is what the caller sees.
-                        if (!callback_error) callback_error.emplace(std::move(e));
-                        control.request_cancel();
-                    }
-                }
-                lock.lock();
-            }
-            lock.unlock();
-            worker.join();
-        }
-    }
-    if (callback_error) throw std::move(*callback_error);
-    if (failure) std::rethrow_exception(failure);
-    if (!progress.is_none()) progress(1.0);
-}
-
 nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::string& method,
                           const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
                           int pixel_step) {
-    const std::vector<Grid> grids = grids_from_python(grid_arg);
-    const std::vector<double> scales = scales_from_python(density_scale, grids.size());
+    const std::vector<Grid> grids = grids_from_python(grid_arg, "render_xray");
+    const std::vector<double> scales = scales_from_python(density_scale, grids.size(), "render_xray");
     std::vector<WeightedGrid> weighted;
     for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], scales[i]});
 

@@ -71,4 +71,5 @@ NB_MODULE(_pcvr, m) {
 
     pcvr::python::bind_grid(m);
     pcvr::python::bind_render(m);
+    pcvr::python::bind_shaded(m);
 }

@@ -75,7 +75,7 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
     }
     BlockDecision d;
     // Wholly before the near plane or beyond the far plane.
-    if (sides_and != kInside && (sides_and & (kBeforeNear | kBeyondFar))) {
+    if (params.clip_planes && sides_and != kInside && (sides_and & (kBeforeNear | kBeyondFar))) {
         d.culled = true;
         return d;
     }

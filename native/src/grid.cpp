@@ -7,7 +7,11 @@
 #include <openvdb/tools/Dense.h>
 
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <unordered_map>
+
+#include <tbb/parallel_for.h>
 
 #include "pcvr/errors.h"
 
@@ -175,7 +179,68 @@ std::vector<VoxelBlock> build_blocks(const vdb::FloatTree& tree, const std::stri
     return blocks;
 }
 
+/// Each block's own value range, then the unions over the 3^3 and 5^3 blocks around it.
+std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& blocks) {
+    std::vector<BlockValueRange> ranges(blocks.size());
+    tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+        const VoxelBlock& block = blocks[b];
+        float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+        for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
+            const float v = block.value(offset);
+            if (!block.active(offset) || !std::isfinite(v)) continue;  // the splats skip these too
+            lo = std::min(lo, v);
+            hi = std::max(hi, v);
+        }
+        if (!(lo <= hi)) lo = hi = 0.0f;
+        ranges[b].min = lo;
+        ranges[b].max = hi;
+    });
+    struct OriginHash {
+        size_t operator()(const std::array<int32_t, 3>& o) const {
+            return std::hash<uint64_t>()((uint64_t(uint32_t(o[0])) * 0x9E3779B1u) ^ (uint64_t(uint32_t(o[1])) << 21) ^
+                                         (uint64_t(uint32_t(o[2])) << 42));
+        }
+    };
+    std::unordered_map<std::array<int32_t, 3>, size_t, OriginHash> index;
+    index.reserve(blocks.size());
+    for (size_t b = 0; b < blocks.size(); ++b) index.emplace(blocks[b].origin, b);
+    // Each ring is the union of the previous ring's ranges over the 27 blocks around.
+    auto widen = [&](auto inner_lo, auto inner_hi, auto outer_lo, auto outer_hi) {
+        tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+            float lo = ranges[b].*inner_lo, hi = ranges[b].*inner_hi;
+            const auto& o = blocks[b].origin;
+            for (int dx = -1; dx <= 1; ++dx)
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dz = -1; dz <= 1; ++dz) {
+                        const std::array<int32_t, 3> n{o[0] + dx * VoxelBlock::kDim, o[1] + dy * VoxelBlock::kDim,
+                                                       o[2] + dz * VoxelBlock::kDim};
+                        const auto it = index.find(n);
+                        if (it == index.end()) continue;
+                        lo = std::min(lo, ranges[it->second].*inner_lo);
+                        hi = std::max(hi, ranges[it->second].*inner_hi);
+                    }
+            ranges[b].*outer_lo = lo;
+            ranges[b].*outer_hi = hi;
+        });
+    };
+    widen(&BlockValueRange::min, &BlockValueRange::max, &BlockValueRange::reach_min, &BlockValueRange::reach_max);
+    widen(&BlockValueRange::reach_min, &BlockValueRange::reach_max, &BlockValueRange::wide_min, &BlockValueRange::wide_max);
+    return ranges;
+}
+
 }  // namespace
+
+const std::vector<BlockValueRange>& Grid::block_value_ranges() const {
+    const std::vector<VoxelBlock>& all = blocks();
+    if (!data_->ranges_ready.load(std::memory_order_acquire)) {
+        std::lock_guard<std::mutex> lock(data_->ranges_mutex);
+        if (!data_->ranges_ready.load(std::memory_order_relaxed)) {
+            data_->ranges = build_value_ranges(all);
+            data_->ranges_ready.store(true, std::memory_order_release);
+        }
+    }
+    return data_->ranges;
+}
 
 const std::vector<VoxelBlock>& Grid::blocks() const {
     // Double-checked: after the first build every caller takes only the atomic load.

@@ -34,6 +34,9 @@ struct Grid::Data {
     std::mutex blocks_mutex;
     std::atomic<bool> blocks_ready{false};
     std::vector<VoxelBlock> blocks;
+    std::mutex ranges_mutex;
+    std::atomic<bool> ranges_ready{false};
+    std::vector<BlockValueRange> ranges;
 
     Data(openvdb::FloatGrid::ConstPtr grid, std::string path);
 };

@@ -87,6 +87,13 @@ const char* Kernel::name() const {
 
 double Kernel::value(double r) const { return normalisation_ * raw_profile(shape_, r, radius_); }
 
+double Kernel::derivative(double r) const {
+    if (r >= radius_) return 0.0;
+    if (is_gauss(shape_)) return -2.0 * gauss_alpha(shape_) * r * value(r);
+    if (shape_ == KernelShape::Linear) return -normalisation_ / radius_;
+    return 0.0;
+}
+
 double Kernel::line_integral(double rho) const {
     return normalisation_ * raw_line_integral(shape_, std::abs(rho), radius_);
 }

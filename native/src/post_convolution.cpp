@@ -13,7 +13,8 @@ PostFilterShape post_filter_from_name(const std::string& name) {
     if (name == "bilinear") return PostFilterShape::Bilinear;
     if (name == "gauss1.4") return PostFilterShape::Gauss14;
     if (name == "gauss2.0") return PostFilterShape::Gauss20;
-    throw InvalidArgument("unknown post filter '" + name + "' (expected bilinear, gauss1.4 or gauss2.0)");
+    if (name == "catmull_rom") return PostFilterShape::CatmullRom;
+    throw InvalidArgument("unknown post filter '" + name + "' (expected bilinear, gauss1.4, gauss2.0 or catmull_rom)");
 }
 
 PostFilter::PostFilter(PostFilterShape shape, int stride) : stride_(stride), weights_(size_t(stride) * kTaps) {
@@ -23,6 +24,8 @@ PostFilter::PostFilter(PostFilterShape shape, int stride) : stride_(stride), wei
             case PostFilterShape::Bilinear: return t < 1.0 ? 1.0 - t : 0.0;
             case PostFilterShape::Gauss14: return t < 2.0 ? std::exp(-1.4 * t * t) : 0.0;
             case PostFilterShape::Gauss20: return t < 2.0 ? std::exp(-2.0 * t * t) : 0.0;
+            case PostFilterShape::CatmullRom:  // the cubic that interpolates with the slopes of central differences
+                return t < 1.0 ? 1.5 * t * t * t - 2.5 * t * t + 1.0 : (t < 2.0 ? -0.5 * t * t * t + 2.5 * t * t - 4.0 * t + 2.0 : 0.0);
         }
         return 0.0;
     };
@@ -39,6 +42,46 @@ PostFilter::PostFilter(PostFilterShape shape, int stride) : stride_(stride), wei
     for (int phase = 0; phase < stride; ++phase)
         for (int k = 0; k < kTaps; ++k) by_tap_[size_t(k) * stride + phase] = weights_[size_t(phase) * kTaps + k];
 }
+
+int PostFilter::reach_nodes() const {
+    for (int phase = 0; phase < stride_; ++phase)
+        if (weights(phase)[0] != 0 || weights(phase)[3] != 0) return 2;
+    return 1;
+}
+
+double PostFilter::overshoot() const {
+    double most = 0;
+    for (int px = 0; px < stride_; ++px)
+        for (int py = 0; py < stride_; ++py) {
+            double negative = 0;
+            for (int i = 0; i < kTaps; ++i)
+                for (int j = 0; j < kTaps; ++j) negative += std::max(0.0, -double(weights(px)[i]) * weights(py)[j]);
+            most = std::max(most, negative);
+        }
+    return most;
+}
+
+namespace {
+
+int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+/// Pixels L n + p, p in [p0, p1), of node n's run, from the vertical sums at nodes n - 1 .. n + 2;
+/// out points at the pixel of phase 0. Added to or stored, one contiguous loop over the phases.
+template <bool Accumulate>
+inline void node_run(const PostFilter& filter, const float* sums, int p0, int p1, float* out) {
+    const float *w0 = filter.tap_weights(0), *w1 = filter.tap_weights(1), *w2 = filter.tap_weights(2),
+                *w3 = filter.tap_weights(3);
+    const float n0 = sums[-1], n1 = sums[0], n2 = sums[1], n3 = sums[2];
+    for (int p = p0; p < p1; ++p) {
+        const float v = w0[p] * n0 + w1[p] * n1 + w2[p] * n2 + w3[p] * n3;
+        if constexpr (Accumulate)
+            out[p] += v;
+        else
+            out[p] = v;
+    }
+}
+
+}  // namespace
 
 void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumulator& image, RenderControl& control) {
     const int L = filter.stride();
@@ -64,8 +107,6 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
         if (last < 0) return;
         const int col_lo = std::max(0, first * T - 1), col_hi = std::min(grid.columns() - 1, (last + 1) * T + 1);
         std::vector<float> column_sums(grid.columns(), 0.0f);
-        const float *w0 = filter.tap_weights(0), *w1 = filter.tap_weights(1), *w2 = filter.tap_weights(2),
-                    *w3 = filter.tap_weights(3);
 
         const int y_lo = std::max(0, (ty * T - sy0) * L), y_hi = std::min(image.height - 1, ((ty + 1) * T - sy0) * L - 1);
         for (int y = y_lo; y <= y_hi; ++y) {
@@ -85,16 +126,34 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
                 for (int sc = std::max(tx * T, sx0); sc < (tx + 1) * T; ++sc) {
                     const int x_base = (sc - sx0) * L;
                     if (x_base >= image.width) break;
-                    const float n0 = column_sums[sc - 1], n1 = column_sums[sc], n2 = column_sums[sc + 1],
-                                n3 = column_sums[sc + 2];
-                    float* o = out + x_base;
-                    const int run = std::min(L, image.width - x_base);
-                    for (int p = 0; p < run; ++p) o[p] += w0[p] * n0 + w1[p] * n1 + w2[p] * n2 + w3[p] * n3;
+                    node_run<true>(filter, column_sums.data() + sc, 0, std::min(L, image.width - x_base), out + x_base);
                 }
             }
         }
     });
     control.throw_if_cancelled();
+}
+
+void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int x0, int y0, int width, int height,
+                          float* out, size_t out_pitch, std::vector<float>& scratch) {
+    const int L = filter.stride();
+    const int first_node = floor_div(x0, L), last_node = floor_div(x0 + width - 1, L);
+    // Vertical sums for node columns first_node - 1 .. last_node + 2, stored from index 1.
+    const int sum_columns = last_node - first_node + 4;
+    scratch.resize(size_t(sum_columns));
+    const int c_begin = first_node - 1 - nodes.node_x0;
+    for (int y = y0; y < y0 + height; ++y) {
+        const int node = floor_div(y, L), phase = y - node * L;
+        const float* wy = filter.weights(phase);
+        const float* r[PostFilter::kTaps];
+        for (int k = 0; k < PostFilter::kTaps; ++k) r[k] = nodes.values + size_t(node - 1 + k - nodes.node_y0) * nodes.pitch + c_begin;
+        for (int c = 0; c < sum_columns; ++c) scratch[c] = wy[0] * r[0][c] + wy[1] * r[1][c] + wy[2] * r[2][c] + wy[3] * r[3][c];
+        float* row = out + size_t(y - y0) * out_pitch - x0;  // indexed by image column
+        for (int n = first_node; n <= last_node; ++n) {
+            const int p0 = std::max(0, x0 - n * L), p1 = std::min(L, x0 + width - n * L);
+            node_run<false>(filter, scratch.data() + (n - first_node + 1), p0, p1, row + n * L);
+        }
+    }
 }
 
 void add_unfiltered(const SplatGrid& grid, ImageAccumulator& image) {

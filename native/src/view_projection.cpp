@@ -35,6 +35,10 @@ ViewProjection::ViewProjection(const Camera& camera, const Mat4& index_to_world)
     wd0_ = r0.direction;
     wdx_ = rx.direction;
     wdy_ = ry.direction;
+    // Depth = -z in camera space: minus the third row of world_to_camera * index_to_world.
+    const Mat4 index_to_camera = camera.world_to_camera() * index_to_world;
+    depth_gradient_ = Vec3{-index_to_camera.m[2][0], -index_to_camera.m[2][1], -index_to_camera.m[2][2]};
+    depth_offset_ = -index_to_camera.m[2][3];
 }
 
 bool ViewProjection::footprint(const Vec3& c, Footprint& out) const {
@@ -60,6 +64,10 @@ void ViewProjection::footprint_at(const Vec3& c, const Vec4& clip, Footprint& ou
     out.qxy = f.qxy;
     out.qyy = f.qyy;
     out.line_scale = f.line_scale;
+    out.depth = f.depth;
+    out.depth_dx = f.depth_dx;
+    out.depth_dy = f.depth_dy;
+    out.depth_per_index = f.depth_per_index;
 }
 
 }  // namespace pcvr

@@ -32,6 +32,9 @@ struct BlockPlanParams {
     /// Bilinear spreading replaces the footprint by a one-node tent, which only reconstructs when the
     /// nodes are about one voxel apart: round the stride to the nearest instead of flooring it.
     bool nearest_stride = false;
+    /// Cull blocks whose voxel centres all lie before the near or beyond the far plane (X-ray clips
+    /// per voxel). The shaded renderer clips per sample instead and culls by depth itself.
+    bool clip_planes = true;
 };
 
 struct BlockPlan {

@@ -32,6 +32,17 @@ struct VoxelBlock {
     bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
 };
 
+/// The range of a block's active values, and the ranges over the blocks around it: the 3^3 blocks
+/// centred on it (every voxel within 8 index units) and the 5^3 (within 16). Kernels are non-negative
+/// and sum to about one, so a sample reconstructed from voxels within 8 (16) index units of the block
+/// lies between min(reach_min, 0) and max(reach_max, 0) (wide_min, wide_max), up to the kernels' ripple,
+/// whichever of those voxels are left out of the sum.
+struct BlockValueRange {
+    float min = 0, max = 0;
+    float reach_min = 0, reach_max = 0;
+    float wide_min = 0, wide_max = 0;
+};
+
 /// Codec for Grid::write_vdb. Blosc is OpenVDB's default and the fastest; zip suits readers built
 /// without blosc; none is largest.
 enum class VdbCompression { Blosc, Zip, None };
@@ -59,6 +70,8 @@ public:
     std::pair<float, float> value_range() const;
     /// The active voxels as blocks; built on first use, then cached (thread-safe).
     const std::vector<VoxelBlock>& blocks() const;
+    /// One range per block of blocks(); built on first use, then cached (thread-safe).
+    const std::vector<BlockValueRange>& block_value_ranges() const;
 
     /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
     /// so a failed write never leaves a half-written file. Throws Error with the path on failure.

@@ -32,6 +32,8 @@ public:
     double radius() const { return radius_; }
     /// Normalised profile h(r).
     double value(double r) const;
+    /// Its derivative dh/dr (0 at and beyond the radius; the box's jump there is not a derivative).
+    double derivative(double r) const;
     /// Analytic line integral of the normalised kernel along a line at distance rho from its centre,
     /// in index units: integral of h(sqrt(rho^2 + s^2)) ds. No tables: used by the exact reference.
     double line_integral(double rho) const;

@@ -6,11 +6,12 @@
 /// | "bilinear" | 1 - |t|  (linear interpolation of the subgrid samples)      | |t| < 1   |
 /// | "gauss1.4" | exp(-1.4 t^2)                                               | |t| < 2   |
 /// | "gauss2.0" | exp(-2.0 t^2)                                               | |t| < 2   |
+/// | "catmull_rom" | Catmull-Rom cubic: interpolates, exact for quadratics (negative lobes) | |t| < 2 |
 ///
 /// Because the subgrid nodes coincide with pixels, each output pixel has one of L phases and the
-/// filter is a table of L x 4 weights, normalised per phase so constants are preserved. Only tiles
-/// near touched subgrid tiles are computed. The same call serves one X-ray image or one sheet of a
-/// sheet-buffered renderer.
+/// filter is a table of L x 4 weights, normalised per phase so constants are preserved. X-ray images
+/// go through post_convolve once, computing only tiles near touched subgrid tiles; the sheet renderer
+/// calls post_convolve_region on each tile of each sheet that splats touched.
 #pragma once
 
 #include <string>
@@ -22,9 +23,9 @@
 
 namespace pcvr {
 
-enum class PostFilterShape { Bilinear, Gauss14, Gauss20 };
+enum class PostFilterShape { Bilinear, Gauss14, Gauss20, CatmullRom };
 
-/// Parses "bilinear", "gauss1.4" or "gauss2.0"; throws InvalidArgument listing the names.
+/// Parses "bilinear", "gauss1.4", "gauss2.0" or "catmull_rom"; throws InvalidArgument listing the names.
 PostFilterShape post_filter_from_name(const std::string& name);
 
 class PostFilter {
@@ -38,6 +39,11 @@ public:
     const float* weights(int phase) const { return weights_.data() + phase * kTaps; }
     /// The weights of tap k for phases 0 .. stride - 1: one node's contribution to a run of pixels.
     const float* tap_weights(int k) const { return by_tap_.data() + size_t(k) * stride_; }
+    /// Nodes a pixel reads on each side: 1 when the outer taps are always zero (bilinear), else 2.
+    int reach_nodes() const;
+    /// The largest total negative weight of a pixel's 4 x 4 nodes (0 for filters without negative
+    /// lobes): a pixel can exceed the range of its nodes by this times the range's width.
+    double overshoot() const;
 
 private:
     int stride_;
@@ -55,6 +61,20 @@ struct ImageAccumulator {
 
 /// image += filter applied to grid. The grid must cover the image with PostFilter::kMarginNodes.
 void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumulator& image, RenderControl& control);
+
+/// A sheet's nodes in float, as the sheet renderer keeps them: node (0, 0) is subgrid node
+/// (node_x0, node_y0), i.e. pixel (L node_x0, L node_y0); rows `pitch` floats apart.
+struct NodeSheet {
+    const float* values;
+    size_t pitch;
+    int node_x0, node_y0;
+};
+
+/// out = filter applied to `nodes`, for the pixels [x0, x0 + width) x [y0, y0 + height) (image
+/// coordinates), rows `out_pitch` floats apart. The nodes must hold every tap: subgrid columns
+/// floor(x0 / L) - 1 .. floor((x0 + width - 1) / L) + 2, and rows likewise. `scratch` is reused.
+void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int x0, int y0, int width, int height,
+                          float* out, size_t out_pitch, std::vector<float>& scratch);
 
 /// image += grid, for a stride-1 grid whose nodes are the pixels ("regular" splatting).
 void add_unfiltered(const SplatGrid& grid, ImageAccumulator& image);

@@ -7,6 +7,12 @@
 /// the footprint is an ellipse. Orthographic: the form is the same for every voxel. Perspective: it is
 /// evaluated per voxel (the linearisation is exact at the centre and first-order accurate across the
 /// footprint, whose size is tiny compared with the distance to the eye).
+///
+/// Depth is the distance in front of the eye plane along the view axis, in camera-space units
+/// (-z in camera space). It is affine in index space, so sheets of constant depth (the shaded
+/// renderer's) cut every voxel's kernel the same way up to its position: the footprint also carries
+/// how the depth of each ray's closest approach to the centre changes across it, which is what turns
+/// a sheet's depth range into a range along each ray (src/slab_splat.h).
 #pragma once
 
 #include "pcvr/camera.h"
@@ -21,12 +27,16 @@ struct FootprintLanes {
     T px, py;            ///< projected centre, pixel coordinates
     T qxx, qxy, qyy;     ///< see Footprint
     T line_scale;
+    T depth;             ///< depth of the centre
+    T depth_dx, depth_dy;  ///< change per pixel offset of the depth where each ray passes closest to the centre
+    T depth_per_index;   ///< depth per index length along the ray (> 0)
 };
 
 struct Footprint {
     double px = 0, py = 0;              ///< projected centre, pixel coordinates
     double qxx = 0, qxy = 0, qyy = 0;   ///< rho^2 in index units^2 per pixel offset, see above
     double line_scale = 1;              ///< world length per index length along the ray
+    double depth = 0, depth_dx = 0, depth_dy = 0, depth_per_index = 1;  ///< see FootprintLanes
 
     /// Smallest number of pixels that one index unit spans in any direction (the magnification that
     /// limits the subgrid stride).
@@ -51,6 +61,10 @@ public:
     static bool inside_clip_range(const Vec4& clip) { return clip.w > 0 && clip.z >= -clip.w && clip.z <= clip.w; }
     Vec4 to_clip(const Vec3& index_pos) const { return index_to_clip_ * Vec4{index_pos.x, index_pos.y, index_pos.z, 1.0}; }
 
+    /// Depth (see above) of a point in index space, and its gradient: depth = dot(gradient, p) + offset.
+    double depth(const Vec3& index_pos) const { return dot(depth_gradient_, index_pos) + depth_offset_; }
+    const Vec3& depth_gradient() const { return depth_gradient_; }
+
     /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
     bool footprint(const Vec3& index_pos, Footprint& out) const;
     /// The same, ignoring the near and far planes; false only behind the eye.
@@ -70,6 +84,8 @@ private:
     // Pixel rays in index space (affine in pixel coordinates) and their world-space directions.
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
+    Vec3 depth_gradient_;
+    double depth_offset_ = 0;
 };
 
 template <class T, class Sqrt>
@@ -99,6 +115,13 @@ FootprintLanes<T> ViewProjection::footprint_lanes(T x, T y, T z, T clip_x, T cli
     out.qxx = u.dot(u);
     out.qxy = u.dot(v);
     out.qyy = v.dot(v);
+
+    // Depth: the closest approach of a neighbouring ray is (to first order) its crossing with that plane.
+    const V n = lanes(depth_gradient_);
+    out.depth = n.dot(V{x, y, z}) + depth_offset_;
+    out.depth_dx = n.dot(u);
+    out.depth_dy = n.dot(v);
+    out.depth_per_index = n.dot(d) / sqrt(dd);
 
     const V wd = lanes(wd0_) + lanes(wdx_) * out.px + lanes(wdy_) * out.py;
     out.line_scale = sqrt(wd.dot(wd)) / sqrt(dd);

@@ -1,0 +1,113 @@
+/// @file shaded.h
+/// @brief Shaded volume rendering and maximum intensity projection by image-aligned sheet-buffered
+/// splatting, with post-convolution on every sheet (the paper's full volume rendering).
+///
+/// Sheets are planes of constant depth `sheet_spacing` voxels apart, from the near clip plane on. Each
+/// voxel's kernel is cut into slabs by them (slab_footprint.h) and splatted front to back into the few
+/// sheets it reaches; each sheet is then post-convolved from the subgrid to the pixels (pcvr, bilinear
+/// spreading) before anything nonlinear happens to it, classified through the transfer function,
+/// shaded with the density gradient and composited front to back:
+///
+/// | method            | a sheet is splatted into      | then, per sheet                            |
+/// |-------------------|-------------------------------|--------------------------------------------|
+/// | "regular"         | the image (stride 1)          | classify, shade, composite                 |
+/// | "pcvr"            | the stride-L subgrid          | post-convolve, classify, shade, composite  |
+/// | "bilinear_spread" | the subgrid, 2 x 2 per slab   | post-convolve, classify, shade, composite  |
+/// | "raycast"         | - (raycast_reference.h: point samples along each ray, the reference) |
+///
+/// A sheet holds the integral of the density over its slab along each pixel's ray; divided by the
+/// ray's length in the slab it is the slab's mean density, which the transfer function classifies
+/// (opacity corrected for that length). The gradient comes from central differences within the sheet,
+/// one subgrid node (L pixels) apart, and across the sheets before and after. Space where no voxel's
+/// kernel reaches (reconstructed density exactly 0) is empty whatever the transfer function says.
+///
+/// Work is split into image tiles that each walk their sheets front to back on one thread (results do
+/// not depend on the thread count). What cannot change the image is skipped and counted: blocks outside
+/// the view or clip range, blocks whose values (with their neighbours') are transparent under the
+/// transfer function, voxels whose footprint lies on pixels already opaque (the occlusion map), tiles
+/// a sheet did not touch, and tiles that became opaque.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pcvr/camera.h"
+#include "pcvr/grid.h"
+#include "pcvr/render_control.h"
+#include "pcvr/shading.h"
+#include "pcvr/transfer_function.h"
+#include "pcvr/zeroed_buffer.h"
+
+namespace pcvr {
+
+enum class ShadedMethod { Regular, Pcvr, BilinearSpread, Raycast };
+
+/// Parses "regular", "pcvr", "bilinear_spread" or "raycast"; throws InvalidArgument listing the names.
+ShadedMethod shaded_method_from_name(const std::string& name);
+
+struct ShadedParams {
+    ShadedMethod method = ShadedMethod::Pcvr;
+    std::string splat_kernel = "gauss1.4";
+    std::string post_filter = "bilinear";
+    int stride = 0;               ///< subgrid stride in pixels; 0 = automatic per grid
+    double sheet_spacing = 1.0;   ///< voxels along the view direction between sheets (raycast: between samples)
+    int samples_per_sheet = 1;    ///< classified samples from one sheet to the next, interpolated between them
+    double opacity_cutoff = 0.99; ///< a pixel this opaque takes no more samples (1: never stop)
+    int threads = 0;              ///< 0 = all cores
+    int tile_size = 0;            ///< pixels per tile side; 0 = automatic
+    int pixel_step = 1;           ///< raycast only: render every step-th pixel in each direction
+    bool cull_transparent = true; ///< skip blocks the transfer function makes invisible (exact; off to compare)
+};
+
+/// One grid in a shaded render: its transfer function and the factor its values are multiplied by
+/// before classification.
+struct ShadedVolume {
+    const Grid* grid;
+    const TransferFunction* transfer_function;
+    double density_scale = 1.0;
+};
+
+struct ShadedStats {
+    uint64_t blocks_total = 0;
+    uint64_t blocks_outside = 0;      ///< outside the view or the clip range
+    uint64_t blocks_transparent = 0;  ///< values (with their neighbours') transparent under the transfer function
+    uint64_t blocks_listed = 0;       ///< (block, tile) pairs to splat
+    uint64_t voxels_splatted = 0;     ///< voxel deposits (a voxel reaching k tiles counts k times)
+    uint64_t voxels_occluded = 0;     ///< deposits skipped: footprint wholly on opaque pixels
+    uint64_t sheets = 0;              ///< sheets between the first and last reached by any voxel
+    uint64_t tiles = 0;
+    uint64_t tiles_terminated = 0;    ///< tiles that became opaque before their last sheet
+    uint64_t tile_sheets_composited = 0;
+    uint64_t tile_sheets_skipped = 0; ///< (tile, sheet) pairs between a tile's first and last sheet that no splat touched
+    std::vector<int> strides;         ///< per grid
+    double seconds = 0;
+    double seconds_plan = 0;          ///< thread seconds per stage
+    double seconds_splat = 0;
+    double seconds_post_convolution = 0;
+    double seconds_shading = 0;       ///< classification, shading and compositing
+};
+
+/// Premultiplied linear RGBA, row 0 on top.
+struct RgbaImage {
+    int width = 0, height = 0;
+    ZeroedBuffer<float> pixels;  ///< width * height * 4
+};
+
+/// Maximum density along each ray, row 0 on top.
+struct MipImage {
+    int width = 0, height = 0;
+    ZeroedBuffer<float> pixels;
+};
+
+/// Throws InvalidArgument, GridError or CameraError up front; Cancelled when `control` asks. With
+/// pixel_step > 1 (raycast) the image is ceil(height / step) x ceil(width / step).
+RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
+                        const ShadedParams& params, RenderControl& control, ShadedStats* stats = nullptr);
+
+/// The maximum of each grid's reconstructed density (times its scale) along each ray: the largest slab
+/// mean over the sheets, 0 where no voxel reaches. Transfer functions are not used.
+MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
+                    RenderControl& control, ShadedStats* stats = nullptr);
+
+}  // namespace pcvr

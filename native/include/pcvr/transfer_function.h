@@ -1,0 +1,62 @@
+/// @file transfer_function.h
+/// @brief Post-classification: the reconstructed density of a sample becomes a colour and an opacity.
+///
+/// A TransferFunction is what the user gives: control points over increasing density, each with a
+/// linear-RGB colour and an opacity `a` meaning "a slab `unit_distance` world units thick stops a
+/// fraction a of the light". Between control points both are linear; beyond the first and last they
+/// keep the end values. Renderers read a ClassificationTable instead: the same function sampled at
+/// kEntries densities, with the opacity turned into an extinction coefficient, so that a sample of any
+/// thickness l gets the opacity 1 - (1 - a)^(l / unit_distance) = 1 - exp(-extinction l) (opacity
+/// correction: halving the sample spacing leaves the image unchanged). The table also says which
+/// density ranges are wholly transparent, so that blocks of voxels that cannot become visible are
+/// skipped before they are splatted (what Open VKL's transfer functions report as value ranges).
+#pragma once
+
+#include <array>
+#include <vector>
+
+namespace pcvr {
+
+struct TransferFunction {
+    std::vector<double> density;               ///< strictly increasing control points
+    std::vector<std::array<double, 4>> rgba;   ///< linear RGB (>= 0) and opacity in [0, 1], one per point
+    double unit_distance = 0;                  ///< world units; 0 = the smallest voxel spacing of its grid
+
+    /// Throws InvalidArgument naming the problem: no points, sizes that differ, densities not
+    /// increasing, non-finite numbers, colours below 0, opacities outside [0, 1], unit_distance < 0.
+    void validate() const;
+};
+
+class ClassificationTable {
+public:
+    static constexpr int kEntries = 4096;
+
+    /// `unit_distance` in world units (> 0): the transfer function's own, or its grid's voxel spacing.
+    ClassificationTable(const TransferFunction& tf, double unit_distance);
+
+    struct Sample {
+        float red, green, blue;
+        float extinction;  ///< per world unit: opacity of a sample l thick is 1 - exp(-extinction l)
+    };
+    /// Linear interpolation between the two nearest entries; densities outside the control points
+    /// take the end values.
+    Sample operator()(float density) const {
+        float x = (density - first_) * scale_;
+        x = x > 0.0f ? (x < float(kEntries) ? x : float(kEntries)) : 0.0f;  // also maps NaN to 0
+        const int i = int(x);
+        const float f = x - float(i);
+        const Sample& a = entries_[i];
+        const Sample& b = entries_[i + 1];
+        return {a.red + f * (b.red - a.red), a.green + f * (b.green - a.green), a.blue + f * (b.blue - a.blue),
+                a.extinction + f * (b.extinction - a.extinction)};
+    }
+    /// True when every density in [lo, hi] has zero opacity.
+    bool transparent(double lo, double hi) const;
+
+private:
+    float first_, scale_;          // entry index = (density - first) * scale
+    std::vector<Sample> entries_;  // kEntries + 2: the last repeated, so interpolation at the end needs no branch
+    std::vector<int> next_opaque_; // per entry: the first entry at or after it with extinction > 0
+};
+
+}  // namespace pcvr

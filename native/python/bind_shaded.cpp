@@ -1,0 +1,254 @@
+// Bindings of shaded rendering and MIP: TransferFunction, Light, Shading, render_shaded, render_mip.
+// Thin: conversions, GIL handling and the statistics dictionary.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+
+#include <optional>
+
+#include "bindings.h"
+#include "pcvr/errors.h"
+#include "pcvr/shaded.h"
+#include "render_call.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace pcvr::python {
+
+namespace {
+
+Vec3 vec3_from_python(nb::handle obj, const char* what) {
+    nb::object arr = nb::module_::import_("numpy").attr("asarray")(obj, "dtype"_a = "float64");
+    if (nb::cast<int>(arr.attr("size")) != 3) throw InvalidArgument(std::string(what) + " must have three numbers");
+    nb::object flat = arr.attr("reshape")(3);
+    return {nb::cast<double>(flat[nb::int_(0)]), nb::cast<double>(flat[nb::int_(1)]), nb::cast<double>(flat[nb::int_(2)])};
+}
+
+nb::tuple vec3_to_python(const Vec3& v) { return nb::make_tuple(v.x, v.y, v.z); }
+
+TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std::optional<double> unit_distance) {
+    nb::module_ np = nb::module_::import_("numpy");
+    nb::object d = np.attr("asarray")(density, "dtype"_a = "float64").attr("reshape")(-1);
+    nb::object c = np.attr("asarray")(rgba, "dtype"_a = "float64");
+    const size_t n = nb::len(d);
+    if (nb::cast<int>(c.attr("ndim")) != 2 || nb::cast<size_t>(c.attr("shape")[nb::int_(1)]) != 4)
+        throw InvalidArgument("TransferFunction: rgba must be a list of [r, g, b, a] rows");
+    TransferFunction tf;
+    for (size_t i = 0; i < n; ++i) tf.density.push_back(nb::cast<double>(d[nb::int_(i)]));
+    const size_t rows = nb::cast<size_t>(c.attr("shape")[nb::int_(0)]);
+    for (size_t i = 0; i < rows; ++i) {
+        nb::object row = c[nb::int_(i)];
+        tf.rgba.push_back({nb::cast<double>(row[nb::int_(0)]), nb::cast<double>(row[nb::int_(1)]),
+                           nb::cast<double>(row[nb::int_(2)]), nb::cast<double>(row[nb::int_(3)])});
+    }
+    tf.unit_distance = unit_distance.value_or(0.0);
+    if (unit_distance && !(*unit_distance > 0)) throw InvalidArgument("TransferFunction: unit_distance must be positive or None");
+    tf.validate();
+    return tf;
+}
+
+/// The common arguments of render_shaded and render_mip.
+struct CallParts {
+    std::vector<Grid> grids;
+    std::vector<double> scales;
+    ShadedParams params;
+};
+
+CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* function, const std::string& method,
+                     const std::string& splat_kernel, const std::string& post_filter, int stride, double sheet_spacing,
+                     double opacity_cutoff, int threads, int tile_size, int pixel_step, int samples_per_sheet, bool cull_transparent) {
+    CallParts parts;
+    parts.grids = grids_from_python(grid_arg, function);
+    parts.scales = scales_from_python(density_scale, parts.grids.size(), function);
+    ShadedParams& p = parts.params;
+    p.method = shaded_method_from_name(method);
+    p.splat_kernel = splat_kernel;
+    p.post_filter = post_filter;
+    p.stride = stride;
+    p.sheet_spacing = sheet_spacing;
+    p.opacity_cutoff = opacity_cutoff;
+    p.threads = threads;
+    p.tile_size = tile_size;
+    p.pixel_step = pixel_step;
+    p.samples_per_sheet = samples_per_sheet;
+    p.cull_transparent = cull_transparent;
+    return parts;
+}
+
+void fill_stats(nb::handle stats, const ShadedStats& s) {
+    if (stats.is_none()) return;
+    nb::list strides;
+    for (int v : s.strides) strides.append(v);
+    stats["blocks"] = s.blocks_total;
+    stats["blocks_outside"] = s.blocks_outside;
+    stats["blocks_transparent"] = s.blocks_transparent;
+    stats["blocks_listed"] = s.blocks_listed;
+    stats["voxels"] = s.voxels_splatted;
+    stats["voxels_occluded"] = s.voxels_occluded;
+    stats["sheets"] = s.sheets;
+    stats["tiles"] = s.tiles;
+    stats["tiles_terminated"] = s.tiles_terminated;
+    stats["tile_sheets_composited"] = s.tile_sheets_composited;
+    stats["tile_sheets_skipped"] = s.tile_sheets_skipped;
+    stats["strides"] = strides;
+    stats["seconds"] = s.seconds;
+    stats["seconds_plan"] = s.seconds_plan;
+    stats["seconds_splat"] = s.seconds_splat;
+    stats["seconds_post_convolution"] = s.seconds_post_convolution;
+    stats["seconds_shading"] = s.seconds_shading;
+}
+
+template <class Image>
+nb::object image_to_numpy(Image&& image, int channels) {
+    auto* pixels = new ZeroedBuffer<float>(std::move(image.pixels));
+    nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<ZeroedBuffer<float>*>(p); });
+    if (channels == 1)
+        return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<2>>(pixels->data(), {size_t(image.height), size_t(image.width)}, owner));
+    return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<3>>(
+        pixels->data(), {size_t(image.height), size_t(image.width), size_t(channels)}, owner));
+}
+
+nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handle transfer_functions, nb::handle lights,
+                            nb::handle ambient, const Shading& shading, const std::string& method,
+                            const std::string& splat_kernel, const std::string& post_filter, int stride,
+                            double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
+                            nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
+                            int samples_per_sheet, bool cull_transparent) {
+    CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
+                                 sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent);
+    std::vector<TransferFunction> tfs;
+    if (nb::isinstance<TransferFunction>(transfer_functions)) {
+        tfs.assign(parts.grids.size(), nb::cast<TransferFunction>(transfer_functions));
+    } else {
+        for (nb::handle item : transfer_functions) tfs.push_back(nb::cast<TransferFunction>(item));
+        if (tfs.size() != parts.grids.size())
+            throw nb::value_error("render_shaded: transfer_functions must be one TransferFunction or one per grid");
+    }
+    Lighting lighting;
+    if (!lights.is_none())
+        for (nb::handle item : lights) lighting.lights.push_back(nb::cast<Light>(item));
+    lighting.ambient = vec3_from_python(ambient, "ambient");
+    lighting.material = shading;
+
+    std::vector<ShadedVolume> volumes;
+    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i]});
+    RenderControl control;
+    if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
+    RgbaImage image;
+    ShadedStats s;
+    run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
+    fill_stats(stats, s);
+    return image_to_numpy(std::move(image), 4);
+}
+
+nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
+                         const std::string& post_filter, int stride, double sheet_spacing, int threads, nb::handle progress,
+                         nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step) {
+    CallParts parts = call_parts(grid_arg, density_scale, "render_mip", method, splat_kernel, post_filter, stride,
+                                 sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false);
+    std::vector<ShadedVolume> volumes;
+    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], nullptr, parts.scales[i]});
+    RenderControl control;
+    if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
+    MipImage image;
+    ShadedStats s;
+    run_polled([&] { image = render_mip(volumes, camera, parts.params, control, &s); }, control, progress, cancel);
+    fill_stats(stats, s);
+    return image_to_numpy(std::move(image), 1);
+}
+
+}  // namespace
+
+void bind_shaded(nb::module_& m) {
+    nb::class_<TransferFunction>(m, "TransferFunction",
+                                 "Density -> colour and opacity: piecewise linear over increasing control points. Colours are\n"
+                                 "linear RGB; an opacity is that of a slab `unit_distance` world units thick (None: the\n"
+                                 "grid's smallest voxel spacing), corrected for each sample's actual thickness.")
+        .def("__init__",
+             [](TransferFunction* self, nb::handle density, nb::handle rgba, std::optional<double> unit_distance) {
+                 new (self) TransferFunction(make_transfer_function(density, rgba, unit_distance));
+             },
+             "density"_a, "rgba"_a, "unit_distance"_a = nb::none())
+        .def_prop_ro("density", [](const TransferFunction& tf) {
+            nb::list out;
+            for (double d : tf.density) out.append(d);
+            return out;
+        })
+        .def_prop_ro("rgba", [](const TransferFunction& tf) {
+            nb::list out;
+            for (const auto& c : tf.rgba) out.append(nb::make_tuple(c[0], c[1], c[2], c[3]));
+            return out;
+        })
+        .def_prop_ro("unit_distance", [](const TransferFunction& tf) -> std::optional<double> {
+            if (tf.unit_distance > 0) return tf.unit_distance;
+            return std::nullopt;
+        })
+        .def("__repr__", [](const TransferFunction& tf) {
+            return "<pcvr_native.TransferFunction " + std::to_string(tf.density.size()) + " points over [" +
+                   std::to_string(tf.density.front()) + ", " + std::to_string(tf.density.back()) + "]>";
+        });
+
+    nb::class_<Light>(m, "Light", "A light for render_shaded: Light.sun(...) or Light.point(...).")
+        .def_static(
+            "sun",
+            [](nb::handle direction, nb::handle color, double strength) {
+                Light l = Light::sun(vec3_from_python(direction, "direction"), vec3_from_python(color, "color"), strength);
+                Lighting{{l}, {0, 0, 0}, {}}.validate();
+                return l;
+            },
+            "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
+            "Parallel light travelling along `direction` (world space) with irradiance `strength`.")
+        .def_static(
+            "point",
+            [](nb::handle position, nb::handle color, double strength) {
+                Light l = Light::point(vec3_from_python(position, "position"), vec3_from_python(color, "color"), strength);
+                Lighting{{l}, {0, 0, 0}, {}}.validate();
+                return l;
+            },
+            "position"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
+            "Point light at `position` (world space): irradiance strength / distance^2.")
+        .def_prop_ro("kind", [](const Light& l) { return l.kind == Light::Kind::Sun ? "sun" : "point"; })
+        .def_prop_ro("vector", [](const Light& l) { return vec3_to_python(l.vector); },
+                     "The sun's direction of travel, or the point light's position.")
+        .def_prop_ro("color", [](const Light& l) { return vec3_to_python(l.color); })
+        .def_prop_ro("strength", [](const Light& l) { return l.strength; })
+        .def("__repr__", [](const Light& l) {
+            return std::string("<pcvr_native.Light ") + (l.kind == Light::Kind::Sun ? "sun" : "point") +
+                   " strength " + std::to_string(l.strength) + ">";
+        });
+
+    nb::class_<Shading>(m, "Shading", "Blinn-Phong material of render_shaded (two-sided, as in VTK and 3D Slicer).")
+        .def("__init__",
+             [](Shading* self, double ambient, double diffuse, double specular, double shininess) {
+                 new (self) Shading{ambient, diffuse, specular, shininess};
+                 Lighting{{}, {0, 0, 0}, *self}.validate();
+             },
+             "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0)
+        .def_rw("ambient", &Shading::ambient)
+        .def_rw("diffuse", &Shading::diffuse)
+        .def_rw("specular", &Shading::specular)
+        .def_rw("shininess", &Shading::shininess)
+        .def("__repr__", [](const Shading& s) {
+            return "<pcvr_native.Shading ambient " + std::to_string(s.ambient) + " diffuse " + std::to_string(s.diffuse) +
+                   " specular " + std::to_string(s.specular) + " shininess " + std::to_string(s.shininess) + ">";
+        });
+
+    m.def("render_shaded", &render_shaded_py, "grids"_a, "camera"_a, "transfer_functions"_a, "lights"_a = nb::tuple(),
+          "ambient"_a = nb::make_tuple(0.1, 0.1, 0.1), "shading"_a = Shading{}, "method"_a = "pcvr",
+          "splat_kernel"_a = "gauss1.4", "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0,
+          "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
+          "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
+          "samples_per_sheet"_a = 1, "cull_transparent"_a = true,
+          "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
+          "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit.");
+    m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
+          "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
+          "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
+          "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
+          "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
+          "reconstructed density along each ray, 0 where no voxel reaches.");
+}
+
+}  // namespace pcvr::python

@@ -1,0 +1,106 @@
+// Shared by the render bindings: grids and scales from Python, and running a long native call with
+// the GIL released while its progress and cancel callbacks are polled.
+#pragma once
+
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pcvr/grid.h"
+#include "pcvr/render_control.h"
+
+namespace pcvr::python {
+
+namespace nb = nanobind;
+
+inline constexpr auto kPollInterval = std::chrono::milliseconds(20);
+
+/// `grids` is one Grid or a sequence of them; `scales` one number or one per grid.
+inline std::vector<Grid> grids_from_python(nb::handle grids, const char* function) {
+    if (nb::isinstance<Grid>(grids)) return {nb::cast<Grid>(grids)};
+    std::vector<Grid> out;
+    try {
+        for (nb::handle item : grids) out.push_back(nb::cast<Grid>(item));
+    } catch (const std::exception&) {
+        throw nb::type_error((std::string(function) + ": `grid` must be a pcvr_native.Grid or a sequence of them").c_str());
+    }
+    return out;
+}
+
+inline std::vector<double> scales_from_python(nb::handle scales, size_t count, const char* function) {
+    if (nb::isinstance<nb::float_>(scales) || nb::isinstance<nb::int_>(scales))
+        return std::vector<double>(count, nb::cast<double>(scales));
+    std::vector<double> out;
+    for (nb::handle item : scales) out.push_back(nb::cast<double>(item));
+    if (out.size() != count)
+        throw nb::value_error((std::string(function) + ": density_scale must be one number or one per grid").c_str());
+    return out;
+}
+
+inline bool cancel_requested(nb::handle cancel) {
+    if (nb::hasattr(cancel, "is_set")) return nb::cast<bool>(cancel.attr("is_set")());
+    return nb::cast<bool>(nb::bool_(cancel()));
+}
+
+/// Runs `work` with the GIL released. With callbacks, the work runs on a worker thread while this
+/// thread polls them every few milliseconds, holding the GIL only for the calls.
+template <class Work>
+void run_polled(Work&& work, RenderControl& control, nb::handle progress, nb::handle cancel) {
+    std::exception_ptr failure;
+    std::optional<nb::python_error> callback_error;
+    const bool polled = !progress.is_none() || !cancel.is_none();
+    {
+        nb::gil_scoped_release release;
+        if (!polled) {
+            try {
+                work();
+            } catch (...) {
+                failure = std::current_exception();
+            }
+        } else {
+            std::mutex mutex;
+            std::condition_variable done_cv;
+            bool done = false;
+            std::thread worker([&] {
+                try {
+                    work();
+                } catch (...) {
+                    failure = std::current_exception();
+                }
+                std::lock_guard<std::mutex> lock(mutex);
+                done = true;
+                done_cv.notify_all();
+            });
+            std::unique_lock<std::mutex> lock(mutex);
+            while (!done_cv.wait_for(lock, kPollInterval, [&] { return done; })) {
+                lock.unlock();
+                {
+                    nb::gil_scoped_acquire acquire;
+                    try {
+                        if (!progress.is_none()) progress(control.fraction());
+                        if (!cancel.is_none() && cancel_requested(cancel)) control.request_cancel();
+                    } catch (nb::python_error& e) {
+                        // A failing callback stops the render; its exception is what the caller sees.
+                        if (!callback_error) callback_error.emplace(std::move(e));
+                        control.request_cancel();
+                    }
+                }
+                lock.lock();
+            }
+            lock.unlock();
+            worker.join();
+        }
+    }
+    if (callback_error) throw std::move(*callback_error);
+    if (failure) std::rethrow_exception(failure);
+    if (!progress.is_none()) progress(1.0);
+}
+
+}  // namespace pcvr::python

@@ -1,0 +1,305 @@
+#include "pcvr/shaded.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "pcvr/block_plan.h"
+#include "pcvr/errors.h"
+#include "pcvr/kernel.h"
+#include "pcvr/post_convolution.h"
+#include "pcvr/raycast_reference.h"
+#include "pcvr/slab_footprint.h"
+#include "sheet_walk.h"
+#include "slab_splat.h"
+#include "tile_set.h"
+
+namespace pcvr {
+
+ShadedMethod shaded_method_from_name(const std::string& name) {
+    if (name == "regular") return ShadedMethod::Regular;
+    if (name == "pcvr") return ShadedMethod::Pcvr;
+    if (name == "bilinear_spread") return ShadedMethod::BilinearSpread;
+    if (name == "raycast") return ShadedMethod::Raycast;
+    throw InvalidArgument("unknown method '" + name + "' (expected regular, pcvr, bilinear_spread or raycast)");
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Kernels sum to one up to a ripple of about 0.5% (gauss1.4): value ranges are widened by twice that.
+constexpr double kRippleMargin = 0.01;
+/// Tiles of this many pixels a side: a few times the footprint of a block at the magnifications
+/// that matter, small enough that a 512 x 512 image has 64 tiles to share among threads.
+constexpr int kTileSize = 64;
+
+void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& params, bool need_transfer_functions) {
+    if (!(params.sheet_spacing > 0) || !std::isfinite(params.sheet_spacing))
+        throw InvalidArgument("sheet_spacing must be a positive number of voxels");
+    if (!(params.opacity_cutoff > 0 && params.opacity_cutoff <= 1))
+        throw InvalidArgument("opacity_cutoff must lie in (0, 1]");
+    if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
+    if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
+    if (params.tile_size < 0) throw InvalidArgument("tile_size must be 0 (automatic) or a positive number of pixels");
+    if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+    if (params.samples_per_sheet < 1 || params.samples_per_sheet > 64)
+        throw InvalidArgument("samples_per_sheet must be 1 to 64");
+    if (params.pixel_step > 1 && params.method != ShadedMethod::Raycast)
+        throw InvalidArgument("pixel_step is only supported by method 'raycast'");
+    for (size_t i = 0; i < volumes.size(); ++i) {
+        if (!volumes[i].grid) throw InvalidArgument("volume " + std::to_string(i) + " has no grid");
+        if (!(volumes[i].density_scale >= 0) || !std::isfinite(volumes[i].density_scale))
+            throw InvalidArgument("density_scale must be finite and >= 0");
+        if (need_transfer_functions) {
+            if (!volumes[i].transfer_function)
+                throw InvalidArgument("grid '" + volumes[i].grid->name() + "' has no transfer function");
+            volumes[i].transfer_function->validate();
+        }
+    }
+}
+
+/// Depths of the near and far clip planes.
+std::pair<double, double> clip_depths(const Camera& camera) {
+    const Mat4& w2c = camera.world_to_camera();
+    auto depth_of = [&](const Vec3& p) { return -(w2c.m[2][0] * p.x + w2c.m[2][1] * p.y + w2c.m[2][2] * p.z + w2c.m[2][3]); };
+    const Ray r = camera.pixel_ray(0.5 * (camera.width() - 1), 0.5 * (camera.height() - 1));
+    return {depth_of(r.origin), depth_of(r.origin + r.direction)};
+}
+
+/// The smallest distance between neighbouring voxels in world units (a transfer function's default unit).
+double smallest_voxel_spacing(const Grid& grid) {
+    const Mat4& m = grid.index_to_world();
+    return std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
+}
+
+/// How wide a neighbourhood of blocks decides whether a block can be culled as transparent, and how
+/// far the post-filter can push a sample beyond its nodes' range.
+///
+/// Culling block b removes its voxels' contributions from the sheets: from nodes within the kernel
+/// radius R of its voxels, from pixels up to f more subgrid nodes away (f = 1 for the bilinear post
+/// filter, 2 for the four-tap ones; a node is at most a voxel wide) and from the shading of samples a
+/// gradient stencil g further (one node in the sheet, one sheet spacing across). Every such sample
+/// must stay transparent with and without b: it is made of voxels within R + f of itself, so all
+/// voxels within 2 (R + f) + g of b must be in the range the transfer function is tested on: the
+/// 3^3 blocks around b cover 8 voxels, the 5^3 cover 16.
+struct CullingReach {
+    int rings = 0;          // 0: cannot cull
+    double overshoot = 0;   // of the post filter
+};
+
+CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool post_convolved, double spacing_voxels) {
+    const double f = post_convolved ? filter.reach_nodes() : 0.0;
+    const double reach = 2.0 * (kernel.radius() + f) + std::max(1.0, spacing_voxels);
+    CullingReach out;
+    out.rings = reach <= VoxelBlock::kDim ? 1 : (reach <= 2 * VoxelBlock::kDim ? 2 : 0);
+    out.overshoot = post_convolved ? filter.overshoot() : 0.0;
+    return out;
+}
+
+/// A block whose samples can only take densities the transfer function makes transparent.
+bool transparent(const BlockValueRange& r, double density_scale, const CullingReach& reach, const ClassificationTable& table) {
+    const double lo = std::min(0.0, double(reach.rings == 1 ? r.reach_min : r.wide_min) * density_scale);
+    const double hi = std::max(0.0, double(reach.rings == 1 ? r.reach_max : r.wide_max) * density_scale);
+    const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
+    return table.transparent(lo - margin, hi + margin);
+}
+
+/// Everything of one grid that the tiles share.
+struct PlannedGrid {
+    std::unique_ptr<SlabView> view;
+    std::unique_ptr<ClassificationTable> classification;
+    int stride = 1;
+};
+
+/// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
+void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
+                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image) {
+    const auto start = Clock::now();
+    const bool mip = lighting == nullptr;
+    const Kernel kernel = Kernel::from_name(params.splat_kernel);
+    const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
+    const FootprintTable table(kernel);
+    const DepthProfile profile(kernel);
+    const bool regular = params.method == ShadedMethod::Regular;
+    const bool spread = params.method == ShadedMethod::BilinearSpread;
+    std::unique_ptr<Shader> shader;
+    if (!mip) shader = std::make_unique<Shader>(*lighting);
+
+    // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis.
+    std::vector<ViewProjection> projections;
+    double spacing = INFINITY;
+    for (const ShadedVolume& v : volumes) {
+        projections.emplace_back(camera, v.grid->index_to_world());
+        if (v.grid->active_voxel_count() > 0) spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid));
+    }
+    if (!std::isfinite(spacing)) return;  // nothing to render
+    const auto [near_depth, far_depth] = clip_depths(camera);
+    SheetLattice sheets;
+    sheets.first_depth = near_depth;
+    sheets.spacing = spacing * params.sheet_spacing;
+    sheets.count = int64_t(std::ceil((far_depth - near_depth) / sheets.spacing));
+
+    SlabSplatParams splat;
+    splat.kernel = &kernel;
+    splat.table = &table;
+    splat.profile = &profile;
+    splat.mode = spread ? SlabMode::BilinearSpread : SlabMode::Footprint;
+
+    const int tile_size = params.tile_size > 0 ? params.tile_size : kTileSize;
+    TileSet tiles(camera.width(), camera.height(), tile_size);
+    std::vector<PlannedGrid> planned(volumes.size());
+    SheetWalkSetup setup;
+    for (size_t g = 0; g < volumes.size(); ++g) {
+        const ShadedVolume& volume = volumes[g];
+        const Grid& grid = *volume.grid;
+        const std::vector<VoxelBlock>& blocks = grid.blocks();
+        BlockPlanParams plan_params;
+        plan_params.kernel_radius = kernel.radius();
+        plan_params.fixed_stride = regular ? 1 : params.stride;
+        plan_params.nearest_stride = spread;
+        plan_params.clip_planes = false;
+        // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
+        plan_params.margin_nodes = regular ? 1 : 3;
+        const BlockPlan plan = plan_blocks(blocks, projections[g], plan_params);
+        PlannedGrid& pg = planned[g];
+        if (regular)
+            pg.stride = 1;
+        else if (params.stride > 0)
+            pg.stride = params.stride;
+        else if (plan.max_magnification > 0)
+            pg.stride = spread ? nearest_stride(plan.min_magnification) : automatic_stride(plan.min_magnification);
+        stats.strides.push_back(pg.stride);
+        splat.stride = pg.stride;
+        splat.density_scale = float(volume.density_scale);
+        pg.view = std::make_unique<SlabView>(grid, camera, sheets, splat);
+        if (!mip) {
+            const TransferFunction& tf = *volume.transfer_function;
+            pg.classification = std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid));
+        }
+        PostFilter filter(post_shape, pg.stride);
+        setup.grids.push_back({pg.view.get(), pg.classification.get(), filter, !regular});
+
+        // Blocks in depth and under the transfer function; each listed in the tiles it reaches.
+        const CullingReach culling = culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid));
+        const std::vector<BlockValueRange>* ranges =
+            mip || !params.cull_transparent || culling.rings == 0 ? nullptr : &grid.block_value_ranges();
+        const SlabView& view = *pg.view;
+        const double reach = view.depth_reach();
+        const Vec3& n = view.projection().depth_gradient();
+        const double span = VoxelBlock::kDim - 1;
+        const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
+        const double pixel_reach = (regular ? 1.0 : 3.0) * pg.stride;
+        stats.blocks_total += plan.blocks_total;
+        stats.blocks_outside += plan.blocks_culled;
+        for (const auto& [stride, list] : plan.by_stride)
+            for (const PlannedBlock& pb : list) {
+                const VoxelBlock& block = blocks[pb.index];
+                // Depth is affine: its extremes over the block are at the origin plus the negative
+                // (or positive) parts of the gradient.
+                const double origin = view.origin_depth(block);
+                const double nearest = origin + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+                if (nearest + depth_extent + reach < near_depth || nearest - reach > far_depth) {
+                    ++stats.blocks_outside;
+                    continue;
+                }
+                if (ranges && transparent((*ranges)[pb.index], volume.density_scale, culling, *pg.classification)) {
+                    ++stats.blocks_transparent;
+                    continue;
+                }
+                tiles.add(uint32_t(g), pb.index, nearest - reach, pb.min_x - pixel_reach, pb.min_y - pixel_reach,
+                          pb.max_x + pixel_reach, pb.max_y + pixel_reach);
+                ++stats.blocks_listed;
+            }
+        control.throw_if_cancelled();
+    }
+    tiles.sort();
+    stats.tiles = tiles.size();
+    setup.tiles = &tiles;
+    setup.sheets = sheets;
+    const SheetGeometry geometry(camera);
+    setup.geometry = &geometry;
+    setup.shader = shader.get();
+    setup.opacity_cutoff = float(params.opacity_cutoff);
+    setup.samples_per_sheet = params.samples_per_sheet;
+    setup.width = camera.width();
+    setup.height = camera.height();
+    stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
+
+    control.begin_phase(tiles.size(), 0.02, 1.0);
+    tbb::enumerable_thread_specific<SheetWalker> walkers;
+    tbb::enumerable_thread_specific<WalkStats> walk_stats;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t) {
+            control.throw_if_cancelled();
+            walkers.local().render(setup, t, image, walk_stats.local(), control);
+            control.advance();
+        }
+    });
+    control.throw_if_cancelled();
+    WalkStats total;
+    for (const WalkStats& w : walk_stats) total.add(w);
+    stats.voxels_splatted = total.voxels_splatted;
+    stats.voxels_occluded = total.voxels_occluded;
+    stats.tiles_terminated = total.tiles_terminated;
+    stats.tile_sheets_composited = total.tile_sheets_composited;
+    stats.tile_sheets_skipped = total.tile_sheets_skipped;
+    stats.sheets = total.last_sheet >= total.first_sheet ? uint64_t(total.last_sheet - total.first_sheet + 1) : 0;
+    stats.seconds_splat = total.seconds_splat;
+    stats.seconds_post_convolution = total.seconds_post_convolution;
+    stats.seconds_shading = total.seconds_shading;
+}
+
+template <class Image, class Render>
+Image run(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params, int channels,
+          ShadedStats* stats_out, Render&& render) {
+    const auto start = Clock::now();
+    Image out;
+    const int step = params.method == ShadedMethod::Raycast ? params.pixel_step : 1;
+    out.width = (camera.width() + step - 1) / step;
+    out.height = (camera.height() + step - 1) / step;
+    out.pixels = ZeroedBuffer<float>(size_t(out.width) * out.height * channels);
+    ShadedStats stats;
+    tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
+    arena.execute([&] { render(stats, out.pixels.data()); });
+    stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    if (stats_out) *stats_out = std::move(stats);
+    return out;
+}
+
+}  // namespace
+
+RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
+                        const ShadedParams& params, RenderControl& control, ShadedStats* stats) {
+    validate(volumes, params, true);
+    lighting.validate();
+    Kernel::from_name(params.splat_kernel);
+    post_filter_from_name(params.post_filter);
+    return run<RgbaImage>(volumes, camera, params, 4, stats, [&](ShadedStats& s, float* pixels) {
+        if (params.method == ShadedMethod::Raycast)
+            raycast_shaded(volumes, camera, lighting, params, control, pixels);
+        else
+            render_sheets(volumes, camera, &lighting, params, control, s, pixels);
+    });
+}
+
+MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
+                    RenderControl& control, ShadedStats* stats) {
+    validate(volumes, params, false);
+    Kernel::from_name(params.splat_kernel);
+    post_filter_from_name(params.post_filter);
+    return run<MipImage>(volumes, camera, params, 1, stats, [&](ShadedStats& s, float* pixels) {
+        if (params.method == ShadedMethod::Raycast)
+            raycast_mip(volumes, camera, params, control, pixels);
+        else
+            render_sheets(volumes, camera, nullptr, params, control, s, pixels);
+    });
+}
+
+}  // namespace pcvr

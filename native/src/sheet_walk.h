@@ -1,0 +1,94 @@
+/// @file sheet_walk.h
+/// @brief One tile's front-to-back walk through its sheets: splat, post-convolve, classify, shade,
+/// composite, sheet after sheet, until the tile is done or opaque.
+///
+/// Before sheet s is composited, every voxel whose kernel reaches sheet s + 1 has been splatted (the
+/// gradient across sheets needs s - 1 and s + 1): voxels are taken from the tile's blocks in depth
+/// order, a block's voxels in the order of SlabView::depth_order, as the splat front moves on. Sheet
+/// s + 1 is then post-convolved to the tile's pixels plus a halo of one subgrid node (for the in-sheet
+/// gradient), and the samples from sheet s towards s + 1 are classified, shaded and composited into
+/// the tile: with samples_per_sheet > 1 the density and gradient are interpolated linearly between
+/// the two sheets, so that a surface crossing the sheets is not cut into terraces. Only three post-convolved
+/// sheets and a ring of node sheets per grid are alive at a time. Runs of sheets that no splat reaches
+/// are jumped over. The occlusion map is rebuilt as pixels become opaque, and splats that can only
+/// reach opaque pixels are skipped; a tile whose every pixel is opaque stops.
+/// A SheetWalker holds one thread's scratch memory and is reused tile after tile.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "occlusion_map.h"
+#include "pcvr/compositing.h"
+#include "pcvr/post_convolution.h"
+#include "pcvr/render_control.h"
+#include "pcvr/shading.h"
+#include "pcvr/transfer_function.h"
+#include "sheet_buffer.h"
+#include "slab_splat.h"
+#include "tile_set.h"
+
+namespace pcvr {
+
+/// World positions along pixel rays in terms of depth: point(px, py, z) = origin(px, py) + z dir(px, py),
+/// both affine in pixel coordinates (every pinhole and orthographic camera).
+struct SheetGeometry {
+    Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0
+    Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
+
+    explicit SheetGeometry(const Camera& camera);
+    Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
+    Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
+};
+
+/// One grid as the walk sees it.
+struct WalkGrid {
+    const SlabView* view;
+    const ClassificationTable* classification;  ///< null for MIP
+    PostFilter filter;                          ///< at the view's stride
+    bool post_convolve;                         ///< false (regular): the ring's nodes are the pixels
+};
+
+struct SheetWalkSetup {
+    std::vector<WalkGrid> grids;
+    const TileSet* tiles = nullptr;
+    SheetLattice sheets;
+    const SheetGeometry* geometry = nullptr;
+    const Shader* shader = nullptr;  ///< null: maximum intensity projection
+    float opacity_cutoff = 0.99f;
+    int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
+    int width = 0, height = 0;
+};
+
+struct WalkStats {
+    uint64_t voxels_splatted = 0, voxels_occluded = 0;
+    uint64_t tiles_terminated = 0, tile_sheets_composited = 0, tile_sheets_skipped = 0;
+    double seconds_splat = 0, seconds_post_convolution = 0, seconds_shading = 0;
+    int64_t first_sheet = INT64_MAX, last_sheet = INT64_MIN;
+
+    void add(const WalkStats& o);
+};
+
+class SheetWalker {
+public:
+    SheetWalker();
+    ~SheetWalker();
+    /// Renders tile `tile` into `image`: RGBA (4 floats per pixel) for shaded renders, one float per
+    /// pixel for MIP; row-major over the whole image.
+    void render(const SheetWalkSetup& setup, size_t tile, float* image, WalkStats& stats, RenderControl& control);
+
+private:
+    struct GridState;
+    /// Classifies, shades and composites the sample t of the way from sheet s to s + 1 into the tile;
+    /// returns how many pixels became opaque.
+    size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
+    void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
+
+    std::vector<std::unique_ptr<GridState>> grids_;
+    std::vector<Rgba> accumulated_;
+    std::vector<float> maximum_;
+    std::vector<float> scratch_;
+};
+
+}  // namespace pcvr

@@ -1,0 +1,116 @@
+/// @file slab_splat.h
+/// @brief Splatting voxels slab by slab into a tile's sheet ring: the per-view preparation of one grid
+/// (SlabView) and the per-deposit work (SlabView::deposit).
+///
+/// A SlabView holds everything about one grid seen from one camera that does not change from sheet to
+/// sheet or tile to tile: the projection, the subgrid stride, the footprint and depth-profile tables,
+/// how deep a kernel reaches, and the order of a block's voxels by depth (the same for every block,
+/// since depth is affine in index space). A deposit splats a run of a block's voxels, in that order,
+/// into the sheets of a SheetRing that one tile owns, clipped to the ring: each voxel adds
+/// amplitude * P(rho^2) * (D(s_hi) - D(s_lo)) (slab_footprint.h) to every node of its footprint in
+/// each of the slabs_per_voxel() sheets from its first. Eight voxels are projected at once (in double
+/// for perspective views, with ViewProjection::footprint_lanes; affinely in float for orthographic
+/// ones), then each one's footprint is added row by row in vectors of eight nodes.
+///
+/// | mode            | per voxel and slab                                                     |
+/// |-----------------|------------------------------------------------------------------------|
+/// | Footprint       | every node within the kernel's ellipse (regular: stride 1; pcvr: the subgrid) |
+/// | BilinearSpread  | the slab's whole share of the footprint integral on the 2 x 2 nearest nodes |
+///
+/// A SlabView is immutable after construction and may be used by many tiles at once.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "occlusion_map.h"
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "pcvr/slab_footprint.h"
+#include "pcvr/view_projection.h"
+#include "sheet_buffer.h"
+
+namespace pcvr {
+
+/// Planes of constant depth cutting space into slabs: slab s spans depths [boundary(s), boundary(s + 1)].
+struct SheetLattice {
+    double first_depth = 0;  ///< boundary 0: the near clip plane
+    double spacing = 1;      ///< depth between boundaries (camera-space units)
+    int64_t count = 0;       ///< slabs before the far clip plane
+
+    double boundary(int64_t s) const { return first_depth + double(s) * spacing; }
+    /// The slab holding depth z (may lie outside [0, count)).
+    int64_t slab_of(double z) const { return int64_t(std::floor((z - first_depth) / spacing)); }
+};
+
+enum class SlabMode { Footprint, BilinearSpread };
+
+struct SlabSplatParams {
+    const Kernel* kernel = nullptr;
+    const FootprintTable* table = nullptr;
+    const DepthProfile* profile = nullptr;
+    int stride = 1;
+    SlabMode mode = SlabMode::Footprint;
+    float density_scale = 1.0f;
+};
+
+/// Where a ring lies on its grid's subgrid: ring node (0, 0) is subgrid node (node_x0, node_y0), i.e.
+/// image pixel (stride * node_x0, stride * node_y0).
+struct RingPlacement {
+    int node_x0 = 0, node_y0 = 0;
+};
+
+struct DepositCounts {
+    uint64_t splatted = 0;  ///< voxels that added to at least one sheet node
+    uint64_t occluded = 0;  ///< voxels whose window lay wholly on occluded nodes
+};
+
+/// Depth of one index unit along the view axis through the grid's centre: what "one voxel" of sheet
+/// spacing means for this grid (its voxel size along the view direction, anisotropy included).
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid);
+
+class SlabView {
+public:
+    SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params);
+
+    const Grid& grid() const { return *grid_; }
+    const ViewProjection& projection() const { return projection_; }
+    int stride() const { return params_.stride; }
+    /// Sheets a voxel's slabs can reach: ceil(2 reach / spacing) + 1.
+    int slabs_per_voxel() const { return slabs_per_voxel_; }
+    /// How far a kernel reaches in depth from its centre.
+    double depth_reach() const { return depth_reach_; }
+
+    /// A block's voxel offsets in order of depth (structure of arrays, padded to whole batches of
+    /// eight with entries that lie beyond every block's voxels).
+    struct DepthOrder {
+        std::vector<int32_t> offset;
+        std::vector<float> i, j, k;  ///< index offsets within the block
+        std::vector<float> depth;    ///< depth relative to the block origin's, increasing
+    };
+    const DepthOrder& depth_order() const { return order_; }
+    double origin_depth(const VoxelBlock& block) const;
+
+    /// Splats the active, finite, non-zero voxels of ranks [first, last) of `block` into `ring` at
+    /// `placement`, each clipped to the ring. With `occlusion`, voxels whose clipped window lies on
+    /// occluded nodes are skipped and counted. Voxels whose kernel reaches the eye plane are skipped
+    /// (a perspective footprint does not exist there).
+    /// Slabs before `first_open_sheet` (sheets the walk has already composited) are left out.
+    DepositCounts deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
+                          int64_t first_open_sheet, const OcclusionMap* occlusion) const;
+
+private:
+    const Grid* grid_;
+    ViewProjection projection_;
+    SheetLattice sheets_;
+    SlabSplatParams params_;
+    int slabs_per_voxel_ = 1;
+    double depth_reach_ = 0;
+    DepthOrder order_;
+    // Orthographic views: node coordinates and depth are affine in index space, the footprint the same for all.
+    Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
+    double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
+    Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
+};
+
+}  // namespace pcvr

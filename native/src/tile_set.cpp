@@ -1,0 +1,38 @@
+#include "tile_set.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+namespace pcvr {
+
+TileSet::TileSet(int width, int height, int tile_size)
+    : width_(width), height_(height), tile_size_(tile_size),
+      columns_((width + tile_size - 1) / tile_size), rows_((height + tile_size - 1) / tile_size),
+      lists_(size_t(columns_) * rows_) {}
+
+PixelRect TileSet::rect(size_t tile) const {
+    const int tx = int(tile % columns_), ty = int(tile / columns_);
+    return {tx * tile_size_, ty * tile_size_, std::min(width_, (tx + 1) * tile_size_), std::min(height_, (ty + 1) * tile_size_)};
+}
+
+void TileSet::add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y) {
+    // Pixel centres sit at integer coordinates: the bounds touch pixels ceil(min) .. floor(max).
+    auto tile_of = [&](double p, int count) { return int(std::clamp(std::floor(p / tile_size_), -1.0, double(count))); };
+    const int tx0 = std::max(0, tile_of(std::ceil(min_x), columns_)), tx1 = std::min(columns_ - 1, tile_of(std::floor(max_x), columns_));
+    const int ty0 = std::max(0, tile_of(std::ceil(min_y), rows_)), ty1 = std::min(rows_ - 1, tile_of(std::floor(max_y), rows_));
+    for (int ty = ty0; ty <= ty1; ++ty)
+        for (int tx = tx0; tx <= tx1; ++tx) lists_[size_t(ty) * columns_ + tx].push_back({grid, block, front});
+}
+
+void TileSet::sort() {
+    tbb::parallel_for(size_t(0), lists_.size(), [&](size_t t) {
+        std::sort(lists_[t].begin(), lists_[t].end(), [](const TileBlock& a, const TileBlock& b) {
+            if (a.front != b.front) return a.front < b.front;
+            return a.grid != b.grid ? a.grid < b.grid : a.block < b.block;
+        });
+    });
+}
+
+}  // namespace pcvr

@@ -1,0 +1,49 @@
+/// @file tile_set.h
+/// @brief The image cut into square tiles that render independently, each listing the voxel blocks whose
+/// footprints reach it, nearest first.
+///
+/// Tiles are the sheet renderer's unit of parallel work: one thread walks a tile's sheets front to back,
+/// so occlusion is an early exit per tile and the image is the same for any number of threads. A block
+/// whose footprints reach several tiles is listed in each and splatted by each, clipped to the tile:
+/// tiles a few times wider than a block's footprint keep that repeated work small.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace pcvr {
+
+/// Pixels [x0, x1) x [y0, y1).
+struct PixelRect {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    int width() const { return x1 - x0; }
+    int height() const { return y1 - y0; }
+};
+
+struct TileBlock {
+    uint32_t grid;   ///< index of the grid in the render
+    uint32_t block;  ///< index into that grid's blocks()
+    double front;    ///< depth where the block's kernels begin: its nearest voxel centre's, less the kernel's reach
+};
+
+class TileSet {
+public:
+    TileSet(int width, int height, int tile_size);
+
+    int tile_size() const { return tile_size_; }
+    size_t size() const { return lists_.size(); }
+    PixelRect rect(size_t tile) const;
+
+    /// Lists a block in every tile that the pixel bounds [min_x, max_x] x [min_y, max_y] overlap.
+    void add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y);
+    /// Orders each tile's blocks nearest first (ties by grid, then block: deterministic).
+    void sort();
+    const std::vector<TileBlock>& blocks(size_t tile) const { return lists_[tile]; }
+
+private:
+    int width_, height_, tile_size_, columns_, rows_;
+    std::vector<std::vector<TileBlock>> lists_;
+};
+
+}  // namespace pcvr

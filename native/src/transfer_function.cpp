@@ -1,0 +1,77 @@
+#include "pcvr/transfer_function.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "pcvr/errors.h"
+
+namespace pcvr {
+
+namespace {
+/// Opacities this close to 1 are treated as opaque: the extinction stays finite (1 - 1e-7 per unit).
+constexpr double kMostOpacity = 1.0 - 1e-7;
+}  // namespace
+
+void TransferFunction::validate() const {
+    const std::string what = "TransferFunction: ";
+    if (density.empty()) throw InvalidArgument(what + "needs at least one control point");
+    if (density.size() != rgba.size())
+        throw InvalidArgument(what + std::to_string(density.size()) + " densities but " + std::to_string(rgba.size()) +
+                              " rgba values (one [r, g, b, a] per density)");
+    for (size_t i = 0; i < density.size(); ++i) {
+        const std::string point = "control point " + std::to_string(i);
+        if (!std::isfinite(density[i])) throw InvalidArgument(what + point + ": density is not finite");
+        if (i > 0 && !(density[i] > density[i - 1]))
+            throw InvalidArgument(what + "densities must increase (" + point + ": " + std::to_string(density[i]) +
+                                  " after " + std::to_string(density[i - 1]) + ")");
+        for (int c = 0; c < 4; ++c)
+            if (!std::isfinite(rgba[i][c])) throw InvalidArgument(what + point + ": rgba is not finite");
+        if (rgba[i][0] < 0 || rgba[i][1] < 0 || rgba[i][2] < 0)
+            throw InvalidArgument(what + point + ": colours must not be negative");
+        if (rgba[i][3] < 0 || rgba[i][3] > 1) throw InvalidArgument(what + point + ": opacity must lie in [0, 1]");
+    }
+    if (!(unit_distance >= 0) || !std::isfinite(unit_distance))
+        throw InvalidArgument(what + "unit_distance must be positive (or None for the voxel spacing)");
+}
+
+ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit_distance) {
+    tf.validate();
+    if (!(unit_distance > 0) || !std::isfinite(unit_distance))
+        throw InvalidArgument("TransferFunction: unit_distance must be positive");
+    const double first = tf.density.front(), last = tf.density.back();
+    const double step = last > first ? (last - first) / kEntries : 1.0;
+    first_ = float(first);
+    scale_ = float(1.0 / step);
+
+    entries_.resize(kEntries + 2);
+    size_t segment = 0;  // control points segment, [segment, segment + 1]
+    for (int e = 0; e <= kEntries; ++e) {
+        const double d = first + e * step;
+        while (segment + 1 < tf.density.size() && tf.density[segment + 1] < d) ++segment;
+        std::array<double, 4> v = tf.rgba[segment];
+        if (segment + 1 < tf.density.size() && d > tf.density[segment]) {
+            const double t = std::min(1.0, (d - tf.density[segment]) / (tf.density[segment + 1] - tf.density[segment]));
+            for (int c = 0; c < 4; ++c) v[c] += t * (tf.rgba[segment + 1][c] - v[c]);
+        }
+        const double opacity = std::min(v[3], kMostOpacity);
+        entries_[e] = {float(v[0]), float(v[1]), float(v[2]), float(-std::log1p(-opacity) / unit_distance)};
+    }
+    entries_[kEntries + 1] = entries_[kEntries];
+
+    next_opaque_.resize(kEntries + 2);
+    int next = kEntries + 2;
+    for (int e = kEntries + 1; e >= 0; --e) {
+        if (entries_[e].extinction > 0) next = e;
+        next_opaque_[e] = next;
+    }
+}
+
+bool ClassificationTable::transparent(double lo, double hi) const {
+    // Entries floor(lo) .. ceil(hi) bound every interpolated value in between.
+    auto index = [&](double d) { return std::clamp((d - double(first_)) * double(scale_), 0.0, double(kEntries)); };
+    const int first = int(std::floor(index(lo))), last = int(std::ceil(index(hi)));
+    return next_opaque_[first] > last;
+}
+
+}  // namespace pcvr
