@@ -10,7 +10,6 @@ namespace pcvr {
 namespace {
 
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
-inline float dot3(const Vec3f& a, const Vec3f& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
 bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 bool non_negative(const Vec3& v) { return v.x >= 0 && v.y >= 0 && v.z >= 0; }
@@ -39,7 +38,10 @@ Shader::Shader(const Lighting& lighting) {
     ambient_ = to_float(lighting.ambient * m.ambient);
     diffuse_ = float(m.diffuse);
     specular_ = float(m.specular);
-    shininess_ = float(m.shininess);
+    // Specular highlights through a table (linear interpolation: 1e-5 off at shininess 10).
+    power_.resize(kPowerSteps + 2);
+    for (int k = 0; k <= kPowerSteps; ++k) power_[k] = float(std::pow(double(k) / kPowerSteps, m.shininess));
+    power_[kPowerSteps + 1] = power_[kPowerSteps];
     for (const Light& l : lighting.lights) {
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
@@ -48,42 +50,45 @@ Shader::Shader(const Lighting& lighting) {
     }
 }
 
-Vec3f Shader::shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
-    Vec3f diffuse{ambient_.x, ambient_.y, ambient_.z}, specular{0, 0, 0};
-    const float g2 = dot3(gradient, gradient);
-    if (g2 > 0 && !lights_.empty()) {
-        // Two-sided: the normal faces the eye.
-        const float inv = (dot3(gradient, to_eye) < 0 ? -1.0f : 1.0f) / std::sqrt(g2);
-        const Vec3f n{gradient.x * inv, gradient.y * inv, gradient.z * inv};
+Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+    auto splat = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
+    Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
+    const float8 g2 = dot(gradient, gradient);
+    const int8x has_normal = g2 > 0;
+    if (any8(has_normal) && !lights_.empty()) {
+        // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
+        const float8 facing = select8(dot(gradient, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
+        const Vec3x8 n = gradient * select8(has_normal, facing / sqrt8(g2), broadcast8(0.0f));
         for (const PreparedLight& light : lights_) {
-            Vec3f l = light.vector, energy = light.energy;
+            Vec3x8 l = splat(light.vector), energy = splat(light.energy);
             if (light.point) {
-                l = {l.x - position.x, l.y - position.y, l.z - position.z};
-                const float d2 = dot3(l, l);
-                if (!(d2 > 0)) continue;
-                const float inv_d = 1.0f / std::sqrt(d2), falloff = 1.0f / d2;
-                l = {l.x * inv_d, l.y * inv_d, l.z * inv_d};
-                energy = {energy.x * falloff, energy.y * falloff, energy.z * falloff};
+                l = l - position;
+                const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
+                l = l * (1.0f / sqrt8(d2));
+                energy = energy * (1.0f / d2);
             }
-            const float n_dot_l = dot3(n, l);
-            if (n_dot_l <= 0) continue;
-            diffuse.x += diffuse_ * n_dot_l * energy.x;
-            diffuse.y += diffuse_ * n_dot_l * energy.y;
-            diffuse.z += diffuse_ * n_dot_l * energy.z;
-            Vec3f h{l.x + to_eye.x, l.y + to_eye.y, l.z + to_eye.z};
-            const float h2 = dot3(h, h);
-            if (specular_ > 0 && h2 > 0) {
-                const float n_dot_h = dot3(n, h) / std::sqrt(h2);
-                if (n_dot_h > 0) {
-                    const float s = specular_ * std::pow(n_dot_h, shininess_);
-                    specular.x += s * energy.x;
-                    specular.y += s * energy.y;
-                    specular.z += s * energy.z;
-                }
+            const float8 n_dot_l = dot(n, l);
+            const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
+            diffuse = diffuse + energy * (diffuse_ * lit);
+            if (specular_ > 0) {
+                const Vec3x8 h = l + to_eye;
+                const float8 h2 = max8(dot(h, h), broadcast8(1e-30f));
+                const float8 n_dot_h = clamp8(dot(n, h) / sqrt8(h2), 0.0f, 1.0f);
+                const float8 x = n_dot_h * float(kPowerSteps);
+                const int8x k = __builtin_convertvector(x, int8x);
+                const float8 below = gather8(power_.data(), k), above = gather8(power_.data() + 1, k);
+                const float8 power = below + (x - __builtin_convertvector(k, float8)) * (above - below);
+                specular = specular + energy * select8(n_dot_l > 0, specular_ * power, broadcast8(0.0f));
             }
         }
     }
     return {colour.x * diffuse.x + specular.x, colour.y * diffuse.y + specular.y, colour.z * diffuse.z + specular.z};
+}
+
+Vec3f Shader::shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
+    auto lanes = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
+    const Vec3x8 lit = shade(lanes(colour), lanes(gradient), lanes(to_eye), lanes(position));
+    return {lit.x[0], lit.y[0], lit.z[0]};
 }
 
 }  // namespace pcvr

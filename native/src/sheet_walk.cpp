@@ -14,10 +14,6 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 
 int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
-Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
-Vec3f cross3(const Vec3f& a, const Vec3f& b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-Vec3f operator+(const Vec3f& a, const Vec3f& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3f operator*(const Vec3f& a, float s) { return {a.x * s, a.y * s, a.z * s}; }
 
 /// Pixels beyond a tile whose post-convolved values the tile reads: one subgrid node on each side.
 int gradient_halo(const WalkGrid& g) { return g.view->stride(); }
@@ -69,18 +65,51 @@ struct SheetWalker::GridState {
     SheetRing ring;
     RingPlacement placement;
     OcclusionMap occlusion;
-    int halo = 1;
+    int stride = 1, halo = 1, reach = 0;        // reach: pixels a node's value spreads to
+    bool post_convolve = true;
     int x0 = 0, y0 = 0, width = 0, height = 0;  // post-convolved region: the tile and its halo
-    std::vector<float> slots[3];                // post-convolved sheet s in slot s mod 3
-    bool content[3] = {false, false, false};
-    std::vector<float> zeros;
+    std::vector<float> slots[3];                // post-convolved sheet s in slot s mod 3, zero outside its box
+    Box boxes[3];                               // the pixels (slot coordinates) that may be non-zero
 
     size_t pitch() const { return size_t(width); }
-    const float* sheet(int64_t s) const {
-        const int k = int(((s % 3) + 3) % 3);
-        return content[k] ? slots[k].data() : zeros.data();
+    static int slot(int64_t s) { return int(((s % 3) + 3) % 3); }
+    const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
+    const Box& box(int64_t s) const { return boxes[slot(s)]; }
+    bool has(int64_t s) const { return !box(s).empty(); }
+
+    /// Zeroes slot k where it may hold values.
+    void clear_slot(int k) {
+        const Box& b = boxes[k];
+        for (int r = b.y0; r <= b.y1; ++r) std::fill_n(slots[k].data() + size_t(r) * pitch() + b.x0, b.x1 - b.x0 + 1, 0.0f);
+        boxes[k] = Box{};
     }
-    bool has(int64_t s) const { return content[((s % 3) + 3) % 3]; }
+
+    /// Post-convolves ring sheet t into its slot (only where splats reached) and releases it.
+    void post_convolve_sheet(int64_t t, const PostFilter& filter, std::vector<float>& scratch) {
+        const int k = slot(t);
+        clear_slot(k);
+        const Box nodes = ring.touched(t);
+        if (nodes.empty()) return;
+        // The pixels those nodes reach, in slot coordinates.
+        const Box pixels = Box{stride * (placement.node_x0 + nodes.x0) - x0, stride * (placement.node_y0 + nodes.y0) - y0,
+                               stride * (placement.node_x0 + nodes.x1) - x0, stride * (placement.node_y0 + nodes.y1) - y0}
+                               .grown(reach)
+                               .clipped({0, 0, width - 1, height - 1});
+        if (!pixels.empty()) {
+            float* out = slots[k].data() + size_t(pixels.y0) * pitch() + pixels.x0;
+            const int w = pixels.x1 - pixels.x0 + 1, h = pixels.y1 - pixels.y0 + 1;
+            if (post_convolve) {
+                const NodeSheet sheet{ring.sheet(t), ring.pitch(), placement.node_x0, placement.node_y0};
+                post_convolve_region(sheet, filter, x0 + pixels.x0, y0 + pixels.y0, w, h, out, pitch(), scratch);
+            } else {  // stride 1 with the same origin: the nodes are the pixels
+                for (int r = 0; r < h; ++r)
+                    std::memcpy(out + size_t(r) * pitch(), ring.sheet(t) + size_t(pixels.y0 + r) * ring.pitch() + pixels.x0,
+                                sizeof(float) * w);
+            }
+            boxes[k] = pixels;
+        }
+        ring.release(t);
+    }
 };
 
 SheetWalker::SheetWalker() = default;
@@ -131,15 +160,22 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         const int depth = int(std::ceil(2.0 * reach / sheets.spacing)) + 6;
         ring_depth = std::max(ring_depth, depth);
         g.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
-        for (auto& slot : g.slots) slot.resize(size_t(g.width) * g.height);
-        g.zeros.assign(size_t(g.width) * g.height, 0.0f);
-        std::fill(std::begin(g.content), std::end(g.content), false);
+        g.stride = L;
+        g.post_convolve = wg.post_convolve;
+        g.reach = wg.post_convolve ? L * wg.filter.reach_nodes() - 1 : 0;
+        // Zero, padded: the tile's last vector of eight pixels may read past its row.
+        for (int k = 0; k < 3; ++k) {
+            g.slots[k].assign(size_t(g.width) * g.height + 8, 0.0f);
+            g.boxes[k] = Box{};
+        }
         g.occlusion.disable();
     }
 
     const size_t tile_pixels = size_t(tw) * th;
-    accumulated_.assign(tile_pixels, Rgba{});
-    if (mip) maximum_.assign(tile_pixels, -INFINITY);
+    row_pitch_ = (size_t(tw) + 7) / 8 * 8;
+    // Eight more: a run of eight pixels may start anywhere in the last row.
+    for (auto* plane : {&red_, &green_, &blue_, &alpha_}) plane->assign(row_pitch_ * th + 8, 0.0f);
+    if (mip) maximum_.assign(row_pitch_ * th + 8, -INFINITY);
     size_t opaque = 0, opaque_at_rebuild = 0;
     const size_t rebuild_step = std::max<size_t>(1, tile_pixels / 16);
 
@@ -190,22 +226,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         // 2. Post-convolve sheet s + 1 of every grid (after a start or a jump, s too).
         for (size_t gi = 0; gi < grids_.size(); ++gi) {
             if (!grids_[gi] || !grids_[gi]->used) continue;
-            GridState& g = *grids_[gi];
-            const WalkGrid& wg = setup.grids[gi];
-            for (int64_t t = open_sheet; t <= s + 1; ++t) {
-                const int k = int(((t % 3) + 3) % 3);
-                g.content[k] = g.ring.touched(t);
-                if (!g.content[k]) continue;
-                float* out = g.slots[k].data();
-                if (wg.post_convolve) {
-                    const NodeSheet nodes{g.ring.sheet(t), g.ring.pitch(), g.placement.node_x0, g.placement.node_y0};
-                    post_convolve_region(nodes, wg.filter, g.x0, g.y0, g.width, g.height, out, g.pitch(), scratch_);
-                } else {
-                    for (int r = 0; r < g.height; ++r)
-                        std::memcpy(out + size_t(r) * g.pitch(), g.ring.sheet(t) + size_t(r) * g.ring.pitch(), sizeof(float) * g.width);
-                }
-                g.ring.release(t);
-            }
+            for (int64_t t = open_sheet; t <= s + 1; ++t) grids_[gi]->post_convolve_sheet(t, setup.grids[gi].filter, scratch_);
         }
         open_sheet = s + 2;
         auto t2 = Clock::now();
@@ -242,7 +263,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
                 GridState& g = *grids_[gi];
                 const WalkGrid& wg = setup.grids[gi];
                 const int L = wg.post_convolve ? wg.view->stride() : 1;
-                auto is_opaque = [&](int x, int y) { return accumulated_[size_t(y) * tw + x].a >= cutoff; };
+                auto is_opaque = [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; };
                 g.occlusion.rebuild(tw, th, is_opaque, L, rect.x0 - L * g.placement.node_x0, rect.y0 - L * g.placement.node_y0,
                                     g.ring.columns(), g.ring.rows(), node_reach(wg));
             }
@@ -253,7 +274,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         for (const auto& g : grids_) {
             if (!g || !g->used) continue;
             pending |= g->has(s + 1);
-            for (int k = 2; k < ring_depth && !pending; ++k) pending |= g->ring.touched(s + k);
+            for (int k = 2; k < ring_depth && !pending; ++k) pending |= !g->ring.touched(s + k).empty();
         }
         if (!pending) {
             if (next_entry == blocks.size()) break;
@@ -261,7 +282,8 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             if (next > s + 1) {
                 stats.tile_sheets_skipped += uint64_t(next - s - 1);
                 for (const auto& g : grids_)
-                    if (g) std::fill(std::begin(g->content), std::end(g->content), false);
+                    if (g && g->used)
+                        for (int k = 0; k < 3; ++k) g->clear_slot(k);
                 s = open_sheet = next;
                 continue;
             }
@@ -274,41 +296,78 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     for (int y = 0; y < th; ++y) {
         const size_t row = size_t(rect.y0 + y) * setup.width + rect.x0;
         for (int x = 0; x < tw; ++x) {
-            const size_t p = size_t(y) * tw + x;
+            const size_t p = size_t(y) * row_pitch_ + x;
             if (mip) {
                 image[row + x] = std::isfinite(maximum_[p]) ? maximum_[p] : 0.0f;
             } else {
-                const Rgba& c = accumulated_[p];
                 float* out = image + 4 * (row + x);
-                out[0] = c.r, out[1] = c.g, out[2] = c.b, out[3] = c.a;
+                out[0] = red_[p], out[1] = green_[p], out[2] = blue_[p], out[3] = alpha_[p];
             }
         }
     }
 }
 
+namespace {
+
+/// Pixel positions of a run of eight pixels along a tile row, as lanes.
+struct PixelLanes {
+    float8 px;
+    float py;
+    int8x inside;  // lanes within the tile
+};
+
+/// Tile pixels x .. x + 7 of row y, those before `end` inside.
+inline PixelLanes pixel_lanes(const PixelRect& rect, int x, int y, int end) {
+    const float8 lane = lane_index8();
+    return {float(rect.x0 + x) + lane, float(rect.y0 + y), lane < float(end - x)};
+}
+
+/// A slot's box in tile coordinates, within the tile.
+inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
+    if (slot_box.empty()) return {};
+    return Box{slot_box.x0 - halo, slot_box.y0 - halo, slot_box.x1 - halo, slot_box.y1 - halo}.clipped(
+        {0, 0, rect.width() - 1, rect.height() - 1});
+}
+
+inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8(float(v.y)), broadcast8(float(v.z))}; }
+
+/// World displacement per unit of depth along the rays of eight pixels.
+inline Vec3x8 ray_directions(const SheetGeometry& geo, const PixelLanes& p) {
+    return lanes3(geo.dir0 + geo.dir_dy * double(p.py)) + lanes3(geo.dir_dx) * p.px;
+}
+
+inline uint32_t lane_bits(int8x mask) {
+    uint32_t bits = 0;
+    for (int l = 0; l < 8; ++l) bits |= uint32_t(mask[l] != 0) << l;
+    return bits;
+}
+
+}  // namespace
+
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {
-    const int tw = rect.width(), th = rect.height();
+    const float spacing = float(setup.sheets.spacing);
     for (size_t gi = 0; gi < grids_.size(); ++gi) {
         if (!grids_[gi] || !grids_[gi]->used || !grids_[gi]->has(s)) continue;
         const GridState& g = *grids_[gi];
         const float *before = g.sheet(s - 1), *here = g.sheet(s), *after = g.sheet(s + 1);
-        for (int y = 0; y < th; ++y)
-            for (int x = 0; x < tw; ++x) {
+        const Box box = tile_box(g.box(s), g.halo, rect);
+        for (int y = box.y0; y <= box.y1; ++y)
+            for (int x = box.x0; x <= box.x1; x += 8) {
+                const PixelLanes p = pixel_lanes(rect, x, y, box.x1 + 1);
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
-                const float m = here[i];
-                if (m == 0.0f) continue;  // no voxel reaches: empty
+                const float8 m = load8(here + i), b = load8(before + i), a = load8(after + i);
                 // A slab mean is lower than the peak inside it: at a local maximum along the ray, the
                 // parabola through the three slab means locates the peak, and a parabola's slab mean
                 // lies its curvature / 24 below its value (the box filter's second moment).
-                float peak = m;
-                const float curvature = 2.0f * m - before[i] - after[i];
-                if (m >= before[i] && m >= after[i] && curvature > 0) {
-                    const float slope = after[i] - before[i];
-                    peak += slope * slope / (8.0f * curvature) + curvature / 24.0f;
-                }
-                const Vec3 dir = setup.geometry->direction(rect.x0 + x, rect.y0 + y);
-                float& most = maximum_[size_t(y) * tw + x];
-                most = std::max(most, peak / float(setup.sheets.spacing * length(dir)));
+                const float8 curvature = 2.0f * m - b - a;
+                const int8x peak_here = (m >= b) & (m >= a) & (curvature > 0);
+                const float8 slope = a - b;
+                const float8 safe = select8(peak_here, curvature, broadcast8(1.0f));
+                const float8 peak = m + select8(peak_here, slope * slope / (8.0f * safe) + curvature / 24.0f, broadcast8(0.0f));
+                const Vec3x8 dir = ray_directions(*setup.geometry, p);
+                float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
+                // Zero means no voxel reaches: empty, not a density of 0.
+                store8(most, select8(p.inside & (m != 0), max8(load8(most), peak / (spacing * sqrt8(dot(dir, dir)))), load8(most)));
             }
     }
 }
@@ -316,59 +375,85 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
     const SheetGeometry& geo = *setup.geometry;
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
-    const int tw = rect.width(), th = rect.height();
     // The sample lies t of the way from sheet s's middle to sheet s + 1's, and stands for 1 / samples of a slab.
     const double depth = setup.sheets.boundary(s) + (0.5 + double(t)) * setup.sheets.spacing;
-    const Vec3f a = to_float(geo.origin_dx + geo.dir_dx * depth), b = to_float(geo.origin_dy + geo.dir_dy * depth);
-    const Vec3f a_cross_b = cross3(a, b);
-    const Vec3f origin_dx = to_float(geo.origin_dx), origin_dy = to_float(geo.origin_dy), origin0 = to_float(geo.origin0);
+    const Vec3x8 a = lanes3(geo.origin_dx + geo.dir_dx * depth), b = lanes3(geo.origin_dy + geo.dir_dy * depth);
+    const Vec3x8 a_cross_b = cross(a, b);
+
+    // The grids with something at this sample, their sheets s - 1, s and s + 1, and the pixels where
+    // any of them is not zero.
+    struct Source {
+        const GridState* grid;
+        const ClassificationTable* classification;
+        const float *before, *here, *after;
+    };
+    Source sources[64];
+    int source_count = 0;
+    Box box;
+    for (size_t gi = 0; gi < grids_.size() && source_count < 64; ++gi) {
+        if (!grids_[gi] || !grids_[gi]->used) continue;
+        const GridState& g = *grids_[gi];
+        if (!g.has(s) && !(t > 0 && g.has(s + 1))) continue;
+        sources[source_count++] = {&g, setup.grids[gi].classification, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1)};
+        box.include(tile_box(g.box(s), g.halo, rect));
+        if (t > 0) box.include(tile_box(g.box(s + 1), g.halo, rect));
+    }
+
     size_t newly_opaque = 0;
-    for (int y = 0; y < th; ++y) {
-        const int py = rect.y0 + y;
-        for (int x = 0; x < tw; ++x) {
-            Rgba& acc = accumulated_[size_t(y) * tw + x];
-            if (acc.a >= cutoff) continue;
-            const int px = rect.x0 + x;
-            const Vec3f dir = to_float(geo.direction(px, py));
-            const float dir_length = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
-            const float slab_length = spacing * dir_length;  // world length of the ray across a slab
-            float sigma_sum = 0;
-            Vec3f emission{0, 0, 0};
-            for (size_t gi = 0; gi < grids_.size(); ++gi) {
-                if (!grids_[gi] || !grids_[gi]->used) continue;
-                const GridState& g = *grids_[gi];
-                if (!g.has(s) && !(t > 0 && g.has(s + 1))) continue;
+    for (int y = box.y0; y <= box.y1; ++y) {
+        for (int x = box.x0; x <= box.x1; x += 8) {
+            const size_t p = size_t(y) * row_pitch_ + x;
+            const float8 alpha = load8(alpha_.data() + p);
+            const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
+            const int8x open = lanes.inside & (alpha < cutoff);
+            if (!any8(open)) continue;
+            const Vec3x8 dir = ray_directions(geo, lanes);
+            const float8 dir_length = sqrt8(dot(dir, dir));
+            const float8 slab_length = spacing * dir_length;  // world length of the ray across a slab
+            float8 sigma_sum = broadcast8(0.0f);
+            Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
+            for (int k = 0; k < source_count; ++k) {
+                const Source& src = sources[k];
+                const GridState& g = *src.grid;
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
-                const float* here = g.sheet(s);
-                const float* next = g.sheet(s + 1);
-                const float raw = here[i] + t * (next[i] - here[i]);
-                if (raw == 0.0f) continue;  // no voxel reaches: empty
-                const ClassificationTable::Sample c = (*setup.grids[gi].classification)(raw / slab_length);
-                if (!(c.extinction > 0)) continue;
+                const float8 here = load8(src.here + i), next = load8(src.after + i);
+                const float8 raw = here + t * (next - here);
+                int8x valid = open & (raw != 0);  // zero: no voxel reaches, empty
+                if (!any8(valid)) continue;
+                const ClassificationTable::Samples c = (*src.classification)(raw / slab_length);
+                valid &= c.extinction > 0;
+                if (!any8(valid)) continue;
                 // Density change per pixel right, per pixel down and per unit of depth along the ray, of
                 // the density interpolated linearly between the sheets (common factors dropped: only the
                 // gradient's direction matters). On a sheet the depth slope is the central difference.
                 const int L = g.halo;
                 const size_t pitch = g.pitch();
-                auto across = [&](const float* sheet, size_t step) { return sheet[i + step] - sheet[i - step]; };
-                const float g1 = (across(here, L) + t * (across(next, L) - across(here, L))) / float(2 * L);
-                const float g2 = (across(here, L * pitch) + t * (across(next, L * pitch) - across(here, L * pitch))) / float(2 * L);
-                const float g3 = t == 0 ? (next[i] - g.sheet(s - 1)[i]) / (2.0f * spacing) : (next[i] - here[i]) / spacing;
+                auto across = [&](const float* sheet, size_t step) { return load8(sheet + i + step) - load8(sheet + i - step); };
+                const float8 g1 = (across(src.here, L) + t * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
+                const float8 g2 =
+                    (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
+                const float8 g3 = t == 0 ? (next - load8(src.before + i)) * (0.5f / spacing) : (next - here) * (1.0f / spacing);
                 // World gradient from the derivatives along the pixel axes and the ray: the rows of the
                 // inverse of [a b dir] are (b x dir, dir x a, a x b) / det.
-                const Vec3f gradient = cross3(b, dir) * g1 + cross3(dir, a) * g2 + a_cross_b * g3;
-                const Vec3f to_eye = dir * (-1.0f / dir_length);
-                const Vec3f position = origin0 + origin_dx * float(px) + origin_dy * float(py) + dir * float(depth);
-                const Vec3f lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, position);
-                sigma_sum += c.extinction;
-                emission = emission + lit * c.extinction;
+                const Vec3x8 gradient = cross(b, dir) * g1 + cross(dir, a) * g2 + a_cross_b * g3;
+                const Vec3x8 to_eye = dir * (-1.0f / dir_length);
+                const Vec3x8 position = lanes3(geo.origin0 + geo.origin_dy * double(lanes.py)) + lanes3(geo.origin_dx) * lanes.px + dir * broadcast8(float(depth));
+                const Vec3x8 lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, position);
+                const float8 extinction = select8(valid, c.extinction, broadcast8(0.0f));
+                sigma_sum += extinction;
+                emission = emission + lit * extinction;
             }
-            if (sigma_sum > 0) {
-                // Overlapping grids mix as media do: extinctions add, emissions weigh by extinction.
-                const float alpha = slab_opacity(sigma_sum, slab_length / float(samples)), inv = 1.0f / sigma_sum;
-                composite_behind(acc, emission.x * inv, emission.y * inv, emission.z * inv, alpha);
-                newly_opaque += acc.a >= cutoff;
-            }
+            // Overlapping grids mix as media do: extinctions add, emissions weigh by extinction.
+            const int8x lit = sigma_sum > 0;
+            if (!any8(lit)) continue;
+            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * (1.0f / float(samples)));
+            const float8 weight = select8(lit, (1.0f - alpha) * opacity / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
+            store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
+            store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);
+            store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
+            const float8 new_alpha = alpha + weight * sigma_sum;
+            store8(alpha_.data() + p, new_alpha);
+            newly_opaque += __builtin_popcount(lane_bits(lanes.inside & (new_alpha >= cutoff) & (alpha < cutoff)));
         }
     }
     return newly_opaque;

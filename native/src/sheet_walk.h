@@ -86,7 +86,10 @@ private:
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
 
     std::vector<std::unique_ptr<GridState>> grids_;
-    std::vector<Rgba> accumulated_;
+    // The tile's accumulated colour and opacity (premultiplied), or its maximum density, one plane
+    // per channel, rows padded to whole vectors of eight pixels.
+    size_t row_pitch_ = 0;
+    std::vector<float> red_, green_, blue_, alpha_;
     std::vector<float> maximum_;
     std::vector<float> scratch_;
 };

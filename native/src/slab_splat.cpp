@@ -6,7 +6,7 @@
 #include <numeric>
 
 #include "block_voxels.h"
-#include "lanes.h"
+#include "pcvr/lanes.h"
 #include "pcvr/errors.h"
 
 namespace pcvr {
@@ -17,12 +17,6 @@ constexpr int kBatch = 8;
 /// Sheets one kernel may span (its deposit keeps a pointer per sheet on the stack).
 constexpr int kMostSlabs = 64;
 
-inline float8 load8(const float* p) {
-    float8 v;
-    std::memcpy(&v, p, sizeof v);
-    return v;
-}
-inline void store8(float* p, float8 v) { std::memcpy(p, &v, sizeof v); }
 inline void add8(float* p, float8 v) { store8(p, load8(p) + v); }
 
 /// Eight voxels projected onto a ring: everything the deposit needs, per lane, in ring node units.
@@ -160,6 +154,8 @@ bool deposit_lane(const SlabBatch& b, int l, const SlabSplatParams& params, int 
     if (k_begin >= slabs) return false;
     const size_t pitch = ring.pitch();
     const float amp = b.amp[l];
+    const Box window{cc0, rr0, cc1, rr1};
+    for (int k = k_begin; k < slabs; ++k) ring.touch(first_sheet + k, window);
 
     if (spread) {
         // The slab's share of the footprint integral, on the 2 x 2 nodes around the centre.
@@ -172,7 +168,6 @@ bool deposit_lane(const SlabBatch& b, int l, const SlabSplatParams& params, int 
             front = back;
             if (mass == 0.0f) continue;
             float* sheet = ring.sheet(first_sheet + k);
-            ring.touch(first_sheet + k);
             for (int j = 0; j < 2; ++j)
                 for (int i = 0; i < 2; ++i)
                     if (c0 + i >= cc0 && c0 + i <= cc1 && r0 + j >= rr0 && r0 + j <= rr1)
@@ -190,13 +185,11 @@ bool deposit_lane(const SlabBatch& b, int l, const SlabSplatParams& params, int 
     const float8 scale = broadcast8(table.scale()), last_index = broadcast8(table.max_index());
     float* sheets[kMostSlabs];
     const int count = slabs;
-    for (int k = k_begin; k < count; ++k) {
-        sheets[k] = ring.sheet(first_sheet + k);
-        ring.touch(first_sheet + k);
-    }
+    for (int k = k_begin; k < count; ++k) sheets[k] = ring.sheet(first_sheet + k);
     // Sheets perpendicular to the rays through the kernel (isotropic voxels, orthographic view): each
-    // slab's share is the same at every tap, D evaluated once per slab.
-    const bool aligned = s_dx == 0.0f && s_dy == 0.0f;
+    // slab's share is the same at every tap, D evaluated once per slab. Aligned means that s moves by
+    // less than 1e-4 index units across the footprint (D changes by less than 1e-4 there).
+    const bool aligned = std::abs(s_dx) * b.ext_x[l] + std::abs(s_dy) * b.ext_y[l] < 1e-4f;
     float share[kMostSlabs];
     if (aligned) {
         float front = D(b.s0[l] + k_begin * s_step);

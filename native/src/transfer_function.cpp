@@ -44,7 +44,7 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
     first_ = float(first);
     scale_ = float(1.0 / step);
 
-    entries_.resize(kEntries + 2);
+    for (auto* channel : {&red_, &green_, &blue_, &extinction_}) channel->resize(kEntries + 2);
     size_t segment = 0;  // control points segment, [segment, segment + 1]
     for (int e = 0; e <= kEntries; ++e) {
         const double d = first + e * step;
@@ -55,14 +55,17 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
             for (int c = 0; c < 4; ++c) v[c] += t * (tf.rgba[segment + 1][c] - v[c]);
         }
         const double opacity = std::min(v[3], kMostOpacity);
-        entries_[e] = {float(v[0]), float(v[1]), float(v[2]), float(-std::log1p(-opacity) / unit_distance)};
+        red_[e] = float(v[0]);
+        green_[e] = float(v[1]);
+        blue_[e] = float(v[2]);
+        extinction_[e] = float(-std::log1p(-opacity) / unit_distance);
     }
-    entries_[kEntries + 1] = entries_[kEntries];
+    for (auto* channel : {&red_, &green_, &blue_, &extinction_}) (*channel)[kEntries + 1] = (*channel)[kEntries];
 
     next_opaque_.resize(kEntries + 2);
     int next = kEntries + 2;
     for (int e = kEntries + 1; e >= 0; --e) {
-        if (entries_[e].extinction > 0) next = e;
+        if (extinction_[e] > 0) next = e;
         next_opaque_[e] = next;
     }
 }

@@ -18,6 +18,7 @@
 
 #include <vector>
 
+#include "pcvr/lanes.h"
 #include "pcvr/math.h"
 
 namespace pcvr {
@@ -51,14 +52,16 @@ struct Vec3f {
     float x = 0, y = 0, z = 0;
 };
 
-/// Lighting prepared for one render: light directions normalised, colours times strengths.
-/// Immutable and safe to use from many threads.
+/// Lighting prepared for one render: light directions normalised, colours times strengths, and a
+/// table of x^shininess. Immutable and safe to use from many threads.
 class Shader {
 public:
     explicit Shader(const Lighting& lighting);
 
-    /// The lit colour of a sample: `colour` from the transfer function, `gradient` of the density
+    /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length), `to_eye` (unit, from the sample towards the eye), `position` (world).
+    Vec3x8 shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const;
+    /// The same for one sample.
     Vec3f shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const;
 
 private:
@@ -67,9 +70,11 @@ private:
         Vec3f vector;  // sun: unit vector towards the light; point: position
         Vec3f energy;  // colour * strength
     };
+    static constexpr int kPowerSteps = 1024;
     std::vector<PreparedLight> lights_;
     Vec3f ambient_;  // ka * ambient colour
-    float diffuse_, specular_, shininess_;
+    float diffuse_, specular_;
+    std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
 };
 
 }  // namespace pcvr

@@ -15,6 +15,8 @@
 #include <array>
 #include <vector>
 
+#include "pcvr/lanes.h"
+
 namespace pcvr {
 
 struct TransferFunction {
@@ -38,25 +40,33 @@ public:
         float red, green, blue;
         float extinction;  ///< per world unit: opacity of a sample l thick is 1 - exp(-extinction l)
     };
+    struct Samples {  ///< eight of them
+        float8 red, green, blue, extinction;
+    };
     /// Linear interpolation between the two nearest entries; densities outside the control points
-    /// take the end values.
+    /// take the end values (NaN the first).
+    Samples operator()(float8 density) const {
+        const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
+        const int8x i = __builtin_convertvector(x, int8x);
+        const float8 f = x - __builtin_convertvector(i, float8);
+        auto lerp = [&](const std::vector<float>& channel) {
+            const float8 a = gather8(channel.data(), i), b = gather8(channel.data() + 1, i);
+            return a + f * (b - a);
+        };
+        return {lerp(red_), lerp(green_), lerp(blue_), lerp(extinction_)};
+    }
     Sample operator()(float density) const {
-        float x = (density - first_) * scale_;
-        x = x > 0.0f ? (x < float(kEntries) ? x : float(kEntries)) : 0.0f;  // also maps NaN to 0
-        const int i = int(x);
-        const float f = x - float(i);
-        const Sample& a = entries_[i];
-        const Sample& b = entries_[i + 1];
-        return {a.red + f * (b.red - a.red), a.green + f * (b.green - a.green), a.blue + f * (b.blue - a.blue),
-                a.extinction + f * (b.extinction - a.extinction)};
+        const Samples s = (*this)(broadcast8(density));
+        return {s.red[0], s.green[0], s.blue[0], s.extinction[0]};
     }
     /// True when every density in [lo, hi] has zero opacity.
     bool transparent(double lo, double hi) const;
 
 private:
-    float first_, scale_;          // entry index = (density - first) * scale
-    std::vector<Sample> entries_;  // kEntries + 2: the last repeated, so interpolation at the end needs no branch
-    std::vector<int> next_opaque_; // per entry: the first entry at or after it with extinction > 0
+    float first_, scale_;  // entry index = (density - first) * scale
+    // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.
+    std::vector<float> red_, green_, blue_, extinction_;
+    std::vector<int> next_opaque_;  // per entry: the first entry at or after it with extinction > 0
 };
 
 }  // namespace pcvr

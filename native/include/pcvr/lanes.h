@@ -1,0 +1,101 @@
+/// @file lanes.h
+/// @brief Eight float lanes (and four double lanes) as GCC vector types, for loops that read like scalar code.
+///
+/// With AVX2 each operation is one instruction; the portable build (no AVX2) gets the same code in SSE
+/// halves, so both builds share one implementation. Only the table gather needs an intrinsic.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
+namespace pcvr {
+
+typedef float float8 __attribute__((vector_size(32)));
+typedef int32_t int8x __attribute__((vector_size(32)));  // what comparisons of float8 give
+typedef double double4 __attribute__((vector_size(32)));
+typedef long long long4 __attribute__((vector_size(32)));
+
+inline float8 broadcast8(float x) { return float8{} + x; }
+inline float8 lane_index8() { return float8{0, 1, 2, 3, 4, 5, 6, 7}; }
+inline float8 min8(float8 a, float8 b) { return a < b ? a : b; }
+inline float8 max8(float8 a, float8 b) { return a > b ? a : b; }
+inline float8 clamp8(float8 x, float lo, float hi) { return min8(max8(x, broadcast8(lo)), broadcast8(hi)); }
+inline float8 abs8(float8 x) { return x < 0 ? -x : x; }
+inline float8 select8(int8x mask, float8 a, float8 b) { return mask ? a : b; }
+inline bool any8(int8x mask) {
+    for (int l = 0; l < 8; ++l)
+        if (mask[l]) return true;
+    return false;
+}
+
+/// table[index] per lane; indices must be valid.
+inline float8 gather8(const float* table, int8x index) {
+#if defined(__AVX2__) && defined(__FMA__)
+    return float8(_mm256_i32gather_ps(table, __m256i(index), 4));
+#else
+    float8 out;
+    for (int l = 0; l < 8; ++l) out[l] = table[index[l]];
+    return out;
+#endif
+}
+
+inline double4 sqrt4(double4 x) {
+    for (int l = 0; l < 4; ++l) x[l] = std::sqrt(x[l]);
+    return x;
+}
+
+inline float8 load8(const float* p) {
+    float8 v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+inline void store8(float* p, float8 v) { std::memcpy(p, &v, sizeof v); }
+
+inline float8 sqrt8(float8 x) {
+#if defined(__AVX2__) && defined(__FMA__)
+    return float8(_mm256_sqrt_ps(__m256(x)));
+#else
+    for (int l = 0; l < 8; ++l) x[l] = std::sqrt(x[l]);
+    return x;
+#endif
+}
+
+/// e^x to about 2 ulp for x in [-87, 88] (outside: clamped), by the usual split x = n ln 2 + r,
+/// a degree-6 polynomial for e^r on |r| <= ln 2 / 2 and n put into the exponent bits.
+inline float8 exp8(float8 x) {
+    x = clamp8(x, -87.0f, 88.0f);
+    const float8 t = x * 1.44269504f;  // x / ln 2, rounded to the nearest integer n
+    const float8 n = __builtin_convertvector(__builtin_convertvector(t + select8(t < 0, broadcast8(-0.5f), broadcast8(0.5f)), int8x), float8);
+    const float8 r = x - n * 0.693359375f - n * -2.12194440e-4f;  // ln 2 in two parts
+    float8 p = broadcast8(1.9875691500e-4f);
+    p = p * r + 1.3981999507e-3f;
+    p = p * r + 8.3334519073e-3f;
+    p = p * r + 4.1665795894e-2f;
+    p = p * r + 1.6666665459e-1f;
+    p = p * r + 5.0000001201e-1f;
+    p = p * r * r + r + 1.0f;
+    const int8x bits = (__builtin_convertvector(n, int8x) + 127) << 23;
+    float8 scale;
+    std::memcpy(&scale, &bits, sizeof scale);
+    return p * scale;
+}
+
+/// Three vectors of eight lanes: eight 3-D points or directions.
+struct Vec3x8 {
+    float8 x, y, z;
+};
+inline Vec3x8 operator+(const Vec3x8& a, const Vec3x8& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline Vec3x8 operator-(const Vec3x8& a, const Vec3x8& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Vec3x8 operator*(const Vec3x8& a, float8 s) { return {a.x * s, a.y * s, a.z * s}; }
+inline Vec3x8 operator*(const Vec3x8& a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+inline float8 dot(const Vec3x8& a, const Vec3x8& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec3x8 cross(const Vec3x8& a, const Vec3x8& b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+}  // namespace pcvr
