@@ -101,10 +101,10 @@ struct SheetWalker::GridState {
             if (post_convolve) {
                 const NodeSheet sheet{ring.sheet(t), ring.pitch(), placement.node_x0, placement.node_y0};
                 post_convolve_region(sheet, filter, x0 + pixels.x0, y0 + pixels.y0, w, h, out, pitch(), scratch);
-            } else {  // stride 1 with the same origin: the nodes are the pixels
-                for (int r = 0; r < h; ++r)
-                    std::memcpy(out + size_t(r) * pitch(), ring.sheet(t) + size_t(pixels.y0 + r) * ring.pitch() + pixels.x0,
-                                sizeof(float) * w);
+            } else {  // stride 1: the nodes are the pixels
+                const float* nodes = ring.sheet(t) + size_t(y0 + pixels.y0 - placement.node_y0) * ring.pitch() +
+                                     (x0 + pixels.x0 - placement.node_x0);
+                for (int r = 0; r < h; ++r) std::memcpy(out + size_t(r) * pitch(), nodes + size_t(r) * ring.pitch(), sizeof(float) * w);
             }
             boxes[k] = pixels;
         }
@@ -152,6 +152,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         } else {
             nx0 = g.x0, nx1 = g.x0 + g.width - 1, ny0 = g.y0, ny1 = g.y0 + g.height - 1;
         }
+        // Wide enough that the windows of voxels that reach the tile fit whole: they take the fast path.
+        const int margin = wg.view->window_margin();
+        nx0 -= margin, ny0 -= margin, nx1 += margin, ny1 += margin;
         g.placement = {nx0, ny0};
         const double reach = wg.view->depth_reach();
         deepest_reach = std::max(deepest_reach, reach);
@@ -336,11 +339,6 @@ inline Vec3x8 ray_directions(const SheetGeometry& geo, const PixelLanes& p) {
     return lanes3(geo.dir0 + geo.dir_dy * double(p.py)) + lanes3(geo.dir_dx) * p.px;
 }
 
-inline uint32_t lane_bits(int8x mask) {
-    uint32_t bits = 0;
-    for (int l = 0; l < 8; ++l) bits |= uint32_t(mask[l] != 0) << l;
-    return bits;
-}
 
 }  // namespace
 
@@ -418,9 +416,10 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
                 const float8 here = load8(src.here + i), next = load8(src.after + i);
                 const float8 raw = here + t * (next - here);
-                int8x valid = open & (raw != 0);  // zero: no voxel reaches, empty
+                const float8 density = raw / slab_length;
+                int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
-                const ClassificationTable::Samples c = (*src.classification)(raw / slab_length);
+                const ClassificationTable::Samples c = (*src.classification)(density);
                 valid &= c.extinction > 0;
                 if (!any8(valid)) continue;
                 // Density change per pixel right, per pixel down and per unit of depth along the ray, of
@@ -453,7 +452,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
             const float8 new_alpha = alpha + weight * sigma_sum;
             store8(alpha_.data() + p, new_alpha);
-            newly_opaque += __builtin_popcount(lane_bits(lanes.inside & (new_alpha >= cutoff) & (alpha < cutoff)));
+            newly_opaque += __builtin_popcount(lane_mask(lanes.inside & (new_alpha >= cutoff) & (alpha < cutoff)));
         }
     }
     return newly_opaque;

@@ -70,8 +70,5 @@ DepthProfile::DepthProfile(const Kernel& kernel) : radius_(float(kernel.radius()
     }
 }
 
-float DepthProfile::operator()(float s) const {
-    return (*this)(s, [](float t) { return std::clamp(t, -1.0f, 1.0f); }, [](float t) { return std::abs(t); });
-}
 
 }  // namespace pcvr

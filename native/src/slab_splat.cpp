@@ -11,6 +11,7 @@
 
 namespace pcvr {
 
+
 namespace {
 
 constexpr int kBatch = 8;
@@ -18,6 +19,42 @@ constexpr int kBatch = 8;
 constexpr int kMostSlabs = 64;
 
 inline void add8(float* p, float8 v) { store8(p, load8(p) + v); }
+
+typedef float float4 __attribute__((vector_size(16)));
+inline float4 low4(float8 v) { return float4{v[0], v[1], v[2], v[3]}; }
+inline float4 high4(float8 v) { return float4{v[4], v[5], v[6], v[7]}; }
+inline void add4(float* p, float4 v) {
+    float4 x;
+    std::memcpy(&x, p, sizeof x);
+    x += v;
+    std::memcpy(p, &x, sizeof x);
+}
+
+/// Windows wider than this many nodes take the per-tap path.
+constexpr int kMostWindow = 16;
+
+
+/// The values of ranks [first, first + 8) (0 for ranks at or past `last`, inactive or non-finite voxels).
+float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full) {
+    float8 v;
+    if (full && last - first >= kBatch) {
+        // Every rank a voxel: gather them (the order's offsets are valid past the block's end too).
+        int8x offsets;
+        std::memcpy(&offsets, order.offset.data() + first, sizeof offsets);
+        v = block.values ? gather8(block.values, offsets) : broadcast8(block.constant);
+    } else {
+        for (int l = 0; l < kBatch; ++l) {
+            const int rank = first + l;
+            const int offset = order.offset[rank];
+            v[l] = rank < last && (full || block.active(offset)) ? block.value(offset) : 0.0f;
+        }
+    }
+    return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
+}
+
+uint32_t non_zero_lanes(float8 v) { return lane_mask(v != 0.0f); }
+
+}  // namespace
 
 /// Eight voxels projected onto a ring: everything the deposit needs, per lane, in ring node units.
 struct SlabBatch {
@@ -30,30 +67,9 @@ struct SlabBatch {
     float s_step[kBatch];                        // s between consecutive slab boundaries
     int64_t first_sheet[kBatch];
     uint32_t live = 0;                           // lanes holding a voxel to splat
+    uint32_t aligned = 0;                        // lanes whose slab shares hold at every tap
+    float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
 };
-
-/// The values of ranks [first, first + 8) (0 for ranks at or past `last`, inactive or non-finite voxels).
-float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full) {
-    float8 v;
-    for (int l = 0; l < kBatch; ++l) {
-        const int rank = first + l;
-        float value = 0.0f;
-        if (rank < last) {
-            const int offset = order.offset[rank];
-            if (full || block.active(offset)) value = block.value(offset);
-        }
-        v[l] = std::isfinite(value) ? value : 0.0f;
-    }
-    return v;
-}
-
-uint32_t non_zero_lanes(float8 v) {
-    uint32_t live = 0;
-    for (int l = 0; l < kBatch; ++l) live |= uint32_t(v[l] != 0.0f) << l;
-    return live;
-}
-
-}  // namespace
 
 double depth_per_voxel(const ViewProjection& projection, const Grid& grid) {
     Footprint centre;
@@ -113,6 +129,13 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
         shape_.qyy *= s2;
         shape_.depth_dx *= params.stride;
         shape_.depth_dy *= params.stride;
+        // Smooth kernels' windows come whole from a phase table, as for X-ray; the box's rim would blur.
+        const double det = shape_.qxx * shape_.qyy - shape_.qxy * shape_.qxy;
+        const double radius = params.kernel->radius();
+        const double extent = std::max(radius * std::sqrt(shape_.qyy / det), radius * std::sqrt(shape_.qxx / det));
+        const int half_width = std::max(2, int(std::ceil(extent - 1e-4)));
+        if (params.mode == SlabMode::Footprint && params.kernel->smooth_footprint() && 2 * half_width <= kMostWindow)
+            window_ = std::make_unique<PhaseFootprintTable>(*params.kernel, shape_.qxx, shape_.qxy, shape_.qyy, half_width);
     }
 }
 
@@ -122,110 +145,165 @@ double SlabView::origin_depth(const VoxelBlock& block) const {
 
 namespace {
 
+/// What one voxel's deposit needs besides its projection: its slabs, the ring sheets they land in and
+/// each slab's share of the footprint at the centre (the whole footprint when `aligned`).
+struct LaneSlabs {
+    int first, count;            // slabs [first, count) of the voxel go into sheets[first..]
+    float* sheets[kMostSlabs];
+    float share[kMostSlabs];
+    bool aligned;                // the shares hold at every tap
+};
+
+/// Footprint weights (times amplitude) of eight taps at node offsets (dx, dy) from the centre, added to
+/// `row` of every slab's sheet: with the slab shares, or with D evaluated at each tap.
+template <class Add>
+inline void add_taps(const SlabBatch& b, int l, const DepthProfile& depth, const LaneSlabs& slabs, size_t row, float8 weight,
+                     float8 dx, float8 dy, Add add) {
+    if (slabs.aligned) {
+        for (int k = slabs.first; k < slabs.count; ++k) add(slabs.sheets[k] + row, weight * slabs.share[k]);
+        return;
+    }
+    const auto clamp_unit = [](float8 t) { return clamp8(t, -1.0f, 1.0f); };
+    const auto magnitude = [](float8 t) { return abs8(t); };
+    float8 s = b.s0[l] + slabs.first * b.s_step[l] + b.s_dx[l] * dx + b.s_dy[l] * dy;
+    float8 front = depth(s, clamp_unit, magnitude);
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        s += b.s_step[l];
+        const float8 back = depth(s, clamp_unit, magnitude);
+        add(slabs.sheets[k] + row, weight * (back - front));
+        front = back;
+    }
+}
+
+/// The footprint's taps row by row over `window` (ring nodes), eight at a time, weights from the
+/// footprint table: any footprint (perspective, box kernel, wide windows).
+void deposit_footprint(const SlabBatch& b, int l, const FootprintTable& table, const DepthProfile& depth,
+                       const LaneSlabs& slabs, const Box& window, size_t pitch) {
+    const float cx = b.cx[l], cy = b.cy[l];
+    const float qxx = b.qxx[l], qxy2 = 2.0f * b.qxy[l], qyy = b.qyy[l];
+    const float8 lanes = lane_index8();
+    const float8 scale = broadcast8(table.scale()), last_index = broadcast8(table.max_index());
+    for (int r = window.y0; r <= window.y1; ++r) {
+        const float dy = float(r) - cy;
+        for (int col = window.x0; col <= window.x1; col += kBatch) {
+            const float8 dx = (float(col) - cx) + lanes;
+            const int8x inside = lanes <= float(window.x1 - col);
+            const float8 rho2 = (qxx * dx + qxy2 * dy) * dx + qyy * dy * dy;
+            const int8x index = __builtin_convertvector(min8(max8(rho2 * scale, broadcast8(0.0f)), last_index), int8x);
+            const float8 weight = select8(inside, gather8(table.data(), index) * b.amp[l], broadcast8(0.0f));
+            add_taps(b, l, depth, slabs, size_t(r) * pitch + col, weight, dx, broadcast8(dy), add8);
+        }
+    }
+}
+
+/// An orthographic footprint's whole window from the phase table, its corner at ring node (col, row)
+/// and wholly inside the ring: no lookups per tap. PCVR's 4 x 4 window goes two rows per vector.
+void deposit_window(const SlabBatch& b, int l, const PhaseFootprintTable& table, const DepthProfile& depth,
+                    const LaneSlabs& slabs, int col, int row, size_t pitch) {
+    const float cx = b.cx[l], cy = b.cy[l];
+    const PhaseFootprintTable::Blend blend = table.blend(cx - std::floor(cx), cy - std::floor(cy));
+    const float amp = b.amp[l];
+    const float8 c0 = broadcast8(blend.coeff[0] * amp), c1 = broadcast8(blend.coeff[1] * amp);
+    const float8 c2 = broadcast8(blend.coeff[2] * amp), c3 = broadcast8(blend.coeff[3] * amp);
+    auto weights = [&](size_t t) {
+        return c0 * load8(blend.entry[0] + t) + c1 * load8(blend.entry[1] + t) + c2 * load8(blend.entry[2] + t) +
+               c3 * load8(blend.entry[3] + t);
+    };
+    const float8 lanes = lane_index8();
+    if (table.window() == 4) {
+        // Lanes 0-3: taps of one row, 4-7: of the next; each half goes into its own ring row.
+        const float8 column = (float(col) - cx) + select8(lanes < 4.0f, lanes, lanes - 4.0f);
+        const float8 half = select8(lanes < 4.0f, broadcast8(0.0f), broadcast8(1.0f));
+        for (int pair = 0; pair < 2; ++pair) {
+            const float8 dy = (float(row + 2 * pair) - cy) + half;
+            const size_t at = size_t(row + 2 * pair) * pitch + col;
+            add_taps(b, l, depth, slabs, at, weights(size_t(8 * pair)), column, dy, [pitch](float* p, float8 w) {
+                add4(p, low4(w));
+                add4(p + pitch, high4(w));
+            });
+        }
+        return;
+    }
+    const int window = table.window(), row_floats = table.pitch();
+    for (int j = 0; j < window; ++j) {
+        const float8 dy = broadcast8(float(row + j) - cy);
+        for (int i = 0; i < row_floats; i += kBatch)
+            add_taps(b, l, depth, slabs, size_t(row + j) * pitch + col + i, weights(size_t(j) * row_floats + i),
+                     (float(col + i) - cx) + lanes, dy, add8);
+    }
+}
+
+/// Westenberg-Roerdink: each slab's share of the footprint integral on the 2 x 2 nodes around the
+/// centre (corner (col, row)), clipped to `window`.
+void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, int row, const Box& window, size_t pitch) {
+    const float fx = b.cx[l] - float(col), fy = b.cy[l] - float(row);
+    const float w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        const float mass = b.amp[l] * slabs.share[k];
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i)
+                if (col + i >= window.x0 && col + i <= window.x1 && row + j >= window.y0 && row + j <= window.y1)
+                    slabs.sheets[k][size_t(row + j) * pitch + col + i] += mass * w[j][i];
+    }
+}
+
+}  // namespace
+
 /// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
 /// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
-bool deposit_lane(const SlabBatch& b, int l, const SlabSplatParams& params, int slabs, SheetRing& ring,
-                  int64_t first_open_sheet, const OcclusionMap* occlusion, bool& occluded) {
+bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, int64_t first_open_sheet,
+                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const {
     const float cx = b.cx[l], cy = b.cy[l];
-    const bool spread = params.mode == SlabMode::BilinearSpread;
-    int c0, c1, r0, r1;
+    const bool spread = params_.mode == SlabMode::BilinearSpread;
+    // The window: for spreading the 2 x 2 nodes around the centre, else the ellipse's bounding box,
+    // or the phase table's window.
+    Box window;
     if (spread) {
-        c0 = clamp_to_int(std::floor(cx), -2, ring.columns());
-        r0 = clamp_to_int(std::floor(cy), -2, ring.rows());
-        c1 = c0 + 1, r1 = r0 + 1;
+        window.x0 = clamp_to_int(std::floor(cx), -2, ring.columns());
+        window.y0 = clamp_to_int(std::floor(cy), -2, ring.rows());
+        window.x1 = window.x0 + 1, window.y1 = window.y0 + 1;
+    } else if (window_) {
+        const int h = window_->half_width();
+        window.x0 = clamp_to_int(std::floor(cx), -kMostWindow, ring.columns() + kMostWindow) - h + 1;
+        window.y0 = clamp_to_int(std::floor(cy), -kMostWindow, ring.rows() + kMostWindow) - h + 1;
+        window.x1 = window.x0 + window_->window() - 1, window.y1 = window.y0 + window_->window() - 1;
     } else {
-        c0 = clamp_to_int(std::ceil(cx - b.ext_x[l]), -1, ring.columns());
-        c1 = clamp_to_int(std::floor(cx + b.ext_x[l]), -1, ring.columns());
-        r0 = clamp_to_int(std::ceil(cy - b.ext_y[l]), -1, ring.rows());
-        r1 = clamp_to_int(std::floor(cy + b.ext_y[l]), -1, ring.rows());
+        window.x0 = clamp_to_int(std::ceil(cx - b.ext_x[l]), -1, ring.columns());
+        window.x1 = clamp_to_int(std::floor(cx + b.ext_x[l]), -1, ring.columns());
+        window.y0 = clamp_to_int(std::ceil(cy - b.ext_y[l]), -1, ring.rows());
+        window.y1 = clamp_to_int(std::floor(cy + b.ext_y[l]), -1, ring.rows());
     }
-    const int cc0 = std::max(c0, 0), cc1 = std::min(c1, ring.columns() - 1);
-    const int rr0 = std::max(r0, 0), rr1 = std::min(r1, ring.rows() - 1);
-    if (cc0 > cc1 || rr0 > rr1) return false;
-    if (occlusion && occlusion->covered(cc0, rr0, cc1, rr1)) {
+    const Box clipped = window.clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
+    if (clipped.empty()) return false;
+    if (occlusion && occlusion->covered(clipped.x0, clipped.y0, clipped.x1, clipped.y1)) {
         occluded = true;
         return false;
     }
 
-    const DepthProfile& depth = *params.profile;
-    auto D = [&](float s) { return depth(s); };
+    LaneSlabs slabs;
     const int64_t first_sheet = b.first_sheet[l];
-    const int k_begin = int(std::clamp<int64_t>(first_open_sheet - first_sheet, 0, slabs));
-    if (k_begin >= slabs) return false;
+    slabs.first = int(std::clamp<int64_t>(first_open_sheet - first_sheet, 0, slabs_per_voxel_));
+    slabs.count = slabs_per_voxel_;
+    if (slabs.first >= slabs.count) return false;
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        slabs.sheets[k] = ring.sheet(first_sheet + k);
+        slabs.share[k] = b.share[k][l];
+    }
+    slabs.aligned = (b.aligned >> l) & 1;
+    reached.include(clipped);
+    sheets_reached[0] = std::min(sheets_reached[0], first_sheet + slabs.first);
+    sheets_reached[1] = std::max(sheets_reached[1], first_sheet + slabs.count - 1);
+
     const size_t pitch = ring.pitch();
-    const float amp = b.amp[l];
-    const Box window{cc0, rr0, cc1, rr1};
-    for (int k = k_begin; k < slabs; ++k) ring.touch(first_sheet + k, window);
-
-    if (spread) {
-        // The slab's share of the footprint integral, on the 2 x 2 nodes around the centre.
-        const float fx = cx - float(c0), fy = cy - float(r0);
-        const float w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
-        float front = D(b.s0[l] + k_begin * b.s_step[l]);
-        for (int k = k_begin; k < slabs; ++k) {
-            const float back = D(b.s0[l] + (k + 1) * b.s_step[l]);
-            const float mass = amp * (back - front);
-            front = back;
-            if (mass == 0.0f) continue;
-            float* sheet = ring.sheet(first_sheet + k);
-            for (int j = 0; j < 2; ++j)
-                for (int i = 0; i < 2; ++i)
-                    if (c0 + i >= cc0 && c0 + i <= cc1 && r0 + j >= rr0 && r0 + j <= rr1)
-                        sheet[size_t(r0 + j) * pitch + c0 + i] += mass * w[j][i];
-        }
-        return true;
-    }
-
-    const FootprintTable& table = *params.table;
-    const float qxx = b.qxx[l], qxy2 = 2.0f * b.qxy[l], qyy = b.qyy[l];
-    const float s_dx = b.s_dx[l], s_dy = b.s_dy[l], s_step = b.s_step[l];
-    const float8 lanes = lane_index8();
-    const auto clamp_unit = [](float8 t) { return clamp8(t, -1.0f, 1.0f); };
-    const auto abs8_ = [](float8 t) { return abs8(t); };
-    const float8 scale = broadcast8(table.scale()), last_index = broadcast8(table.max_index());
-    float* sheets[kMostSlabs];
-    const int count = slabs;
-    for (int k = k_begin; k < count; ++k) sheets[k] = ring.sheet(first_sheet + k);
-    // Sheets perpendicular to the rays through the kernel (isotropic voxels, orthographic view): each
-    // slab's share is the same at every tap, D evaluated once per slab. Aligned means that s moves by
-    // less than 1e-4 index units across the footprint (D changes by less than 1e-4 there).
-    const bool aligned = std::abs(s_dx) * b.ext_x[l] + std::abs(s_dy) * b.ext_y[l] < 1e-4f;
-    float share[kMostSlabs];
-    if (aligned) {
-        float front = D(b.s0[l] + k_begin * s_step);
-        for (int k = k_begin; k < count; ++k) {
-            const float back = D(b.s0[l] + (k + 1) * s_step);
-            share[k] = back - front;
-            front = back;
-        }
-    }
-    for (int r = rr0; r <= rr1; ++r) {
-        const float dy = float(r) - cy;
-        const size_t row = size_t(r) * pitch;
-        for (int col = cc0; col <= cc1; col += kBatch) {
-            const float8 dx = broadcast8(float(col) - cx) + lanes;
-            const int8x inside = lanes <= broadcast8(float(cc1 - col));
-            const float8 rho2 = (broadcast8(qxx) * dx + broadcast8(qxy2 * dy)) * dx + broadcast8(qyy * dy * dy);
-            const int8x index = __builtin_convertvector(min8(max8(rho2 * scale, broadcast8(0.0f)), last_index), int8x);
-            const float8 weight = select8(inside, gather8(table.data(), index) * amp, broadcast8(0.0f));
-            if (aligned) {
-                for (int k = k_begin; k < count; ++k) add8(sheets[k] + row + col, weight * share[k]);
-            } else {
-                float8 s = broadcast8(b.s0[l] + k_begin * s_step + s_dy * dy) + broadcast8(s_dx) * dx;
-                float8 front = depth(s, clamp_unit, abs8_);
-                for (int k = k_begin; k < count; ++k) {
-                    s += s_step;
-                    const float8 back = depth(s, clamp_unit, abs8_);
-                    add8(sheets[k] + row + col, weight * (back - front));
-                    front = back;
-                }
-            }
-        }
-    }
+    if (spread)
+        deposit_spread(b, l, slabs, window.x0, window.y0, clipped, pitch);
+    else if (window_ && clipped.x0 == window.x0 && clipped.y0 == window.y0 && clipped.x1 == window.x1 && clipped.y1 == window.y1)
+        deposit_window(b, l, *window_, *params_.profile, slabs, window.x0, window.y0, pitch);
+    else
+        deposit_footprint(b, l, *params_.table, *params_.profile, slabs, clipped, pitch);
     return true;
 }
 
-}  // namespace
 
 DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
                                 int64_t first_open_sheet, const OcclusionMap* occlusion) const {
@@ -242,6 +320,10 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
     const float reach_slabs = float(depth_reach_ * inv_spacing);
     const bool spread = params_.mode == SlabMode::BilinearSpread;
     const float density_scale = params_.density_scale;
+    const DepthProfile& profile = *params_.profile;
+    auto D = [&profile](float8 s) {
+        return profile(s, [](float8 t) { return clamp8(t, -1.0f, 1.0f); }, [](float8 t) { return abs8(t); });
+    };
 
     SlabBatch b;
     for (int batch = first; batch < last; batch += kBatch) {
@@ -319,14 +401,32 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 }
             }
         }
+        // Each slab's share of the footprint at the centre, eight voxels at once; sheets perpendicular to
+        // the rays through the kernel (isotropic voxels, orthographic view) give every tap that share.
+        // Aligned means that s moves by less than 1e-4 index units across the footprint (D changes by
+        // less than 1e-4 there); spreading puts each slab's share at the centre anyway.
+        const float8 s0 = load8(b.s0), step = load8(b.s_step);
+        float8 front = D(s0);
+        for (int k = 0; k < slabs_per_voxel_; ++k) {
+            const float8 back = D(s0 + float(k + 1) * step);
+            store8(b.share[k], back - front);
+            front = back;
+        }
+        const int8x aligned = abs8(load8(b.s_dx)) * load8(b.ext_x) + abs8(load8(b.s_dy)) * load8(b.ext_y) < 1e-4f;
+        b.aligned = spread ? 0xffu : lane_mask(aligned);
+
+        Box reached;
+        int64_t sheets_reached[2] = {INT64_MAX, INT64_MIN};
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             bool occluded = false;
-            if (deposit_lane(b, l, params_, slabs_per_voxel_, ring, first_open_sheet, occlusion, occluded))
+            if (deposit_lane(b, l, ring, first_open_sheet, occlusion, occluded, reached, sheets_reached))
                 ++counts.splatted;
             else if (occluded)
                 ++counts.occluded;
         }
+        // What the batch reached, once per sheet: boxes only need to bound where sheets are not zero.
+        for (int64_t sheet = sheets_reached[0]; sheet <= sheets_reached[1]; ++sheet) ring.touch(sheet, reached);
     }
     return counts;
 }

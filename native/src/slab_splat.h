@@ -21,11 +21,13 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "occlusion_map.h"
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
+#include "pcvr/phase_table.h"
 #include "pcvr/slab_footprint.h"
 #include "pcvr/view_projection.h"
 #include "sheet_buffer.h"
@@ -44,6 +46,8 @@ struct SheetLattice {
 };
 
 enum class SlabMode { Footprint, BilinearSpread };
+
+struct SlabBatch;  // eight voxels projected (slab_splat.cpp)
 
 struct SlabSplatParams {
     const Kernel* kernel = nullptr;
@@ -90,6 +94,9 @@ public:
     };
     const DepthOrder& depth_order() const { return order_; }
     double origin_depth(const VoxelBlock& block) const;
+    /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
+    /// this much wider than the nodes a tile reads hold whole windows, which take the fast path.
+    int window_margin() const { return window_ ? window_->window() - 1 : 0; }
 
     /// Splats the active, finite, non-zero voxels of ranks [first, last) of `block` into `ring` at
     /// `placement`, each clipped to the ring. With `occlusion`, voxels whose clipped window lies on
@@ -100,6 +107,9 @@ public:
                           int64_t first_open_sheet, const OcclusionMap* occlusion) const;
 
 private:
+    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, int64_t first_open_sheet, const OcclusionMap* occlusion,
+                      bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
+
     const Grid* grid_;
     ViewProjection projection_;
     SheetLattice sheets_;
@@ -111,6 +121,7 @@ private:
     Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
     double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
     Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
+    std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
 };
 
 }  // namespace pcvr

@@ -68,6 +68,17 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
         if (extinction_[e] > 0) next = e;
         next_opaque_[e] = next;
     }
+    // Interpolation reaches one entry beyond the first and last opaque ones; the ends extend forever.
+    int last_opaque = -1;
+    for (int e = 0; e <= kEntries; ++e)
+        if (extinction_[e] > 0) last_opaque = e;
+    if (last_opaque < 0) {
+        opaque_from_ = INFINITY, opaque_to_ = -INFINITY;
+    } else {
+        const int first_opaque = next_opaque_[0];
+        opaque_from_ = first_opaque == 0 ? -INFINITY : float(first + (first_opaque - 1) * step);
+        opaque_to_ = last_opaque == kEntries ? INFINITY : float(first + (last_opaque + 1) * step);
+    }
 }
 
 bool ClassificationTable::transparent(double lo, double hi) const {

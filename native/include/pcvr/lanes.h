@@ -27,11 +27,17 @@ inline float8 max8(float8 a, float8 b) { return a > b ? a : b; }
 inline float8 clamp8(float8 x, float lo, float hi) { return min8(max8(x, broadcast8(lo)), broadcast8(hi)); }
 inline float8 abs8(float8 x) { return x < 0 ? -x : x; }
 inline float8 select8(int8x mask, float8 a, float8 b) { return mask ? a : b; }
-inline bool any8(int8x mask) {
-    for (int l = 0; l < 8; ++l)
-        if (mask[l]) return true;
-    return false;
+/// Bit l set where lane l of the mask is.
+inline uint32_t lane_mask(int8x mask) {
+#if defined(__AVX2__) && defined(__FMA__)
+    return uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(__m256i(mask))));
+#else
+    uint32_t bits = 0;
+    for (int l = 0; l < 8; ++l) bits |= uint32_t(mask[l] != 0) << l;
+    return bits;
+#endif
 }
+inline bool any8(int8x mask) { return lane_mask(mask) != 0; }
 
 /// table[index] per lane; indices must be valid.
 inline float8 gather8(const float* table, int8x index) {

@@ -49,7 +49,9 @@ public:
         for (int i = kCoefficients - 2; i >= 0; --i) p = p * u + odd_[i];
         return 0.5f + t * (p + abs_ * abs(t));
     }
-    float operator()(float s) const;
+    float operator()(float s) const {
+        return (*this)(s, [](float t) { return t < -1.0f ? -1.0f : (t > 1.0f ? 1.0f : t); }, [](float t) { return t < 0 ? -t : t; });
+    }
 
 private:
     float radius_, inv_radius_;

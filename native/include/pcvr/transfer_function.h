@@ -61,12 +61,16 @@ public:
     }
     /// True when every density in [lo, hi] has zero opacity.
     bool transparent(double lo, double hi) const;
+    /// Lanes whose density may be visible: inside the span between the first and the last density
+    /// with opacity (a test that saves the lookups where most samples are transparent).
+    int8x maybe_opaque(float8 density) const { return (density > opaque_from_) & (density < opaque_to_); }
 
 private:
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.
     std::vector<float> red_, green_, blue_, extinction_;
     std::vector<int> next_opaque_;  // per entry: the first entry at or after it with extinction > 0
+    float opaque_from_, opaque_to_;  // densities outside (opaque_from, opaque_to) have no opacity
 };
 
 }  // namespace pcvr
