@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""Images on disk, through the OpenImageIO that Blender bundles.
+"""Images on disk, through the OpenImageIO that Blender bundles (see compat.bundled_module).
 
 | extension     | written as                                                                   |
 |---------------|------------------------------------------------------------------------------|
@@ -20,6 +20,8 @@ import uuid
 import bpy
 import numpy as np
 
+from . import compat
+
 FORMATS = {
     ".exr": "float",
     ".png": "uint8",
@@ -29,9 +31,7 @@ FORMATS = {
 
 
 def _oiio():
-    bpy.utils.expose_bundled_modules()
-    import OpenImageIO
-    return OpenImageIO
+    return compat.bundled_module("OpenImageIO", package="openimageio")
 
 
 def srgb_encode(linear):
@@ -140,12 +140,12 @@ def render_result_passes(scene):
     image = bpy.data.images["Render Result"]
     render = scene.render
     settings = render.image_settings
-    saved = (settings.media_type, settings.file_format, settings.color_depth,
-             render.pixel_aspect_x, render.pixel_aspect_y)
+    saved_format = settings.file_format
+    saved = (settings.color_depth, render.pixel_aspect_x, render.pixel_aspect_y)
     directory = tempfile.mkdtemp(prefix="pcvr-")
     filepath = os.path.join(directory, "result.exr")
     try:
-        settings.media_type = 'MULTI_LAYER_IMAGE'
+        compat.set_file_format(settings, 'OPEN_EXR_MULTILAYER')
         settings.color_depth = '32'
         # Blender 5.0 fails to write multi-part files whose pixel aspect is not 1 ("Conflicting
         # attributes found for header"); the pixels are the same either way.
@@ -153,8 +153,8 @@ def render_result_passes(scene):
         image.save_render(filepath, scene=scene)
         return read_passes(filepath)
     finally:
-        (settings.media_type, settings.file_format, settings.color_depth,
-         render.pixel_aspect_x, render.pixel_aspect_y) = saved
+        compat.set_file_format(settings, saved_format)
+        settings.color_depth, render.pixel_aspect_x, render.pixel_aspect_y = saved
         if os.path.exists(filepath):
             os.remove(filepath)
         os.rmdir(directory)
