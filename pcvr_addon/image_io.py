@@ -30,7 +30,8 @@ FORMATS = {
 }
 
 
-def _oiio():
+def openimageio():
+    """The OpenImageIO module; ImportError with what to install where Blender has none (bpy 4.2)."""
     return compat.bundled_module("OpenImageIO", package="openimageio")
 
 
@@ -65,7 +66,7 @@ def write_image(filepath, pixels, channel_names=None):
     """Write `pixels`, float32 (height, width, channels) with row 0 on top, to `filepath`; the
     extension picks the format (see the table above). Channels are named R, G, B, A (or Y, A) unless
     `channel_names` says otherwise; integer formats encode only R, G, B and Y."""
-    oiio = _oiio()
+    oiio = openimageio()
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
@@ -109,7 +110,7 @@ def read_passes(filepath):
     """The channels of an image grouped by pass: {"Layer.Pass": float32 (height, width, channels)} for
     multi-layer OpenEXR channels named "Layer.Pass.C", {"": ...} for plain R, G, B, A; row 0 on top.
     Values are as stored: integer formats give straight, sRGB-encoded colour in [0, 1]."""
-    oiio = _oiio()
+    oiio = openimageio()
     as_stored = oiio.ImageSpec()
     as_stored.attribute("oiio:UnassociatedAlpha", 1)
     image = oiio.ImageInput.open(filepath, as_stored)
