@@ -82,3 +82,44 @@ bench: $(VENV)/.native-stamp
 
 clean:
 	rm -rf native/build $(WHEEL_DIR) out
+
+# ---------------------------------------------------------------------------------------------------
+# Every Blender the manifest claims. .venv has bpy 5.0; the LTS releases before it get a virtual
+# environment each (.venv-bpy42, .venv-bpy45) with their bpy and the native wheel that .venv built
+# (cp311, the same for all). bpy 4.2 bundles no OpenImageIO Python module, so the package index's
+# stands in there. `make test` smoke-tests each (tests/addon/test_blender_versions.py);
+# `make test-compat` runs all the add-on tests on each.
+
+COMPAT_BLENDERS := 42 45
+BPY_42   := 4.2.23
+BPY_45   := 4.5.15
+EXTRA_42 := openimageio
+COMPAT_STAMPS := $(foreach v,$(COMPAT_BLENDERS),.venv-bpy$(v)/.native-stamp)
+
+.PHONY: test-compat compat-smoke
+.SECONDARY: $(foreach v,$(COMPAT_BLENDERS),.venv-bpy$(v)/.deps-stamp)  # stamps to keep, not intermediates
+
+# The Makefile holds the versions: pip runs again when it changes (seconds when nothing is new).
+.venv-bpy%/.deps-stamp: Makefile | system
+	test -x $(@D)/bin/python || $(PYTHON_SYS) -m venv $(@D)
+	$(@D)/bin/python -m pip install -q --upgrade pip
+	$(@D)/bin/python -m pip install -q bpy==$(BPY_$*) numpy pytest $(EXTRA_$*)
+	touch $@
+
+.venv-bpy%/.native-stamp: .venv-bpy%/.deps-stamp $(VENV)/.native-stamp
+	$(@D)/bin/python -m pip install -q --force-reinstall --no-deps $(WHEEL_DIR)/pcvr_native-*.whl
+	touch $@
+
+# Each Blender in turn, all of them even when one fails.
+compat_pytest = failed=""; for v in $(COMPAT_BLENDERS); do \
+	  echo "bpy $$(.venv-bpy$$v/bin/python -c 'import bpy; print(bpy.app.version_string)' 2>/dev/null | tail -1):"; \
+	  .venv-bpy$$v/bin/python -m pytest -q -p no:cacheprovider $(1) || failed="$$failed $$v"; \
+	done; test -z "$$failed" || { echo "failed on .venv-bpy:$$failed"; exit 1; }
+
+compat-smoke: $(COMPAT_STAMPS)
+	@$(call compat_pytest,tests/addon/test_blender_versions.py)
+
+test-compat: $(COMPAT_STAMPS) $(EXTENSION_ZIP)
+	@$(call compat_pytest,tests/addon)
+
+test: compat-smoke

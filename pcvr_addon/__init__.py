@@ -4,7 +4,7 @@
 
 import bpy
 
-from . import engine
+from . import compat, engine
 
 
 class PCVRRenderEngine(bpy.types.RenderEngine):
@@ -36,11 +36,13 @@ def register():
     ui.register()
     for cls in classes:
         bpy.utils.register_class(cls)
+    compat.unregister_at_exit(unregister)
 
 
 def unregister():
     from . import operators, properties, ui
 
+    compat.forget_at_exit()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
     ui.unregister()

@@ -86,6 +86,11 @@ def main(argv=None):
         parser.error("--magnification and --grid apply to a .vdb; a .blend renders with its own camera")
     if extension == ".vdb" and args.resolution is not None:
         parser.error("--resolution applies to a .blend; a .vdb is sized by --magnification")
+    try:
+        image_io.openimageio()  # before rendering, not after
+    except ImportError as ex:
+        print(f"pcvr: {ex}", file=sys.stderr)
+        return 1
 
     return render(args)
 

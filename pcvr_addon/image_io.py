@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""Images on disk, through the OpenImageIO that Blender bundles.
+"""Images on disk, through the OpenImageIO that Blender bundles (see compat.bundled_module).
 
 | extension     | written as                                                                   |
 |---------------|------------------------------------------------------------------------------|
@@ -20,6 +20,8 @@ import uuid
 import bpy
 import numpy as np
 
+from . import compat
+
 FORMATS = {
     ".exr": "float",
     ".png": "uint8",
@@ -28,10 +30,9 @@ FORMATS = {
 }
 
 
-def _oiio():
-    bpy.utils.expose_bundled_modules()
-    import OpenImageIO
-    return OpenImageIO
+def openimageio():
+    """The OpenImageIO module; ImportError with what to install where Blender has none (bpy 4.2)."""
+    return compat.bundled_module("OpenImageIO", package="openimageio")
 
 
 def srgb_encode(linear):
@@ -65,7 +66,7 @@ def write_image(filepath, pixels, channel_names=None):
     """Write `pixels`, float32 (height, width, channels) with row 0 on top, to `filepath`; the
     extension picks the format (see the table above). Channels are named R, G, B, A (or Y, A) unless
     `channel_names` says otherwise; integer formats encode only R, G, B and Y."""
-    oiio = _oiio()
+    oiio = openimageio()
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
@@ -109,7 +110,7 @@ def read_passes(filepath):
     """The channels of an image grouped by pass: {"Layer.Pass": float32 (height, width, channels)} for
     multi-layer OpenEXR channels named "Layer.Pass.C", {"": ...} for plain R, G, B, A; row 0 on top.
     Values are as stored: integer formats give straight, sRGB-encoded colour in [0, 1]."""
-    oiio = _oiio()
+    oiio = openimageio()
     as_stored = oiio.ImageSpec()
     as_stored.attribute("oiio:UnassociatedAlpha", 1)
     image = oiio.ImageInput.open(filepath, as_stored)
@@ -140,12 +141,12 @@ def render_result_passes(scene):
     image = bpy.data.images["Render Result"]
     render = scene.render
     settings = render.image_settings
-    saved = (settings.media_type, settings.file_format, settings.color_depth,
-             render.pixel_aspect_x, render.pixel_aspect_y)
+    saved_format = settings.file_format
+    saved = (settings.color_depth, render.pixel_aspect_x, render.pixel_aspect_y)
     directory = tempfile.mkdtemp(prefix="pcvr-")
     filepath = os.path.join(directory, "result.exr")
     try:
-        settings.media_type = 'MULTI_LAYER_IMAGE'
+        compat.set_file_format(settings, 'OPEN_EXR_MULTILAYER')
         settings.color_depth = '32'
         # Blender 5.0 fails to write multi-part files whose pixel aspect is not 1 ("Conflicting
         # attributes found for header"); the pixels are the same either way.
@@ -153,8 +154,8 @@ def render_result_passes(scene):
         image.save_render(filepath, scene=scene)
         return read_passes(filepath)
     finally:
-        (settings.media_type, settings.file_format, settings.color_depth,
-         render.pixel_aspect_x, render.pixel_aspect_y) = saved
+        compat.set_file_format(settings, saved_format)
+        settings.color_depth, render.pixel_aspect_x, render.pixel_aspect_y = saved
         if os.path.exists(filepath):
             os.remove(filepath)
         os.rmdir(directory)

@@ -94,6 +94,21 @@ def setup(width=64, height=48, method='REGULAR', xray_pass=True):
     return scene
 
 
+def compositor(scene):
+    """A new, empty compositor node tree for `scene`, the input socket its image goes to, and the node type
+    of Math there. Blender 5.0 composites with a node group (scene.compositing_node_group) that ends in a
+    Group Output and takes the shader Math node; 4.x with scene.node_tree, which ends in a Composite node."""
+    if "compositing_node_group" in scene.bl_rna.properties:
+        tree = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+        return tree, tree.nodes.new("NodeGroupOutput").inputs[0], "ShaderNodeMath"
+    scene.use_nodes = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    return tree, tree.nodes.new("CompositorNodeComposite").inputs["Image"], "CompositorNodeMath"
+
+
 def render(scene=None):
     """Render with Blender and read back every pass: {"ViewLayer.XRay": (H, W, 1), ...}, row 0 on top."""
     scene = scene or bpy.context.scene

@@ -3,7 +3,9 @@
 Run by test_extension.py in a fresh process whose BLENDER_USER_RESOURCES points at a temporary
 folder, so nothing lands in the user's own Blender configuration:
 
-    python install_extension.py ARCHIVE WORK_DIR
+    python install_extension.py ARCHIVE WORK_DIR [--leave-enabled]
+
+--leave-enabled ends the script with the extension still enabled, as a user's script would.
 """
 
 import sys
@@ -17,7 +19,7 @@ import blender_scenes as bs
 MODULE = "bl_ext.pcvr_test.pcvr"
 
 
-def main(archive, work_dir):
+def main(archive, work_dir, leave_enabled):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     repos = bpy.context.preferences.extensions.repos
     repos.new(name="PCVR Test", module="pcvr_test", custom_directory=str(work_dir / "repo"), source='USER')
@@ -30,9 +32,10 @@ def main(archive, work_dir):
     bs.assert_matches(bs.xray(bs.render(scene)), bs.exact(bs.world_grid(obj)))
     assert f"{MODULE}.engine" in sys.modules, "the render did not go through the installed extension"
 
-    bpy.ops.preferences.addon_disable(module=MODULE)
+    if not leave_enabled:
+        bpy.ops.preferences.addon_disable(module=MODULE)
     print("installed, enabled and rendered")
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), Path(sys.argv[2]))
+    main(Path(sys.argv[1]), Path(sys.argv[2]), "--leave-enabled" in sys.argv[3:])

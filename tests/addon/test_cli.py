@@ -79,3 +79,12 @@ def test_numbered_vdb_is_a_sequence(tmp_path):
                    "--method", "regular", *args))
         integral = image_io.read_passes(str(tmp_path / "fire.exr"))[""][:, :, 4]
         assert integral[12, 12] == pytest.approx(0.8 * density, rel=1e-2)
+
+
+def test_without_openimageio(tmp_path, box_vdb):
+    """bpy 4.2 bundles no OpenImageIO module: the command line says what to install, before rendering."""
+    script = "import sys; sys.modules['OpenImageIO'] = None; from pcvr_addon.cli import main; sys.exit(main())"
+    run = subprocess.run([sys.executable, "-c", script, "render", box_vdb, "-o", tmp_path / "box.exr"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1 and "pip install openimageio" in run.stderr, run.stdout + run.stderr
+    assert "Rendering" not in run.stdout and not (tmp_path / "box.exr").exists()

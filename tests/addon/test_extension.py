@@ -18,12 +18,15 @@ def archive():
     return ROOT / "dist" / f"{manifest['id']}-{manifest['version']}-linux_x64.zip"
 
 
-def test_install_enable_and_render(tmp_path):
+@pytest.mark.parametrize("ending", ["disabled", "left_enabled"])
+def test_install_enable_and_render(tmp_path, ending):
     if not archive().is_file():
         pytest.skip(f"{archive().relative_to(ROOT)} is not built: run `make extension` (`make test` does)")
     environment = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender"),
                        PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), str(ROOT), os.environ.get("PYTHONPATH")])))
-    run = subprocess.run([sys.executable, str(HERE / "install_extension.py"), str(archive()), str(tmp_path)],
-                         env=environment, capture_output=True, text=True, timeout=300)
+    command = [sys.executable, str(HERE / "install_extension.py"), str(archive()), str(tmp_path)]
+    if ending == "left_enabled":
+        command.append("--leave-enabled")  # Blender disables it at exit (see compat.unregister_at_exit)
+    run = subprocess.run(command, env=environment, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "installed, enabled and rendered" in run.stdout

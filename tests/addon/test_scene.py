@@ -134,14 +134,12 @@ def test_changed_file_is_read_again(scene, tmp_path):
 
 def test_compositor_uses_the_xray_pass(scene, tmp_path):
     bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
-    tree = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    tree, output, math_node = bs.compositor(scene)
     layers = tree.nodes.new("CompositorNodeRLayers")
-    double = tree.nodes.new("ShaderNodeMath")
+    double = tree.nodes.new(math_node)
     double.operation, double.inputs[1].default_value = 'MULTIPLY', 2.0
     tree.links.new(layers.outputs["XRay"], double.inputs[0])
-    tree.links.new(double.outputs[0], tree.nodes.new("NodeGroupOutput").inputs[0])
-    scene.compositing_node_group = tree
+    tree.links.new(double.outputs[0], output)
 
     settings = scene.render.image_settings
     settings.file_format, settings.color_depth = 'OPEN_EXR', '32'
