@@ -115,7 +115,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             const std::string& splat_kernel, const std::string& post_filter, int stride,
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                            int samples_per_sheet, bool cull_transparent) {
+                            int samples_per_sheet, bool cull_transparent, bool return_depth) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent);
     std::vector<TransferFunction> tfs;
@@ -138,9 +138,16 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     RgbaImage image;
     ShadedStats s;
+    parts.params.depth = return_depth;
     run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
     fill_stats(stats, s);
-    return image_to_numpy(std::move(image), 4);
+    if (!return_depth) return image_to_numpy(std::move(image), 4);
+    MipImage depth;
+    depth.width = image.width;
+    depth.height = image.height;
+    depth.pixels = std::move(image.depth);
+    nb::object rgba = image_to_numpy(std::move(image), 4);
+    return nb::make_tuple(rgba, image_to_numpy(std::move(depth), 1));
 }
 
 nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
@@ -240,9 +247,11 @@ void bind_shaded(nb::module_& m) {
           "splat_kernel"_a = "gauss1.4", "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0,
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
-          "samples_per_sheet"_a = 1, "cull_transparent"_a = true,
+          "samples_per_sheet"_a = 1, "cull_transparent"_a = true, "return_depth"_a = false,
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
-          "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit.");
+          "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
+          "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
+          "inf where it never did.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

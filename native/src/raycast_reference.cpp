@@ -154,8 +154,8 @@ struct Marcher {
         far_depth = depth_of(r.origin + r.direction);
     }
 
-    /// Calls fn(k, depth) for the samples of the ray through (px, py) that lie in some grid's box, front
-    /// to back, until fn returns false.
+    /// Calls fn(point, depth) for the samples of the ray through (px, py) that lie in some grid's box,
+    /// front to back, until fn returns false.
     template <class Fn>
     void march(double px, double py, Fn&& fn) const {
         const Vec3 origin = geometry.origin0 + geometry.origin_dx * px + geometry.origin_dy * py;
@@ -171,7 +171,7 @@ struct Marcher {
         for (int64_t k = k0; k <= k1; ++k) {
             const double z = near_depth + (double(k) + 0.5) * step;
             if (z > far_depth) break;
-            if (!fn(origin + dir * z)) break;
+            if (!fn(origin + dir * z, z)) break;
         }
     }
 };
@@ -181,7 +181,7 @@ Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 }  // namespace
 
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
-                    const ShadedParams& params, RenderControl& control, float* rgba) {
+                    const ShadedParams& params, RenderControl& control, float* rgba, float* depth) {
     const Marcher m(volumes, camera, params, true);
     const Shader shader(lighting);
     const float cutoff = float(params.opacity_cutoff);
@@ -190,7 +190,8 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
         const double length_per_step = m.step * length(dir);
         const Vec3f to_eye = to_float(dir * (-1.0 / length(dir)));
         Rgba acc;
-        m.march(px, py, [&](const Vec3& x) {
+        float half_way = INFINITY;
+        m.march(px, py, [&](const Vec3& x, double z) {
             double sigma_sum = 0;
             Vec3 emission;
             for (const RayGrid& g : m.grids) {
@@ -204,12 +205,15 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
             }
             if (sigma_sum > 0) {
                 const float alpha = slab_opacity(float(sigma_sum), float(length_per_step));
+                const float before = acc.a;
                 composite_behind(acc, float(emission.x / sigma_sum), float(emission.y / sigma_sum), float(emission.z / sigma_sum), alpha);
+                if (before < 0.5f && acc.a >= 0.5f) half_way = float(z);
             }
             return acc.a < cutoff;
         });
         float* out = rgba + 4 * index;
         out[0] = acc.r, out[1] = acc.g, out[2] = acc.b, out[3] = acc.a;
+        if (depth) depth[index] = half_way;
     });
 }
 
@@ -218,7 +222,7 @@ void raycast_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera,
     const Marcher m(volumes, camera, params, false);
     for_each_pixel(camera, params.pixel_step, control, [&](size_t index, double px, double py) {
         double maximum = -INFINITY;
-        m.march(px, py, [&](const Vec3& x) {
+        m.march(px, py, [&](const Vec3& x, double) {
             for (const RayGrid& g : m.grids) {
                 const double d = sample(g, m.kernel, x).density;
                 if (d != 0.0) maximum = std::max(maximum, d);

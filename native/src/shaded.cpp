@@ -120,7 +120,7 @@ struct PlannedGrid {
 
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
 void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
-                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image) {
+                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
     const auto start = Clock::now();
     const bool mip = lighting == nullptr;
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
@@ -238,7 +238,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t t = r.begin(); t != r.end(); ++t) {
             control.throw_if_cancelled();
-            walkers.local().render(setup, t, image, walk_stats.local(), control);
+            walkers.local().render(setup, t, image, depth, walk_stats.local(), control);
             control.advance();
         }
     });
@@ -267,7 +267,7 @@ Image run(const std::vector<ShadedVolume>& volumes, const Camera& camera, const 
     out.pixels = ZeroedBuffer<float>(size_t(out.width) * out.height * channels);
     ShadedStats stats;
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
-    arena.execute([&] { render(stats, out.pixels.data()); });
+    arena.execute([&] { render(stats, out); });
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     if (stats_out) *stats_out = std::move(stats);
     return out;
@@ -281,11 +281,17 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
     lighting.validate();
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    return run<RgbaImage>(volumes, camera, params, 4, stats, [&](ShadedStats& s, float* pixels) {
+    return run<RgbaImage>(volumes, camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
+        float* depth = nullptr;
+        if (params.depth) {
+            image.depth = ZeroedBuffer<float>(size_t(image.width) * image.height);
+            std::fill(image.depth.begin(), image.depth.end(), INFINITY);
+            depth = image.depth.data();
+        }
         if (params.method == ShadedMethod::Raycast)
-            raycast_shaded(volumes, camera, lighting, params, control, pixels);
+            raycast_shaded(volumes, camera, lighting, params, control, image.pixels.data(), depth);
         else
-            render_sheets(volumes, camera, &lighting, params, control, s, pixels);
+            render_sheets(volumes, camera, &lighting, params, control, s, image.pixels.data(), depth);
     });
 }
 
@@ -294,11 +300,11 @@ MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& came
     validate(volumes, params, false);
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    return run<MipImage>(volumes, camera, params, 1, stats, [&](ShadedStats& s, float* pixels) {
+    return run<MipImage>(volumes, camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
         if (params.method == ShadedMethod::Raycast)
-            raycast_mip(volumes, camera, params, control, pixels);
+            raycast_mip(volumes, camera, params, control, image.pixels.data());
         else
-            render_sheets(volumes, camera, nullptr, params, control, s, pixels);
+            render_sheets(volumes, camera, nullptr, params, control, s, image.pixels.data(), nullptr);
     });
 }
 

@@ -115,7 +115,8 @@ struct SheetWalker::GridState {
 SheetWalker::SheetWalker() = default;
 SheetWalker::~SheetWalker() = default;
 
-void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image, WalkStats& stats, RenderControl& control) {
+void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image, float* depth, WalkStats& stats,
+                         RenderControl& control) {
     const TileSet& tiles = *setup.tiles;
     const std::vector<TileBlock>& blocks = tiles.blocks(tile);
     if (blocks.empty()) return;
@@ -178,6 +179,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     row_pitch_ = (size_t(tw) + 7) / 8 * 8;
     // Eight more: a run of eight pixels may start anywhere in the last row.
     for (auto* plane : {&red_, &green_, &blue_, &alpha_}) plane->assign(row_pitch_ * th + 8, 0.0f);
+    depth_.assign(row_pitch_ * th + 8, INFINITY);
     if (mip) maximum_.assign(row_pitch_ * th + 8, -INFINITY);
     size_t opaque = 0, opaque_at_rebuild = 0;
     const size_t rebuild_step = std::max<size_t>(1, tile_pixels / 16);
@@ -305,6 +307,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             } else {
                 float* out = image + 4 * (row + x);
                 out[0] = red_[p], out[1] = green_[p], out[2] = blue_[p], out[3] = alpha_[p];
+                if (depth) depth[row + x] = depth_[p];
             }
         }
     }
@@ -452,6 +455,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
             const float8 new_alpha = alpha + weight * sigma_sum;
             store8(alpha_.data() + p, new_alpha);
+            const int8x half_way = (alpha < 0.5f) & (new_alpha >= 0.5f);
+            if (any8(half_way)) store8(depth_.data() + p, select8(half_way, broadcast8(float(depth)), load8(depth_.data() + p)));
             newly_opaque += __builtin_popcount(lane_mask(lanes.inside & (new_alpha >= cutoff) & (alpha < cutoff)));
         }
     }

@@ -76,7 +76,8 @@ public:
     ~SheetWalker();
     /// Renders tile `tile` into `image`: RGBA (4 floats per pixel) for shaded renders, one float per
     /// pixel for MIP; row-major over the whole image.
-    void render(const SheetWalkSetup& setup, size_t tile, float* image, WalkStats& stats, RenderControl& control);
+    /// `depth` (optional, one float per pixel): where the opacity first reached one half.
+    void render(const SheetWalkSetup& setup, size_t tile, float* image, float* depth, WalkStats& stats, RenderControl& control);
 
 private:
     struct GridState;
@@ -89,7 +90,7 @@ private:
     // The tile's accumulated colour and opacity (premultiplied), or its maximum density, one plane
     // per channel, rows padded to whole vectors of eight pixels.
     size_t row_pitch_ = 0;
-    std::vector<float> red_, green_, blue_, alpha_;
+    std::vector<float> red_, green_, blue_, alpha_, depth_;
     std::vector<float> maximum_;
     std::vector<float> scratch_;
 };

@@ -175,3 +175,23 @@ def test_cancel_stops_a_render_quickly(slow, mode):
             pn.render_shaded(grid, cam, bone_tf(), method="raycast", lights=[SUN], threads=1, cancel=cancel)
     # Polled every ~20 ms; the render must stop long before it would have finished.
     assert time.perf_counter() - start < 0.5 * full + 0.1
+
+
+@pytest.mark.parametrize("method", ["regular", "pcvr", "raycast"])
+@pytest.mark.parametrize("projection", ["ortho", "persp"])
+def test_depth_is_where_opacity_reaches_one_half(method, projection):
+    """An opaque slab whose front face lies at a known depth: the depth pass finds that face within a
+    voxel (the kernel softens the face over about a voxel, and samples are a sheet apart)."""
+    values = np.zeros((16, 16, 16), np.float32)
+    values[2:14, 2:14, 3:9] = 1.0  # k (world z) 3..8: the face nearest a camera looking down -z is z = 8
+    grid = pn.Grid.from_dense(values, np.eye(4))
+    cam = camera(grid, projection, 3.0, direction=(0.0, 0.0, -1.0))
+    tf = pn.TransferFunction(density=[0.0, 1.0], rgba=[[1, 1, 1, 0], [1, 1, 1, 1]])
+    kw = dict(sheet_spacing=0.1) if method == "raycast" else {}
+    image, depth = pn.render_shaded(grid, cam, tf, method=method, return_depth=True, **kw)
+    assert depth.shape == image.shape[:2] and depth.dtype == np.float32
+    face = -(np.asarray(cam.world_to_camera) @ np.array([8.0, 8.0, 8.0, 1.0]))[2]  # depth of the face's centre
+    centre = depth[depth.shape[0] // 2, depth.shape[1] // 2]
+    assert abs(centre - face) <= 1.0
+    assert np.isinf(depth[0, 0]) and image[0, 0, 3] == 0
+    assert np.isfinite(depth[image[..., 3] >= 0.5]).all()

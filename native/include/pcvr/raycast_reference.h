@@ -22,9 +22,10 @@
 
 namespace pcvr {
 
-/// Premultiplied RGBA, 4 floats per pixel, into `rgba` (ceil(h / step) x ceil(w / step) pixels).
+/// Premultiplied RGBA, 4 floats per pixel, into `rgba` (ceil(h / step) x ceil(w / step) pixels); and,
+/// when `depth` is given, the depth of the sample at which opacity first reached one half.
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
-                    const ShadedParams& params, RenderControl& control, float* rgba);
+                    const ShadedParams& params, RenderControl& control, float* rgba, float* depth = nullptr);
 
 /// The largest density along each ray, one float per pixel, into `out`.
 void raycast_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,

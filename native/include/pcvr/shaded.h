@@ -58,6 +58,7 @@ struct ShadedParams {
     int tile_size = 0;            ///< pixels per tile side; 0 = automatic
     int pixel_step = 1;           ///< raycast only: render every step-th pixel in each direction
     bool cull_transparent = true; ///< skip blocks the transfer function makes invisible (exact; off to compare)
+    bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
 };
 
 /// One grid in a shaded render: its transfer function and the factor its values are multiplied by
@@ -92,6 +93,9 @@ struct ShadedStats {
 struct RgbaImage {
     int width = 0, height = 0;
     ZeroedBuffer<float> pixels;  ///< width * height * 4
+    /// With ShadedParams::depth: per pixel, the depth (camera-space units along the view axis) of the
+    /// sample at which the accumulated opacity first reached one half; infinity where it never did.
+    ZeroedBuffer<float> depth;
 };
 
 /// Maximum density along each ray, row 0 on top.
