@@ -136,22 +136,36 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
 
 void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int x0, int y0, int width, int height,
                           float* out, size_t out_pitch, std::vector<float>& scratch) {
+    // Horizontally first, once per node row, into full-width rows; then every pixel row is a weighted
+    // sum of (at most) four of those rows: long loops over the row that vectorise, where the vertical
+    // pass of a node run would be a loop of only L pixels per output row.
     const int L = filter.stride();
-    const int first_node = floor_div(x0, L), last_node = floor_div(x0 + width - 1, L);
-    // Vertical sums for node columns first_node - 1 .. last_node + 2, stored from index 1.
-    const int sum_columns = last_node - first_node + 4;
-    scratch.resize(size_t(sum_columns));
-    const int c_begin = first_node - 1 - nodes.node_x0;
+    const int first_column = floor_div(x0, L), last_column = floor_div(x0 + width - 1, L);
+    const int first_row = floor_div(y0, L) - 1, last_row = floor_div(y0 + height - 1, L) + 2;
+    const size_t row_floats = size_t(width);
+    scratch.resize(row_floats * size_t(last_row - first_row + 1));
+    // Taps that carry no weight at any phase (the bilinear filter's outer two) are left out.
+    const int outer = filter.reach_nodes() == 2 ? 0 : 1;
+    for (int r = first_row; r <= last_row; ++r) {
+        const float* node_row = nodes.values + size_t(r - nodes.node_y0) * nodes.pitch - nodes.node_x0;  // by subgrid column
+        float* h = scratch.data() + size_t(r - first_row) * row_floats - x0;                            // by image column
+        for (int n = first_column; n <= last_column; ++n) {
+            const int p0 = std::max(0, x0 - n * L), p1 = std::min(L, x0 + width - n * L);
+            node_run<false>(filter, node_row + n, p0, p1, h + n * L);
+        }
+    }
     for (int y = y0; y < y0 + height; ++y) {
         const int node = floor_div(y, L), phase = y - node * L;
         const float* wy = filter.weights(phase);
-        const float* r[PostFilter::kTaps];
-        for (int k = 0; k < PostFilter::kTaps; ++k) r[k] = nodes.values + size_t(node - 1 + k - nodes.node_y0) * nodes.pitch + c_begin;
-        for (int c = 0; c < sum_columns; ++c) scratch[c] = wy[0] * r[0][c] + wy[1] * r[1][c] + wy[2] * r[2][c] + wy[3] * r[3][c];
-        float* row = out + size_t(y - y0) * out_pitch - x0;  // indexed by image column
-        for (int n = first_node; n <= last_node; ++n) {
-            const int p0 = std::max(0, x0 - n * L), p1 = std::min(L, x0 + width - n * L);
-            node_run<false>(filter, scratch.data() + (n - first_node + 1), p0, p1, row + n * L);
+        const float* h[PostFilter::kTaps];
+        for (int k = 0; k < PostFilter::kTaps; ++k) h[k] = scratch.data() + size_t(node - 1 + k - first_row) * row_floats;
+        float* row = out + size_t(y - y0) * out_pitch;
+        if (outer) {
+            const float a = wy[1], b = wy[2];
+            for (int x = 0; x < width; ++x) row[x] = a * h[1][x] + b * h[2][x];
+        } else {
+            const float a = wy[0], b = wy[1], c = wy[2], d = wy[3];
+            for (int x = 0; x < width; ++x) row[x] = a * h[0][x] + b * h[1][x] + c * h[2][x] + d * h[3][x];
         }
     }
 }

@@ -36,9 +36,10 @@ using Clock = std::chrono::steady_clock;
 
 /// Kernels sum to one up to a ripple of about 0.5% (gauss1.4): value ranges are widened by twice that.
 constexpr double kRippleMargin = 0.01;
-/// Tiles of this many pixels a side: a few times the footprint of a block at the magnifications
-/// that matter, small enough that a 512 x 512 image has 64 tiles to share among threads.
-constexpr int kTileSize = 64;
+/// Tiles are squares of 64 subgrid nodes (PCVR at magnification 4: 256 pixels), 128 to 256 pixels:
+/// several times a block's footprint, so that few voxels are splatted by more than one tile, and
+/// enough of them that threads share the work (a 1024 x 1024 image has 16 to 64).
+int automatic_tile_size(int smallest_stride) { return std::clamp(64 * smallest_stride, 128, 256); }
 
 void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& params, bool need_transfer_functions) {
     if (!(params.sheet_spacing > 0) || !std::isfinite(params.sheet_spacing))
@@ -152,14 +153,11 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     splat.profile = &profile;
     splat.mode = spread ? SlabMode::BilinearSpread : SlabMode::Footprint;
 
-    const int tile_size = params.tile_size > 0 ? params.tile_size : kTileSize;
-    TileSet tiles(camera.width(), camera.height(), tile_size);
+    // Each grid's blocks in view, and its stride.
     std::vector<PlannedGrid> planned(volumes.size());
-    SheetWalkSetup setup;
+    std::vector<BlockPlan> plans;
+    int smallest_stride = INT32_MAX;
     for (size_t g = 0; g < volumes.size(); ++g) {
-        const ShadedVolume& volume = volumes[g];
-        const Grid& grid = *volume.grid;
-        const std::vector<VoxelBlock>& blocks = grid.blocks();
         BlockPlanParams plan_params;
         plan_params.kernel_radius = kernel.radius();
         plan_params.fixed_stride = regular ? 1 : params.stride;
@@ -167,7 +165,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         plan_params.clip_planes = false;
         // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
         plan_params.margin_nodes = regular ? 1 : 3;
-        const BlockPlan plan = plan_blocks(blocks, projections[g], plan_params);
+        plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
+        const BlockPlan& plan = plans.back();
         PlannedGrid& pg = planned[g];
         if (regular)
             pg.stride = 1;
@@ -176,6 +175,17 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         else if (plan.max_magnification > 0)
             pg.stride = spread ? nearest_stride(plan.min_magnification) : automatic_stride(plan.min_magnification);
         stats.strides.push_back(pg.stride);
+        smallest_stride = std::min(smallest_stride, pg.stride);
+    }
+
+    TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride));
+    SheetWalkSetup setup;
+    for (size_t g = 0; g < volumes.size(); ++g) {
+        const ShadedVolume& volume = volumes[g];
+        const Grid& grid = *volume.grid;
+        const std::vector<VoxelBlock>& blocks = grid.blocks();
+        const BlockPlan& plan = plans[g];
+        PlannedGrid& pg = planned[g];
         splat.stride = pg.stride;
         splat.density_scale = float(volume.density_scale);
         pg.view = std::make_unique<SlabView>(grid, camera, sheets, splat);

@@ -155,8 +155,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         }
         // Wide enough that the windows of voxels that reach the tile fit whole: they take the fast path.
         const int margin = wg.view->window_margin();
+        const Box needed{margin, margin, margin + nx1 - nx0, margin + ny1 - ny0};
         nx0 -= margin, ny0 -= margin, nx1 += margin, ny1 += margin;
-        g.placement = {nx0, ny0};
+        g.placement = {nx0, ny0, needed};
         const double reach = wg.view->depth_reach();
         deepest_reach = std::max(deepest_reach, reach);
         // Sheets alive: from s (the walk's first) or s + 1 to the last one a voxel splatted for sheet s
@@ -182,7 +183,8 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     depth_.assign(row_pitch_ * th + 8, INFINITY);
     if (mip) maximum_.assign(row_pitch_ * th + 8, -INFINITY);
     size_t opaque = 0, opaque_at_rebuild = 0;
-    const size_t rebuild_step = std::max<size_t>(1, tile_pixels / 16);
+    // The occlusion map is rebuilt (its cost: the tile's pixels) each time this many more became opaque.
+    const size_t rebuild_step = std::max<size_t>(256, tile_pixels / 64);
 
     struct Active {
         size_t entry;  // into blocks

@@ -251,7 +251,7 @@ void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, 
 
 /// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
 /// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
-bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, int64_t first_open_sheet,
+bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
                             const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const {
     const float cx = b.cx[l], cy = b.cy[l];
     const bool spread = params_.mode == SlabMode::BilinearSpread;
@@ -274,7 +274,7 @@ bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, int64_t 
         window.y1 = clamp_to_int(std::floor(cy + b.ext_y[l]), -1, ring.rows());
     }
     const Box clipped = window.clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
-    if (clipped.empty()) return false;
+    if (clipped.empty() || window.clipped(needed).empty()) return false;
     if (occlusion && occlusion->covered(clipped.x0, clipped.y0, clipped.x1, clipped.y1)) {
         occluded = true;
         return false;
@@ -420,7 +420,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             bool occluded = false;
-            if (deposit_lane(b, l, ring, first_open_sheet, occlusion, occluded, reached, sheets_reached))
+            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached))
                 ++counts.splatted;
             else if (occluded)
                 ++counts.occluded;

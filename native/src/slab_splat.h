@@ -62,6 +62,7 @@ struct SlabSplatParams {
 /// image pixel (stride * node_x0, stride * node_y0).
 struct RingPlacement {
     int node_x0 = 0, node_y0 = 0;
+    Box needed;  ///< the ring nodes the tile reads (the rest only holds whole windows): voxels missing it are skipped
 };
 
 struct DepositCounts {
@@ -107,8 +108,8 @@ public:
                           int64_t first_open_sheet, const OcclusionMap* occlusion) const;
 
 private:
-    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, int64_t first_open_sheet, const OcclusionMap* occlusion,
-                      bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
+    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
+                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
 
     const Grid* grid_;
     ViewProjection projection_;

@@ -7,9 +7,11 @@
 * Occlusion: once a pixel passes opacity_cutoff it takes no more samples, so the image changes by at
   most (1 - cutoff) times the brightest lit colour (transfer-function colour 1 times ambient 0.1 plus
   diffuse 0.9, plus specular 0.2: 1.2), within 1/255 at 0.999; voxels that reach only such pixels
-  are not splatted, which changes nothing more. Behind a 4-voxel opaque front slab of a 32^3 block, half the deposits are culled
-  (measured 47-50% at cutoffs 0.99-0.999: the tiles' edges look past the slab, and the occlusion map
-  is rebuilt in steps of 1/16 of a tile).
+  are not splatted, which changes nothing more. Behind the 4-voxel opaque front slab of a 32^3 block,
+  87.5% of the voxels are hidden, but those within about 5 voxels of the block's sides also reach
+  pixels beside it, which never turn opaque (the kernel's radius, the post-filter and the gradient
+  stencil): 87.5% of the inner 22^2 columns is 41%, and 40-43% of the deposits are culled (measured
+  at cutoffs 0.99-0.999).
 * Tiles: the tile size changes how work is split, not the image, except for float rounding: the order
   in which a node sums its voxels depends on where its tile's walk starts (densities agree to 1e-5 of
   the peak), and shading amplifies that where the gradient almost vanishes and the normal is barely
@@ -67,7 +69,7 @@ def test_occlusion_culls_what_an_opaque_front_hides(cutoff):
     a = pn.render_shaded(grid, cam, FRONT_SLAB_TF, lights=[SUN], opacity_cutoff=cutoff, stats=culled)
     b = pn.render_shaded(grid, cam, FRONT_SLAB_TF, lights=[SUN], opacity_cutoff=1.0, stats=full)
     assert full["voxels_occluded"] == 0
-    assert culled["voxels_occluded"] >= 0.4 * (culled["voxels"] + culled["voxels_occluded"])
+    assert culled["voxels_occluded"] >= 0.35 * (culled["voxels"] + culled["voxels_occluded"])
     brightest = 0.1 + 0.9 + 0.2
     assert np.abs(a - b).max() <= (1.0 - cutoff) * brightest + 1e-6
     if cutoff == 0.999:
