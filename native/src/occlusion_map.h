@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sheet_buffer.h"
 #include "tile_set.h"
 
 namespace pcvr {
@@ -52,6 +53,7 @@ public:
     bool covered(int c0, int r0, int c1, int r1) const {
         return active_ && c0 <= c1 && r0 <= r1 && sum(open_nodes_, columns_ + 1, c0, r0, c1, r1) == 0;
     }
+    bool covered(const Box& nodes) const { return covered(nodes.x0, nodes.y0, nodes.x1, nodes.y1); }
 
 private:
     static int32_t sum(const std::vector<int32_t>& table, int pitch, int x0, int y0, int x1, int y1) {

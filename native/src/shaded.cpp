@@ -223,8 +223,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_transparent;
                     continue;
                 }
-                tiles.add(uint32_t(g), pb.index, nearest - reach, pb.min_x - pixel_reach, pb.min_y - pixel_reach,
-                          pb.max_x + pixel_reach, pb.max_y + pixel_reach);
+                tiles.add(uint32_t(g), pb.index, nearest - reach, pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach);
                 ++stats.blocks_listed;
             }
         control.throw_if_cancelled();

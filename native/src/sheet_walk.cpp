@@ -72,6 +72,13 @@ struct SheetWalker::GridState {
     Box boxes[3];                               // the pixels (slot coordinates) that may be non-zero
 
     size_t pitch() const { return size_t(width); }
+    /// The ring nodes a listed block's footprints can reach (a node of rounding on each side).
+    Box ring_box(const TileBlock& b) const {
+        auto node = [this](float pixel) { return std::clamp(double(pixel) / stride, -1e6, 1e6); };
+        return Box{int(std::floor(node(b.min_x))) - placement.node_x0 - 1, int(std::floor(node(b.min_y))) - placement.node_y0 - 1,
+                   int(std::ceil(node(b.max_x))) - placement.node_x0 + 1, int(std::ceil(node(b.max_y))) - placement.node_y0 + 1}
+            .clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
+    }
     static int slot(int64_t s) { return int(((s % 3) + 3) % 3); }
     const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
     const Box& box(int64_t s) const { return boxes[slot(s)]; }
@@ -215,12 +222,18 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             GridState& g = *grids_[tb.grid];
             const SlabView& view = *wg.view;
             const VoxelBlock& block = view.grid().blocks()[tb.block];
+            const bool occlusion = occlusion_culling && g.occlusion.active();
+            if (occlusion && g.occlusion.covered(g.ring_box(tb))) {
+                // Whatever is left of the block lands on opaque pixels only.
+                stats.voxels_occluded += view.voxels_left(block, active[a].next_rank);
+                continue;
+            }
             const float limit = float(splat_front + view.depth_reach() - view.origin_depth(block));
             const std::vector<float>& depth = view.depth_order().depth;
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
             const DepositCounts n = view.deposit(block, active[a].next_rank, last, g.ring, g.placement, open_sheet,
-                                                 occlusion_culling && g.occlusion.active() ? &g.occlusion : nullptr);
+                                                 occlusion ? &g.occlusion : nullptr);
             stats.voxels_splatted += n.splatted;
             stats.voxels_occluded += n.occluded;
             active[a].next_rank = last;

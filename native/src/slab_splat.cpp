@@ -139,6 +139,13 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     }
 }
 
+uint64_t SlabView::voxels_left(const VoxelBlock& block, int first) const {
+    if (all_active(block)) return uint64_t(VoxelBlock::kSize - first);
+    uint64_t n = 0;
+    for (int rank = first; rank < VoxelBlock::kSize; ++rank) n += block.active(order_.offset[rank]);
+    return n;
+}
+
 double SlabView::origin_depth(const VoxelBlock& block) const {
     return projection_.depth(Vec3{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])});
 }

@@ -95,6 +95,8 @@ public:
     };
     const DepthOrder& depth_order() const { return order_; }
     double origin_depth(const VoxelBlock& block) const;
+    /// Active voxels of the block from rank `first` on (what skipping the rest of it leaves out).
+    uint64_t voxels_left(const VoxelBlock& block, int first) const;
     /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
     /// this much wider than the nodes a tile reads hold whole windows, which take the fast path.
     int window_margin() const { return window_ ? window_->window() - 1 : 0; }

@@ -17,13 +17,16 @@ PixelRect TileSet::rect(size_t tile) const {
     return {tx * tile_size_, ty * tile_size_, std::min(width_, (tx + 1) * tile_size_), std::min(height_, (ty + 1) * tile_size_)};
 }
 
-void TileSet::add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y) {
+void TileSet::add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y,
+                  double reach) {
+    const TileBlock entry{grid, block, front, float(min_x), float(min_y), float(max_x), float(max_y)};
+    min_x -= reach, min_y -= reach, max_x += reach, max_y += reach;
     // Pixel centres sit at integer coordinates: the bounds touch pixels ceil(min) .. floor(max).
     auto tile_of = [&](double p, int count) { return int(std::clamp(std::floor(p / tile_size_), -1.0, double(count))); };
     const int tx0 = std::max(0, tile_of(std::ceil(min_x), columns_)), tx1 = std::min(columns_ - 1, tile_of(std::floor(max_x), columns_));
     const int ty0 = std::max(0, tile_of(std::ceil(min_y), rows_)), ty1 = std::min(rows_ - 1, tile_of(std::floor(max_y), rows_));
     for (int ty = ty0; ty <= ty1; ++ty)
-        for (int tx = tx0; tx <= tx1; ++tx) lists_[size_t(ty) * columns_ + tx].push_back({grid, block, front});
+        for (int tx = tx0; tx <= tx1; ++tx) lists_[size_t(ty) * columns_ + tx].push_back(entry);
 }
 
 void TileSet::sort() {
