@@ -59,8 +59,15 @@ $(PORTABLE)/.stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 	$(PY) -m zipfile -e $(PORTABLE)/pcvr_native-*.whl $(PORTABLE)
 	touch $@
 
+# The core's C++ unit tests (no OpenVDB, no Python: seconds to build).
+UNIT_TESTS := build/native-tests/pcvr_unit_tests
+$(UNIT_TESTS): $(NATIVE_SOURCES) $(wildcard native/tests/*) | system
+	cmake -S native/tests -B build/native-tests -G Ninja -DCMAKE_BUILD_TYPE=Release > /dev/null
+	cmake --build build/native-tests
+
 # The add-on tests install the packaged extension, so the zip is built first.
-test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp
+test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp $(UNIT_TESTS)
+	$(UNIT_TESTS) | tail -1
 	$(PY) -m pytest
 	@echo "Native tests again, on the build without AVX2:"
 	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native

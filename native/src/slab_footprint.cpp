@@ -56,10 +56,12 @@ DepthProfile::DepthProfile(const Kernel& kernel) : radius_(float(kernel.radius()
             const double a = kernel.shape() == KernelShape::Gauss14 ? 1.4 : 2.0;
             const double k = std::sqrt(a) * kernel.radius();
             const auto c = fit_odd([k](double t) { return 0.5 * std::erf(k * t) / std::erf(k); });
-            // D(R) = 1 exactly, so that a voxel's slabs add up to its whole footprint.
+            // D(R) = 1 exactly, so that a voxel's slabs add up to its whole footprint: scaled so that the
+            // polynomial reaches its end value a hair early (2^-20, far below the fit's error) and the
+            // clamp makes the ends exact whatever float rounding does.
             double at_radius = 0;
             for (double ci : c) at_radius += ci;
-            for (int i = 0; i < kCoefficients; ++i) odd_[i] = float(c[i] * 0.5 / at_radius);
+            for (int i = 0; i < kCoefficients; ++i) odd_[i] = float(c[i] * 0.5 / at_radius * (1.0 + std::ldexp(1.0, -20)));
             break;
         }
         case KernelShape::Linear:

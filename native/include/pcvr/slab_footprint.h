@@ -22,7 +22,7 @@
 ///
 /// | kernel     | D(s), t = clamp(s / R, -1, 1)                                  |
 /// |------------|----------------------------------------------------------------|
-/// | "gauss*"   | (1 + erf(sqrt(a) R t) / erf(sqrt(a) R)) / 2, a polynomial in t (max error 1e-6, 7e-6 for gauss2.0) |
+/// | "gauss*"   | (1 + erf(sqrt(a) R t) / erf(sqrt(a) R)) / 2, an odd polynomial of degree 17 in t (max error 1e-6, 7e-6 for gauss2.0) |
 /// | "linear"   | 1/2 + t - t abs(t) / 2                                          |
 /// | "box"      | (1 + t) / 2                                                     |
 #pragma once
@@ -41,13 +41,17 @@ public:
 
     float radius() const { return radius_; }
     /// D(s) for s in index units along the ray (T: float, or a vector of floats with the operations used).
+    /// `clamp` limits to [-1, 1]; the result is exactly 0 at and before -R, 1 at and beyond R (so that
+    /// a voxel's slab shares add up to 1 to float rounding), between them within float rounding of the
+    /// fit and never outside [0, 1].
     template <class T, class Clamp, class Abs>
     T operator()(T s, Clamp clamp, Abs abs) const {
         const T t = clamp(s * inv_radius_);
         const T u = t * t;
         T p = T{} + odd_[kCoefficients - 1];
         for (int i = kCoefficients - 2; i >= 0; --i) p = p * u + odd_[i];
-        return 0.5f + t * (p + abs_ * abs(t));
+        // 1/2 + t (...) at t = +-1 is 1/2 +- (1/2 + rounding): the sign of t picks the exact end.
+        return clamp(2.0f * t * (p + abs_ * abs(t))) * 0.5f + 0.5f;
     }
     float operator()(float s) const {
         return (*this)(s, [](float t) { return t < -1.0f ? -1.0f : (t > 1.0f ? 1.0f : t); }, [](float t) { return t < 0 ? -t : t; });
