@@ -244,16 +244,16 @@ void bind_shaded(nb::module_& m) {
 
     m.def("render_shaded", &render_shaded_py, "grids"_a, "camera"_a, "transfer_functions"_a, "lights"_a = nb::tuple(),
           "ambient"_a = nb::make_tuple(0.1, 0.1, 0.1), "shading"_a = Shading{}, "method"_a = "pcvr",
-          "splat_kernel"_a = "gauss1.4", "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0,
+          "splat_kernel"_a = "gauss1.4", "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0,
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
-          "samples_per_sheet"_a = 1, "cull_transparent"_a = true, "return_depth"_a = false,
+          "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false,
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
           "inf where it never did.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
-          "post_filter"_a = "bilinear", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
+          "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
           "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"

@@ -8,10 +8,12 @@ differences, so it cannot match it exactly; the thresholds below are the PSNR ea
 on each scene (premultiplied RGBA, peak 1), less 2 dB for what other builds and platforms may round
 differently. What they say: on smooth data (blobs) all methods are within 50-55 dB of the reference;
 on the CT phantom, whose one-voxel edges make surfaces cross the sheets as terraces, 30-37 dB; pcvr
-with the Catmull-Rom post filter stays within 1.5 dB of regular splatting everywhere (measured: at
-worst 1.1 dB below, and above it in perspective), with the bilinear post filter up to 4.7 dB below
+with the Catmull-Rom post filter stays within 2 dB of regular splatting everywhere (measured: at
+worst 1.6 dB below, and above it in perspective), with the bilinear post filter up to 4.7 dB below
 (bilinear interpolation of the subgrid makes the density piecewise bilinear, and a surface through
-it faceted).
+it faceted). Two samples per sheet (the default) gain 2-4 dB on the blobs; on this 32^3 phantom,
+whose skull is one or two voxels thick, samples between sheets average it down and lose up to
+1.4 dB (on the 128^3 phantom they gain 1.5-3 dB: docs/how-it-works.md).
 """
 
 from __future__ import annotations
@@ -22,16 +24,25 @@ import pcvr_native as pn
 
 from shaded_scenes import SUN, blob_volume, bone_tf, camera, ct_volume, point_light, psnr
 
-# scene -> minimum PSNR (dB): regular, pcvr + bilinear, pcvr + catmull_rom. Measured minus 2 dB.
+# (scene, samples per sheet) -> minimum PSNR (dB): regular, pcvr + bilinear, pcvr + catmull_rom.
+# Measured minus 2 dB.
 THRESHOLDS = {
-    ("blobs", "ortho", "sun"): (48.8, 48.3, 48.9),
-    ("blobs", "ortho", "point"): (52.0, 51.8, 52.7),
-    ("blobs", "persp", "sun"): (49.3, 49.2, 49.4),
-    ("blobs", "persp", "point"): (52.4, 52.4, 52.7),
-    ("ct", "ortho", "sun"): (34.0, 29.3, 32.9),
-    ("ct", "ortho", "point"): (29.6, 27.6, 30.0),
-    ("ct", "persp", "sun"): (34.7, 33.4, 35.0),
-    ("ct", "persp", "point"): (30.3, 30.3, 31.1),
+    (("blobs", "ortho", "sun"), 1): (48.8, 48.3, 48.9),
+    (("blobs", "ortho", "point"), 1): (52.0, 51.8, 52.7),
+    (("blobs", "persp", "sun"), 1): (49.3, 49.2, 49.4),
+    (("blobs", "persp", "point"), 1): (52.4, 52.4, 52.7),
+    (("ct", "ortho", "sun"), 1): (34.0, 29.3, 32.9),
+    (("ct", "ortho", "point"), 1): (29.6, 27.6, 30.0),
+    (("ct", "persp", "sun"), 1): (34.7, 33.4, 35.0),
+    (("ct", "persp", "point"), 1): (30.3, 30.3, 31.1),
+    (("blobs", "ortho", "sun"), 2): (52.4, 51.7, 52.6),
+    (("blobs", "ortho", "point"), 2): (54.6, 53.7, 54.7),
+    (("blobs", "persp", "sun"), 2): (53.3, 53.1, 53.4),
+    (("blobs", "persp", "point"), 2): (55.3, 55.0, 55.4),
+    (("ct", "ortho", "sun"), 2): (33.2, 28.4, 31.6),
+    (("ct", "ortho", "point"), 2): (30.1, 27.0, 29.5),
+    (("ct", "persp", "sun"), 2): (33.8, 32.2, 33.7),
+    (("ct", "persp", "point"), 2): (30.6, 29.9, 31.0),
 }
 VOLUMES = {"blobs": lambda: blob_volume(24), "ct": lambda: ct_volume(32)}
 _cache = {}
@@ -50,16 +61,17 @@ def scene(name, projection, light):
     return _cache[key]
 
 
-@pytest.mark.parametrize("key", list(THRESHOLDS), ids=["-".join(k) for k in THRESHOLDS])
-def test_splatting_methods_against_the_ray_caster(key):
+@pytest.mark.parametrize("key, samples", list(THRESHOLDS), ids=["-".join(k) + f"-{n}" for k, n in THRESHOLDS])
+def test_splatting_methods_against_the_ray_caster(key, samples):
     grid, cam, lights, reference = scene(*key)
     measured = []
     for method, post in (("regular", "bilinear"), ("pcvr", "bilinear"), ("pcvr", "catmull_rom")):
-        image = pn.render_shaded(grid, cam, bone_tf(), lights=lights, method=method, post_filter=post, opacity_cutoff=1.0)
+        image = pn.render_shaded(grid, cam, bone_tf(), lights=lights, method=method, post_filter=post, opacity_cutoff=1.0,
+                                 samples_per_sheet=samples)
         measured.append(psnr(image, reference))
-    assert all(m >= t for m, t in zip(measured, THRESHOLDS[key])), (measured, THRESHOLDS[key])
+    assert all(m >= t for m, t in zip(measured, THRESHOLDS[key, samples])), (measured, THRESHOLDS[key, samples])
     regular, _, catmull_rom = measured
-    assert catmull_rom >= regular - 1.5
+    assert catmull_rom >= regular - 2.0
 
 
 def test_moving_the_sun_changes_the_image():
