@@ -135,7 +135,7 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
 }
 
 void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int x0, int y0, int width, int height,
-                          float* out, size_t out_pitch, std::vector<float>& scratch) {
+                          float* out, size_t out_pitch, std::vector<float>& scratch, bool add) {
     // Horizontally first, once per node row, into full-width rows; then every pixel row is a weighted
     // sum of (at most) four of those rows: long loops over the row that vectorise, where the vertical
     // pass of a node run would be a loop of only L pixels per output row.
@@ -160,12 +160,18 @@ void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int 
         const float* h[PostFilter::kTaps];
         for (int k = 0; k < PostFilter::kTaps; ++k) h[k] = scratch.data() + size_t(node - 1 + k - first_row) * row_floats;
         float* row = out + size_t(y - y0) * out_pitch;
+        auto combine = [&](auto value) {  // stored or added: each a plain loop that vectorises
+            if (add)
+                for (int x = 0; x < width; ++x) row[x] += value(x);
+            else
+                for (int x = 0; x < width; ++x) row[x] = value(x);
+        };
         if (outer) {
             const float a = wy[1], b = wy[2];
-            for (int x = 0; x < width; ++x) row[x] = a * h[1][x] + b * h[2][x];
+            combine([&](int x) { return a * h[1][x] + b * h[2][x]; });
         } else {
             const float a = wy[0], b = wy[1], c = wy[2], d = wy[3];
-            for (int x = 0; x < width; ++x) row[x] = a * h[0][x] + b * h[1][x] + c * h[2][x] + d * h[3][x];
+            combine([&](int x) { return a * h[0][x] + b * h[1][x] + c * h[2][x] + d * h[3][x]; });
         }
     }
 }

@@ -112,13 +112,6 @@ bool transparent(const BlockValueRange& r, double density_scale, const CullingRe
     return table.transparent(lo - margin, hi + margin);
 }
 
-/// Everything of one grid that the tiles share.
-struct PlannedGrid {
-    std::unique_ptr<SlabView> view;
-    std::unique_ptr<ClassificationTable> classification;
-    int stride = 1;
-};
-
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
 void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
                    const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
@@ -153,8 +146,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     splat.profile = &profile;
     splat.mode = spread ? SlabMode::BilinearSpread : SlabMode::Footprint;
 
-    // Each grid's blocks in view, and its stride.
-    std::vector<PlannedGrid> planned(volumes.size());
+    // Each grid's blocks in view, with the stride of each: per block from its least magnified corner
+    // (perspective views make depth bands), or the one asked for.
     std::vector<BlockPlan> plans;
     int smallest_stride = INT32_MAX;
     for (size_t g = 0; g < volumes.size(); ++g) {
@@ -166,66 +159,69 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
         plan_params.margin_nodes = regular ? 1 : 3;
         plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
-        const BlockPlan& plan = plans.back();
-        PlannedGrid& pg = planned[g];
-        if (regular)
-            pg.stride = 1;
-        else if (params.stride > 0)
-            pg.stride = params.stride;
-        else if (plan.max_magnification > 0)
-            pg.stride = spread ? nearest_stride(plan.min_magnification) : automatic_stride(plan.min_magnification);
-        stats.strides.push_back(pg.stride);
-        smallest_stride = std::min(smallest_stride, pg.stride);
+        for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, stride);
     }
+    if (smallest_stride == INT32_MAX) smallest_stride = 1;
 
     TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride));
     SheetWalkSetup setup;
+    std::vector<std::unique_ptr<SlabView>> views;
+    std::vector<std::unique_ptr<ClassificationTable>> classifications;
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
         const Grid& grid = *volume.grid;
         const std::vector<VoxelBlock>& blocks = grid.blocks();
         const BlockPlan& plan = plans[g];
-        PlannedGrid& pg = planned[g];
-        splat.stride = pg.stride;
-        splat.density_scale = float(volume.density_scale);
-        pg.view = std::make_unique<SlabView>(grid, camera, sheets, splat);
+        const ClassificationTable* classification = nullptr;
         if (!mip) {
             const TransferFunction& tf = *volume.transfer_function;
-            pg.classification = std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid));
+            classifications.push_back(
+                std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid)));
+            classification = classifications.back().get();
         }
-        PostFilter filter(post_shape, pg.stride);
-        setup.grids.push_back({pg.view.get(), pg.classification.get(), filter, !regular});
-
-        // Blocks in depth and under the transfer function; each listed in the tiles it reaches.
-        const CullingReach culling = culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid));
-        const std::vector<BlockValueRange>* ranges =
-            mip || !params.cull_transparent || culling.rings == 0 ? nullptr : &grid.block_value_ranges();
-        const SlabView& view = *pg.view;
-        const double reach = view.depth_reach();
-        const Vec3& n = view.projection().depth_gradient();
-        const double span = VoxelBlock::kDim - 1;
-        const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
-        const double pixel_reach = (regular ? 1.0 : 3.0) * pg.stride;
+        const int finest = plan.by_stride.empty() ? 1 : plan.by_stride.begin()->first;
+        setup.grids.push_back({classification, finest});
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
-        for (const auto& [stride, list] : plan.by_stride)
+        const std::vector<BlockValueRange>* ranges = mip || !params.cull_transparent ? nullptr : &grid.block_value_ranges();
+
+        // One layer per stride; its blocks in depth and under the transfer function, each listed in the
+        // tiles it reaches.
+        for (const auto& [stride, list] : plan.by_stride) {
+            splat.stride = stride;
+            splat.density_scale = float(volume.density_scale);
+            views.push_back(std::make_unique<SlabView>(grid, camera, sheets, splat));
+            const SlabView& view = *views.back();
+            const PostFilter filter(post_shape, stride);
+            const uint32_t layer = uint32_t(setup.layers.size());
+            setup.layers.push_back({&view, uint32_t(g), filter, !regular});
+            if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
+
+            const CullingReach culling = culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid));
+            const double reach = view.depth_reach();
+            const Vec3& n = view.projection().depth_gradient();
+            const double span = VoxelBlock::kDim - 1;
+            const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
+            // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
+            // rounding, the post filter's reach and the gradient's stencil.
+            const double pixel_reach = regular ? 2.0 : double((filter.reach_nodes() + 1) * stride + finest);
             for (const PlannedBlock& pb : list) {
                 const VoxelBlock& block = blocks[pb.index];
                 // Depth is affine: its extremes over the block are at the origin plus the negative
                 // (or positive) parts of the gradient.
-                const double origin = view.origin_depth(block);
-                const double nearest = origin + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+                const double nearest = view.origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
                 if (nearest + depth_extent + reach < near_depth || nearest - reach > far_depth) {
                     ++stats.blocks_outside;
                     continue;
                 }
-                if (ranges && transparent((*ranges)[pb.index], volume.density_scale, culling, *pg.classification)) {
+                if (ranges && culling.rings > 0 && transparent((*ranges)[pb.index], volume.density_scale, culling, *classification)) {
                     ++stats.blocks_transparent;
                     continue;
                 }
-                tiles.add(uint32_t(g), pb.index, nearest - reach, pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach);
+                tiles.add(layer, pb.index, nearest - reach, pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach);
                 ++stats.blocks_listed;
             }
+        }
         control.throw_if_cancelled();
     }
     tiles.sort();

@@ -15,16 +15,6 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
 
-/// Pixels beyond a tile whose post-convolved values the tile reads: one subgrid node on each side.
-int gradient_halo(const WalkGrid& g) { return g.view->stride(); }
-
-/// How far (pixels) a ring node's value spreads on the tile's pixels, gradients included.
-int node_reach(const WalkGrid& g) {
-    const int L = g.view->stride();
-    if (!g.post_convolve) return 1;
-    return (g.filter.reach_nodes() == 2 ? 2 * L - 1 : L - 1) + L;
-}
-
 }  // namespace
 
 SheetGeometry::SheetGeometry(const Camera& camera) {
@@ -59,19 +49,15 @@ void WalkStats::add(const WalkStats& o) {
     last_sheet = std::max(last_sheet, o.last_sheet);
 }
 
-/// One grid's part of a tile: its ring, its post-convolved sheets s - 1, s, s + 1 and its occlusion map.
-struct SheetWalker::GridState {
+/// One layer's part of a tile: its ring of node sheets and its occlusion map.
+struct SheetWalker::LayerState {
     bool used = false;
     SheetRing ring;
     RingPlacement placement;
     OcclusionMap occlusion;
-    int stride = 1, halo = 1, reach = 0;        // reach: pixels a node's value spreads to
+    int stride = 1, reach = 0;  // reach: pixels a node's value spreads to
     bool post_convolve = true;
-    int x0 = 0, y0 = 0, width = 0, height = 0;  // post-convolved region: the tile and its halo
-    std::vector<float> slots[3];                // post-convolved sheet s in slot s mod 3, zero outside its box
-    Box boxes[3];                               // the pixels (slot coordinates) that may be non-zero
 
-    size_t pitch() const { return size_t(width); }
     /// The ring nodes a listed block's footprints can reach (a node of rounding on each side).
     Box ring_box(const TileBlock& b) const {
         auto node = [this](float pixel) { return std::clamp(double(pixel) / stride, -1e6, 1e6); };
@@ -79,6 +65,17 @@ struct SheetWalker::GridState {
                    int(std::ceil(node(b.max_x))) - placement.node_x0 + 1, int(std::ceil(node(b.max_y))) - placement.node_y0 + 1}
             .clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
     }
+};
+
+/// One grid's part of a tile: its post-convolved sheets s - 1, s, s + 1 (its layers add up in them).
+struct SheetWalker::GridState {
+    bool used = false;
+    int halo = 1;                               // the in-sheet gradient's step (pixels beyond the tile)
+    int x0 = 0, y0 = 0, width = 0, height = 0;  // post-convolved region: the tile and its halo
+    std::vector<float> slots[3];                // post-convolved sheet s in slot s mod 3, zero outside its box
+    Box boxes[3];                               // the pixels (slot coordinates) that may be non-zero
+
+    size_t pitch() const { return size_t(width); }
     static int slot(int64_t s) { return int(((s % 3) + 3) % 3); }
     const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
     const Box& box(int64_t s) const { return boxes[slot(s)]; }
@@ -91,31 +88,32 @@ struct SheetWalker::GridState {
         boxes[k] = Box{};
     }
 
-    /// Post-convolves ring sheet t into its slot (only where splats reached) and releases it.
-    void post_convolve_sheet(int64_t t, const PostFilter& filter, std::vector<float>& scratch) {
-        const int k = slot(t);
-        clear_slot(k);
-        const Box nodes = ring.touched(t);
+    /// Adds layer sheet t, post-convolved where splats reached it, into slot t mod 3, and releases it.
+    void add_layer_sheet(int64_t t, LayerState& layer, const PostFilter& filter, std::vector<float>& scratch) {
+        const Box nodes = layer.ring.touched(t);
         if (nodes.empty()) return;
+        const int L = layer.stride;
+        const RingPlacement& at = layer.placement;
         // The pixels those nodes reach, in slot coordinates.
-        const Box pixels = Box{stride * (placement.node_x0 + nodes.x0) - x0, stride * (placement.node_y0 + nodes.y0) - y0,
-                               stride * (placement.node_x0 + nodes.x1) - x0, stride * (placement.node_y0 + nodes.y1) - y0}
-                               .grown(reach)
+        const Box pixels = Box{L * (at.node_x0 + nodes.x0) - x0, L * (at.node_y0 + nodes.y0) - y0, L * (at.node_x0 + nodes.x1) - x0,
+                               L * (at.node_y0 + nodes.y1) - y0}
+                               .grown(layer.reach)
                                .clipped({0, 0, width - 1, height - 1});
         if (!pixels.empty()) {
+            const int k = slot(t);
             float* out = slots[k].data() + size_t(pixels.y0) * pitch() + pixels.x0;
             const int w = pixels.x1 - pixels.x0 + 1, h = pixels.y1 - pixels.y0 + 1;
-            if (post_convolve) {
-                const NodeSheet sheet{ring.sheet(t), ring.pitch(), placement.node_x0, placement.node_y0};
-                post_convolve_region(sheet, filter, x0 + pixels.x0, y0 + pixels.y0, w, h, out, pitch(), scratch);
+            if (layer.post_convolve) {
+                const NodeSheet sheet{layer.ring.sheet(t), layer.ring.pitch(), at.node_x0, at.node_y0};
+                post_convolve_region(sheet, filter, x0 + pixels.x0, y0 + pixels.y0, w, h, out, pitch(), scratch, true);
             } else {  // stride 1: the nodes are the pixels
-                const float* nodes = ring.sheet(t) + size_t(y0 + pixels.y0 - placement.node_y0) * ring.pitch() +
-                                     (x0 + pixels.x0 - placement.node_x0);
-                for (int r = 0; r < h; ++r) std::memcpy(out + size_t(r) * pitch(), nodes + size_t(r) * ring.pitch(), sizeof(float) * w);
+                const float* in = layer.ring.sheet(t) + size_t(y0 + pixels.y0 - at.node_y0) * layer.ring.pitch() + (x0 + pixels.x0 - at.node_x0);
+                for (int r = 0; r < h; ++r)
+                    for (int c = 0; c < w; ++c) out[size_t(r) * pitch() + c] += in[size_t(r) * layer.ring.pitch() + c];
             }
-            boxes[k] = pixels;
+            boxes[k].include(pixels);
         }
-        ring.release(t);
+        layer.ring.release(t);
     }
 };
 
@@ -134,53 +132,60 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     const float cutoff = setup.opacity_cutoff;
     const bool occlusion_culling = !mip && cutoff < 1.0f;
 
-    // Each grid listed in the tile gets a ring over the nodes its post-convolution reads.
+    // Each grid listed in the tile gets pixel sheets over the tile and its gradient halo, and each of
+    // its layers a ring over the nodes their post-convolution reads.
     if (grids_.size() < setup.grids.size()) grids_.resize(setup.grids.size());
-    double deepest_reach = 0;
-    int ring_depth = 0;
+    if (layers_.size() < setup.layers.size()) layers_.resize(setup.layers.size());
     for (auto& g : grids_)
         if (g) g->used = false;
+    for (auto& l : layers_)
+        if (l) l->used = false;
+    int ring_depth = 0;
     for (const TileBlock& b : blocks) {
-        auto& state = grids_[b.grid];
-        if (!state) state = std::make_unique<GridState>();
-        if (state->used) continue;
-        const WalkGrid& wg = setup.grids[b.grid];
-        GridState& g = *state;
-        g.used = true;
-        const int L = wg.view->stride();
-        g.halo = gradient_halo(wg);
-        g.x0 = rect.x0 - g.halo;
-        g.y0 = rect.y0 - g.halo;
-        g.width = tw + 2 * g.halo;
-        g.height = th + 2 * g.halo;
+        auto& layer_state = layers_[b.layer];
+        if (!layer_state) layer_state = std::make_unique<LayerState>();
+        if (layer_state->used) continue;
+        const WalkLayer& wl = setup.layers[b.layer];
+        auto& grid_state = grids_[wl.grid];
+        if (!grid_state) grid_state = std::make_unique<GridState>();
+        GridState& g = *grid_state;
+        if (!g.used) {
+            g.used = true;
+            g.halo = setup.grids[wl.grid].gradient_step;
+            g.x0 = rect.x0 - g.halo;
+            g.y0 = rect.y0 - g.halo;
+            g.width = tw + 2 * g.halo;
+            g.height = th + 2 * g.halo;
+            // Zero, padded: the tile's last vector of eight pixels may read past its row.
+            for (int k = 0; k < 3; ++k) {
+                g.slots[k].assign(size_t(g.width) * g.height + 8, 0.0f);
+                g.boxes[k] = Box{};
+            }
+        }
+        LayerState& l = *layer_state;
+        l.used = true;
+        const int L = wl.view->stride();
         int nx0, ny0, nx1, ny1;
-        if (wg.post_convolve) {
+        if (wl.post_convolve) {
             nx0 = floor_div(g.x0, L) - 1, nx1 = floor_div(g.x0 + g.width - 1, L) + 2;
             ny0 = floor_div(g.y0, L) - 1, ny1 = floor_div(g.y0 + g.height - 1, L) + 2;
         } else {
             nx0 = g.x0, nx1 = g.x0 + g.width - 1, ny0 = g.y0, ny1 = g.y0 + g.height - 1;
         }
         // Wide enough that the windows of voxels that reach the tile fit whole: they take the fast path.
-        const int margin = wg.view->window_margin();
+        const int margin = wl.view->window_margin();
         const Box needed{margin, margin, margin + nx1 - nx0, margin + ny1 - ny0};
         nx0 -= margin, ny0 -= margin, nx1 += margin, ny1 += margin;
-        g.placement = {nx0, ny0, needed};
-        const double reach = wg.view->depth_reach();
-        deepest_reach = std::max(deepest_reach, reach);
+        l.placement = {nx0, ny0, needed};
         // Sheets alive: from s (the walk's first) or s + 1 to the last one a voxel splatted for sheet s
         // reaches, s + 2 + 2 reach / spacing; two more for rounding.
-        const int depth = int(std::ceil(2.0 * reach / sheets.spacing)) + 6;
+        const int depth = int(std::ceil(2.0 * wl.view->depth_reach() / sheets.spacing)) + 6;
         ring_depth = std::max(ring_depth, depth);
-        g.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
-        g.stride = L;
-        g.post_convolve = wg.post_convolve;
-        g.reach = wg.post_convolve ? L * wg.filter.reach_nodes() - 1 : 0;
-        // Zero, padded: the tile's last vector of eight pixels may read past its row.
-        for (int k = 0; k < 3; ++k) {
-            g.slots[k].assign(size_t(g.width) * g.height + 8, 0.0f);
-            g.boxes[k] = Box{};
-        }
-        g.occlusion.disable();
+        l.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
+        l.stride = L;
+        l.post_convolve = wl.post_convolve;
+        l.reach = wl.post_convolve ? L * wl.filter.reach_nodes() - 1 : 0;
+        l.occlusion.disable();
     }
 
     const size_t tile_pixels = size_t(tw) * th;
@@ -218,12 +223,11 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         size_t kept = 0;
         for (size_t a = 0; a < active.size(); ++a) {
             const TileBlock& tb = blocks[active[a].entry];
-            const WalkGrid& wg = setup.grids[tb.grid];
-            GridState& g = *grids_[tb.grid];
-            const SlabView& view = *wg.view;
+            LayerState& l = *layers_[tb.layer];
+            const SlabView& view = *setup.layers[tb.layer].view;
             const VoxelBlock& block = view.grid().blocks()[tb.block];
-            const bool occlusion = occlusion_culling && g.occlusion.active();
-            if (occlusion && g.occlusion.covered(g.ring_box(tb))) {
+            const bool occlusion = occlusion_culling && l.occlusion.active();
+            if (occlusion && l.occlusion.covered(l.ring_box(tb))) {
                 // Whatever is left of the block lands on opaque pixels only.
                 stats.voxels_occluded += view.voxels_left(block, active[a].next_rank);
                 continue;
@@ -232,8 +236,8 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             const std::vector<float>& depth = view.depth_order().depth;
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
-            const DepositCounts n = view.deposit(block, active[a].next_rank, last, g.ring, g.placement, open_sheet,
-                                                 occlusion ? &g.occlusion : nullptr);
+            const DepositCounts n = view.deposit(block, active[a].next_rank, last, l.ring, l.placement, open_sheet,
+                                                 occlusion ? &l.occlusion : nullptr);
             stats.voxels_splatted += n.splatted;
             stats.voxels_occluded += n.occluded;
             active[a].next_rank = last;
@@ -243,10 +247,14 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         auto t1 = Clock::now();
         stats.seconds_splat += std::chrono::duration<double>(t1 - t0).count();
 
-        // 2. Post-convolve sheet s + 1 of every grid (after a start or a jump, s too).
-        for (size_t gi = 0; gi < grids_.size(); ++gi) {
-            if (!grids_[gi] || !grids_[gi]->used) continue;
-            for (int64_t t = open_sheet; t <= s + 1; ++t) grids_[gi]->post_convolve_sheet(t, setup.grids[gi].filter, scratch_);
+        // 2. Post-convolve sheet s + 1 of every layer into its grid's pixel sheet (after a start or a
+        // jump, s too).
+        for (int64_t t = open_sheet; t <= s + 1; ++t) {
+            for (auto& g : grids_)
+                if (g && g->used) g->clear_slot(GridState::slot(t));
+            for (size_t li = 0; li < layers_.size(); ++li)
+                if (layers_[li] && layers_[li]->used)
+                    grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
         }
         open_sheet = s + 2;
         auto t2 = Clock::now();
@@ -278,23 +286,24 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         }
         if (occlusion_culling && opaque >= opaque_at_rebuild + rebuild_step) {
             opaque_at_rebuild = opaque;
-            for (size_t gi = 0; gi < grids_.size(); ++gi) {
-                if (!grids_[gi] || !grids_[gi]->used) continue;
-                GridState& g = *grids_[gi];
-                const WalkGrid& wg = setup.grids[gi];
-                const int L = wg.post_convolve ? wg.view->stride() : 1;
-                auto is_opaque = [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; };
-                g.occlusion.rebuild(tw, th, is_opaque, L, rect.x0 - L * g.placement.node_x0, rect.y0 - L * g.placement.node_y0,
-                                    g.ring.columns(), g.ring.rows(), node_reach(wg));
+            auto is_opaque = [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; };
+            for (size_t li = 0; li < layers_.size(); ++li) {
+                if (!layers_[li] || !layers_[li]->used) continue;
+                LayerState& l = *layers_[li];
+                const int L = l.stride;
+                // A node's value spreads through the post filter, then the in-sheet gradient's stencil.
+                const int reach = l.reach + setup.grids[setup.layers[li].grid].gradient_step;
+                l.occlusion.rebuild(tw, th, is_opaque, L, rect.x0 - L * l.placement.node_x0, rect.y0 - L * l.placement.node_y0,
+                                    l.ring.columns(), l.ring.rows(), reach);
             }
         }
 
         // 5. Nothing left in the rings and nothing splatting: jump to the next block's first sheet.
         bool pending = !active.empty();
-        for (const auto& g : grids_) {
-            if (!g || !g->used) continue;
-            pending |= g->has(s + 1);
-            for (int k = 2; k < ring_depth && !pending; ++k) pending |= !g->ring.touched(s + k).empty();
+        for (const auto& g : grids_) pending |= g && g->used && g->has(s + 1);
+        for (const auto& l : layers_) {
+            if (!l || !l->used) continue;
+            for (int k = 2; k < ring_depth && !pending; ++k) pending |= !l->ring.touched(s + k).empty();
         }
         if (!pending) {
             if (next_entry == blocks.size()) break;

@@ -42,16 +42,26 @@ struct SheetGeometry {
     Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
 };
 
-/// One grid as the walk sees it.
+/// One grid as the walk sees it: what classifies its sheets, and the finest subgrid stride of its
+/// layers (the step of its in-sheet gradient).
 struct WalkGrid {
-    const SlabView* view;
     const ClassificationTable* classification;  ///< null for MIP
-    PostFilter filter;                          ///< at the view's stride
-    bool post_convolve;                         ///< false (regular): the ring's nodes are the pixels
+    int gradient_step;
+};
+
+/// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,
+/// magnified more, at a coarser stride (depth bands, as for X-ray); each layer has its own rings, and
+/// its sheets are post-convolved into the grid's pixel sheets, where the layers add up.
+struct WalkLayer {
+    const SlabView* view;
+    uint32_t grid;     ///< into SheetWalkSetup::grids
+    PostFilter filter; ///< at the view's stride
+    bool post_convolve;  ///< false (regular): the ring's nodes are the pixels
 };
 
 struct SheetWalkSetup {
     std::vector<WalkGrid> grids;
+    std::vector<WalkLayer> layers;  ///< TileBlock::grid indexes these
     const TileSet* tiles = nullptr;
     SheetLattice sheets;
     const SheetGeometry* geometry = nullptr;
@@ -81,12 +91,14 @@ public:
 
 private:
     struct GridState;
+    struct LayerState;
     /// Classifies, shades and composites the sample t of the way from sheet s to s + 1 into the tile;
     /// returns how many pixels became opaque.
     size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
 
     std::vector<std::unique_ptr<GridState>> grids_;
+    std::vector<std::unique_ptr<LayerState>> layers_;
     // The tile's accumulated colour and opacity (premultiplied), or its maximum density, one plane
     // per channel, rows padded to whole vectors of eight pixels.
     size_t row_pitch_ = 0;

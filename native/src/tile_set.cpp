@@ -17,9 +17,9 @@ PixelRect TileSet::rect(size_t tile) const {
     return {tx * tile_size_, ty * tile_size_, std::min(width_, (tx + 1) * tile_size_), std::min(height_, (ty + 1) * tile_size_)};
 }
 
-void TileSet::add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y,
+void TileSet::add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y,
                   double reach) {
-    const TileBlock entry{grid, block, front, float(min_x), float(min_y), float(max_x), float(max_y)};
+    const TileBlock entry{layer, block, front, float(min_x), float(min_y), float(max_x), float(max_y)};
     min_x -= reach, min_y -= reach, max_x += reach, max_y += reach;
     // Pixel centres sit at integer coordinates: the bounds touch pixels ceil(min) .. floor(max).
     auto tile_of = [&](double p, int count) { return int(std::clamp(std::floor(p / tile_size_), -1.0, double(count))); };
@@ -33,7 +33,7 @@ void TileSet::sort() {
     tbb::parallel_for(size_t(0), lists_.size(), [&](size_t t) {
         std::sort(lists_[t].begin(), lists_[t].end(), [](const TileBlock& a, const TileBlock& b) {
             if (a.front != b.front) return a.front < b.front;
-            return a.grid != b.grid ? a.grid < b.grid : a.block < b.block;
+            return a.layer != b.layer ? a.layer < b.layer : a.block < b.block;
         });
     });
 }

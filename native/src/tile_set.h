@@ -22,7 +22,7 @@ struct PixelRect {
 };
 
 struct TileBlock {
-    uint32_t grid;   ///< index of the grid in the render
+    uint32_t layer;  ///< the grid and stride it is splatted at (the renderer's list of layers)
     uint32_t block;  ///< index into that grid's blocks()
     double front;    ///< depth where the block's kernels begin: its nearest voxel centre's, less the kernel's reach
     float min_x, min_y, max_x, max_y;  ///< pixels its footprints can reach
@@ -38,8 +38,8 @@ public:
 
     /// Lists a block in every tile that the pixel bounds [min_x, max_x] x [min_y, max_y], widened by
     /// `reach` pixels, overlap.
-    void add(uint32_t grid, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach);
-    /// Orders each tile's blocks nearest first (ties by grid, then block: deterministic).
+    void add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach);
+    /// Orders each tile's blocks nearest first (ties by layer, then block: deterministic).
     void sort();
     const std::vector<TileBlock>& blocks(size_t tile) const { return lists_[tile]; }
 

@@ -17,7 +17,7 @@ TEST(tile_set_lists_a_block_in_every_tile_it_reaches_nearest_first) {
     tiles.add(0, 3, 2.0, 130.0, 130.0, 131.0, 131.0, 0.0); // tile 4 only
     tiles.add(1, 1, 1.0, 129.0, 5.0, 129.5, 6.0, 2.0);     // tile 1, and tile 0 through its reach
     tiles.sort();
-    CHECK(tiles.blocks(0).size() == 2 && tiles.blocks(0)[0].grid == 1 && tiles.blocks(0)[1].block == 7);
+    CHECK(tiles.blocks(0).size() == 2 && tiles.blocks(0)[0].layer == 1 && tiles.blocks(0)[1].block == 7);
     CHECK(tiles.blocks(1).size() == 2 && tiles.blocks(1)[0].front == 1.0);
     CHECK(tiles.blocks(4).size() == 1 && tiles.blocks(2).empty());
     CHECK(tiles.blocks(0)[1].min_x == 120.0f);  // bounds without the reach

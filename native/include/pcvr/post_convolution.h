@@ -70,11 +70,12 @@ struct NodeSheet {
     int node_x0, node_y0;
 };
 
-/// out = filter applied to `nodes`, for the pixels [x0, x0 + width) x [y0, y0 + height) (image
-/// coordinates), rows `out_pitch` floats apart. The nodes must hold every tap: subgrid columns
-/// floor(x0 / L) - 1 .. floor((x0 + width - 1) / L) + 2, and rows likewise. `scratch` is reused.
+/// out = (or, with `add`, +=) filter applied to `nodes`, for the pixels [x0, x0 + width) x
+/// [y0, y0 + height) (image coordinates), rows `out_pitch` floats apart. The nodes must hold every
+/// tap: subgrid columns floor(x0 / L) - 1 .. floor((x0 + width - 1) / L) + 2, and rows likewise.
+/// `scratch` is reused.
 void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int x0, int y0, int width, int height,
-                          float* out, size_t out_pitch, std::vector<float>& scratch);
+                          float* out, size_t out_pitch, std::vector<float>& scratch, bool add = false);
 
 /// image += grid, for a stride-1 grid whose nodes are the pixels ("regular" splatting).
 void add_unfiltered(const SplatGrid& grid, ImageAccumulator& image);
