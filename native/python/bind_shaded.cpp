@@ -28,6 +28,14 @@ Vec3 vec3_from_python(nb::handle obj, const char* what) {
 
 nb::tuple vec3_to_python(const Vec3& v) { return nb::make_tuple(v.x, v.y, v.z); }
 
+/// A sun (vector: its direction of travel) or a point light (vector: its position), checked.
+Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double strength) {
+    const bool sun = kind == Light::Kind::Sun;
+    const Light light{kind, vec3_from_python(vector, sun ? "direction" : "position"), vec3_from_python(color, "color"), strength};
+    Lighting{{light}, {0, 0, 0}, {}}.validate();
+    return light;
+}
+
 TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std::optional<double> unit_distance) {
     nb::module_ np = nb::module_::import_("numpy");
     nb::object d = np.attr("asarray")(density, "dtype"_a = "float64").attr("reshape")(-1);
@@ -199,21 +207,11 @@ void bind_shaded(nb::module_& m) {
 
     nb::class_<Light>(m, "Light", "A light for render_shaded: Light.sun(...) or Light.point(...).")
         .def_static(
-            "sun",
-            [](nb::handle direction, nb::handle color, double strength) {
-                Light l = Light::sun(vec3_from_python(direction, "direction"), vec3_from_python(color, "color"), strength);
-                Lighting{{l}, {0, 0, 0}, {}}.validate();
-                return l;
-            },
+            "sun", [](nb::handle direction, nb::handle color, double strength) { return make_light(Light::Kind::Sun, direction, color, strength); },
             "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
             "Parallel light travelling along `direction` (world space) with irradiance `strength`.")
         .def_static(
-            "point",
-            [](nb::handle position, nb::handle color, double strength) {
-                Light l = Light::point(vec3_from_python(position, "position"), vec3_from_python(color, "color"), strength);
-                Lighting{{l}, {0, 0, 0}, {}}.validate();
-                return l;
-            },
+            "point", [](nb::handle position, nb::handle color, double strength) { return make_light(Light::Kind::Point, position, color, strength); },
             "position"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
             "Point light at `position` (world space): irradiance strength / distance^2.")
         .def_prop_ro("kind", [](const Light& l) { return l.kind == Light::Kind::Sun ? "sun" : "point"; })
