@@ -15,8 +15,9 @@ namespace pcvr {
 namespace {
 
 constexpr int kBatch = 8;
-/// Sheets one kernel may span (its deposit keeps a pointer per sheet on the stack).
-constexpr int kMostSlabs = 64;
+/// Sheets one kernel may span (its deposit keeps a pointer and a share per sheet on the stack): enough
+/// for voxels 30 times longer than wide seen along their short side at the default spacing.
+constexpr int kMostSlabs = 128;
 
 inline void add8(float* p, float8 v) { store8(p, load8(p) + v); }
 
@@ -86,9 +87,13 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     const Vec3& n = projection_.depth_gradient();
     depth_reach_ = params.kernel->radius() * length(n);
     slabs_per_voxel_ = int(std::ceil(2.0 * depth_reach_ / sheets.spacing - 1e-9)) + 1;
-    if (!(slabs_per_voxel_ <= kMostSlabs))
-        throw InvalidArgument("sheet spacing too small: a kernel would span " + std::to_string(slabs_per_voxel_) +
-                              " sheets (at most " + std::to_string(kMostSlabs) + ")");
+    if (!(slabs_per_voxel_ <= kMostSlabs)) {
+        const double factor = 2.0 * depth_reach_ / (kMostSlabs - 1) / sheets.spacing;
+        throw InvalidArgument("sheet spacing too small for grid '" + grid.name() + "': its kernel would span " +
+                              std::to_string(slabs_per_voxel_) + " sheets (at most " + std::to_string(kMostSlabs) +
+                              "; its voxels are long in depth): make sheet_spacing at least " + std::to_string(factor) +
+                              " times larger");
+    }
 
     // Depth order of a block's voxels: depth is affine in index space, so one order serves every block.
     std::vector<int32_t> offsets(VoxelBlock::kSize);
