@@ -177,12 +177,21 @@ inline void add_taps(const SlabBatch& b, int l, const DepthProfile& depth, const
     }
     const auto clamp_unit = [](float8 t) { return clamp8(t, -1.0f, 1.0f); };
     const auto magnitude = [](float8 t) { return abs8(t); };
+    const float radius = depth.radius();
+    // Before the kernel's reach D is 0 and beyond it 1: slabs wholly outside take no polynomial, and
+    // once every tap is past the kernel the rest of the slabs get nothing.
+    auto D = [&](float8 s) {
+        if (!any8(s > -radius)) return broadcast8(0.0f);
+        if (!any8(s < radius)) return broadcast8(1.0f);
+        return depth(s, clamp_unit, magnitude);
+    };
     float8 s = b.s0[l] + slabs.first * b.s_step[l] + b.s_dx[l] * dx + b.s_dy[l] * dy;
-    float8 front = depth(s, clamp_unit, magnitude);
+    float8 front = D(s);
     for (int k = slabs.first; k < slabs.count; ++k) {
         s += b.s_step[l];
-        const float8 back = depth(s, clamp_unit, magnitude);
-        add(slabs.sheets[k] + row, weight * (back - front));
+        const float8 back = D(s);
+        if (any8(back != front)) add(slabs.sheets[k] + row, weight * (back - front));
+        if (!any8(s < radius)) break;
         front = back;
     }
 }
