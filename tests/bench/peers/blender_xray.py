@@ -1,0 +1,211 @@
+"""Cycles and EEVEE as X-ray renderers: one child process per volume, run by peers/__init__.py.
+
+    python blender_xray.py JOB.json      # writes RESULT.json and one .npy image per render
+
+The volume is the benchmark's own .vdb file on a Volume object; its material is a Volume Absorption
+shader with black colour and density = grid value x k, so a pixel's transmittance against a white
+world is T = exp(-k * integral) and -ln(T) / k is the X-ray integral. Render settings that would
+change the pixel values are pinned: Standard view transform (the render result stays linear either
+way; this keeps EXR output linear too), a pixel filter 0.01 pixels wide (one point sample at the
+pixel centre, as PCVR's pixels), no denoising, no adaptive sampling, float output read back from
+the render result. Cycles runs in ray-marching mode (``volume_biased``; the default null-scattering
+mode is unbiased but far noisier per sample), at the job's samples and step rates, with
+``volume_max_steps`` raised so long rays are not cut short.
+
+Times are wall-clock seconds of ``bpy.ops.render.render`` (reading the result back is not
+counted), after one warm-up render per configuration (kernel loading, shader compilation and the
+volume's upload are paid there once, as in an interactive session); renders that fit the budget are
+repeated up to 3 times (median). Views run from the smallest image up, and a render predicted to
+exceed the budget is skipped with the reason (peers/budget.py).
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import bpy
+import mathutils
+import numpy as np
+from budget import Budget, ordered
+
+MAX_STEPS = 65536
+
+
+def log(msg):
+    print(f"[blender {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def absorption_material(k):
+    mat = bpy.data.materials.new("xray")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    absorb = nodes.new("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    attr = nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = 'GEOMETRY'
+    attr.attribute_name = "density"
+    scale = nodes.new("ShaderNodeMath")
+    scale.operation = 'MULTIPLY'
+    scale.inputs[1].default_value = k
+    links.new(attr.outputs["Fac"], scale.inputs[0])
+    links.new(scale.outputs["Value"], absorb.inputs["Density"])
+    links.new(absorb.outputs["Volume"], out.inputs["Volume"])
+    return mat
+
+
+def build_scene(vdb_path, k):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    world = bpy.data.worlds.new("white")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    volume = bpy.data.volumes.new("volume")
+    volume.filepath = vdb_path
+    obj = bpy.data.objects.new("volume", volume)
+    scene.collection.objects.link(obj)
+    volume.materials.append(absorption_material(k))
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.view_settings.view_transform = 'Standard'
+    scene.view_settings.look = 'None'
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    scene.render.film_transparent = False
+    scene.render.resolution_percentage = 100
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    scene.render.filter_size = 0.01   # EEVEE's pixel filter
+    scene.cycles.pixel_filter_type = 'BOX'
+    scene.cycles.filter_width = 0.01
+    return scene
+
+
+def set_view(scene, view):
+    cam = scene.camera
+    cam.matrix_world = mathutils.Matrix([list(row) for row in view["matrix_world"]])  # from rows
+    data = cam.data
+    data.sensor_fit = 'AUTO'
+    data.shift_x = data.shift_y = 0.0
+    data.clip_start, data.clip_end = view["clip_start"], view["clip_end"]
+    if view["type"] == "ORTHO":
+        data.type = 'ORTHO'
+        data.ortho_scale = view["ortho_scale"]
+    else:
+        data.type = 'PERSP'
+        data.sensor_width = view["sensor_width"]
+        data.lens = view["lens"]
+    scene.render.resolution_x, scene.render.resolution_y = view["width"], view["height"]
+    scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+    bpy.context.view_layer.update()
+
+
+def blender_matrices(scene, view):
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    cam = scene.camera.evaluated_get(depsgraph)
+    proj = np.array(cam.calc_matrix_camera(depsgraph, x=view["width"], y=view["height"]))
+    w2c = np.linalg.inv(np.array(cam.matrix_world))
+    return w2c, proj
+
+
+def configure(scene, config, view):
+    engine = config["engine"]
+    if engine == "CYCLES":
+        scene.render.engine = 'CYCLES'
+        c = scene.cycles
+        c.device = 'CPU'
+        c.samples = config["samples"]
+        c.use_adaptive_sampling = False
+        c.use_denoising = False
+        c.volume_biased = True
+        c.volume_step_rate = config["step_rate"]
+        c.volume_max_steps = MAX_STEPS
+        c.max_bounces = 0
+        c.volume_bounces = 0
+        c.transparent_max_bounces = 0
+        c.seed = 0
+        for mat in bpy.data.materials:
+            mat.cycles.volume_step_rate = 1.0
+    else:
+        scene.render.engine = 'BLENDER_EEVEE'
+        e = scene.eevee
+        e.taa_render_samples = config["samples"]
+        e.volumetric_tile_size = config["tile_size"]
+        e.volumetric_samples = config["slices"]
+        e.volumetric_sample_distribution = 0.0  # slices evenly spaced in depth, as along a ray
+        e.use_volumetric_shadows = False
+        if hasattr(e, "use_volume_custom_range"):
+            e.use_volume_custom_range = True
+        # The froxel grid spans the clip range; fit it to the volume's depth range.
+        e.volumetric_start, e.volumetric_end = view["depth_range"]
+
+
+def render_seconds():
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=False)
+    return time.perf_counter() - t0
+
+
+def transmittance(scene):
+    """Mean of R, G and B of the last render's Combined pass, float, row 0 on top."""
+    from pcvr_addon import image_io
+    passes = image_io.render_result_passes(scene)
+    combined = passes.get("ViewLayer.Combined")
+    if combined is None:
+        raise RuntimeError(f"render result has no Combined pass (passes: {sorted(passes)})")
+    return combined[:, :, :3].mean(axis=2).astype(np.float64)
+
+
+def main(job_path):
+    job = json.loads(Path(job_path).read_text())
+    sys.path.insert(0, job["repo"])
+    out_dir = Path(job["out_dir"])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    k = job["k"]
+    scene = build_scene(job["vdb"], k)
+    budget = Budget(job["budget_s"])
+    results = []
+    for config in job["configs"]:
+        warm = False
+        for view_key, view in ordered(job["views"]):
+            record = {"config": config["key"], "view": view_key}
+            results.append(record)
+            reason = budget.skip_reason(config["key"], view)
+            if reason:
+                record["skipped"] = reason
+                log(f"{config['key']} {view_key}: skipped, {reason}")
+                continue
+            set_view(scene, view)
+            configure(scene, config, view)
+            w2c, proj = blender_matrices(scene, view)
+            record["camera_error"] = max(
+                float(np.abs(w2c - np.linalg.inv(np.asarray(view["matrix_world"]))).max()),
+                float(np.abs(proj - np.asarray(job["projections"][view_key])).max()
+                      / np.abs(job["projections"][view_key]).max()))
+            if not warm:  # kernels, shaders and the volume's upload, once per configuration
+                log(f"{config['key']} {view_key}: warm-up {render_seconds():.1f} s")
+                warm = True
+            seconds = [render_seconds()]
+            while len(seconds) < budget.runs(seconds[0]):
+                seconds.append(render_seconds())
+            budget.record(config["key"], view, min(seconds))
+            t = transmittance(scene)
+            record["min_transmittance"] = float(t.min())
+            path = out_dir / f"{config['key']}_{view_key}.npy"
+            np.save(path, (-np.log(np.clip(t, 1e-30, None)) / k).astype(np.float32))
+            record.update(seconds=seconds, image=str(path))
+            log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, min T {t.min():.3g}, "
+                f"camera error {record['camera_error']:.1e}")
+            Path(job["result"]).write_text(json.dumps(results))
+    Path(job["result"]).write_text(json.dumps(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
