@@ -77,7 +77,7 @@ def time_native(grid, cam, table, quick: bool):
         if not ran:
             break
         if rep == 0:
-            hi, lo = (1, 1) if quick else (REPS, MIN_REPS)
+            hi, lo = (3, 1) if quick else (REPS, MIN_REPS)
             reps = {k: max(lo, min(hi, int(NATIVE_BUDGET_S / max(v["times"][0], 1e-9)))) for k, v in out.items()}
         rep += 1
     return out

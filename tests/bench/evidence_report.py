@@ -77,9 +77,9 @@ def headline(results: dict) -> list[str]:
                 first = False
                 name = methods.FAMILIES[family][0]
                 if match is None:
-                    reasons = {r.get("skipped") for k, r in view["methods"].items()
-                               if table.get(k, {}).get("family") == family}
-                    out.append(f"{lead} {name} | skipped: {'; '.join(sorted(x for x in reasons if x))} | – | – | – |")
+                    reasons = [r.get("skipped", "") for k, r in view["methods"].items()
+                               if table.get(k, {}).get("family") == family]
+                    out.append(f"{lead} {name} | skipped: {summarise(reasons)} | – | – | – |")
                     continue
                 k, r, kind = match
                 ratio = r["median_s"] / p["median_s"]
@@ -89,6 +89,19 @@ def headline(results: dict) -> list[str]:
                 if family == "cycles":
                     wins.append((dk, vk, ratio, kind))
     return out, wins
+
+
+def summarise(reasons) -> str:
+    """One line for the skip reasons of a peer's configurations."""
+    import re
+    predicted = [float(m.group(1)) for r in reasons if (m := re.match(r"predicted (\d+) s", r))]
+    others = sorted({r for r in reasons if not r.startswith("predicted")})
+    parts = []
+    if predicted:
+        budget = re.search(r"over the (\d+) s budget", next(r for r in reasons if r.startswith("predicted")))
+        parts.append(f"every configuration predicted at {min(predicted):.0f} s or more per render, over the "
+                     f"{budget.group(1) if budget else '?'} s budget")
+    return "; ".join(parts + others)
 
 
 def fmt_s(s: float) -> str:

@@ -68,5 +68,5 @@ FAMILIES = {
     "vtk": ("VTK (CPU / llvmpipe)", "tab:purple"),
 }
 
-PEER_BUDGET_S = 90.0
-PEER_BUDGET_QUICK_S = 6.0
+PEER_BUDGET_S = 40.0
+PEER_BUDGET_QUICK_S = 4.0

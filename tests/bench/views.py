@@ -31,14 +31,14 @@ PERSPECTIVE_DISTANCE = 1.5
 SENSOR_WIDTH = 36.0  # mm, Blender's default
 
 
-def _framing(shape, index_to_world):
+def _framing(shape, index_to_world, direction=VIEW_DIRECTION):
     """World corners of the volume grown by the kernel radius, their centre, the diagonal, the view axis."""
     xf = np.asarray(index_to_world, dtype=np.float64)
     lo = np.zeros(3) - KERNEL_RADIUS
     hi = np.asarray(shape, dtype=np.float64) - 1 + KERNEL_RADIUS
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     world = corners @ xf[:3, :3].T + xf[:3, 3]
-    d = np.asarray(VIEW_DIRECTION, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
     return world, world.mean(axis=0), float(np.linalg.norm(world.max(axis=0) - world.min(axis=0))), d / np.linalg.norm(d)
 
 
@@ -48,12 +48,12 @@ def _depth_range(world, w2c):
     return [float(depth.min()), float(depth.max())]
 
 
-def oblique(shape, index_to_world, magnification: float) -> dict:
-    """Orthographic view along VIEW_DIRECTION, `magnification` pixels per voxel in the least
+def oblique(shape, index_to_world, magnification: float, direction=VIEW_DIRECTION, up=VIEW_UP) -> dict:
+    """Orthographic view along `direction`, `magnification` pixels per voxel in the least
     magnified image direction, framing the whole volume."""
     xf = np.asarray(index_to_world, dtype=np.float64)
-    world, centre, diag, d = _framing(shape, xf)
-    w2c = look_at(centre - d * diag, centre, VIEW_UP)
+    world, centre, diag, d = _framing(shape, xf, direction)
+    w2c = look_at(centre - d * diag, centre, up)
     pixel = float(np.linalg.svd(w2c[:2, :3] @ xf[:3, :3], compute_uv=False).min()) / magnification
     cam_xy = (world @ w2c[:3, :3].T + w2c[:3, 3])[:, :2]
     half = np.abs(cam_xy).max(axis=0)
