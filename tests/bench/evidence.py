@@ -36,8 +36,11 @@ REPS, MIN_REPS = 7, 3
 NATIVE_BUDGET_S = 6.0  # timed seconds per method and view, shared out as runs
 
 
-def error_metrics(image, reference) -> dict:
-    sample = np.asarray(image, dtype=np.float64)[::PIXEL_STEP, ::PIXEL_STEP]
+def error_metrics(image, reference, sampled: bool = False) -> dict:
+    """Relative RMSE and PSNR of `image` at every PIXEL_STEP-th pixel (all of it when `sampled`)
+    against `reference` samples. PSNR's peak is the reference's largest magnitude."""
+    sample = np.asarray(image, dtype=np.float64)
+    sample = sample if sampled else sample[::PIXEL_STEP, ::PIXEL_STEP]
     ref = np.asarray(reference, dtype=np.float64)
     if sample.shape != ref.shape:
         raise RuntimeError(f"sampled image {sample.shape} and reference samples {ref.shape} differ in shape")
@@ -106,7 +109,7 @@ def bench_dataset(ds: datasets.Dataset, table, args, workdir: Path, log) -> dict
         out["views"][vk] = {"width": view["width"], "height": view["height"], "magnification": view["magnification"],
                             "type": view["type"], "exact_s": time.perf_counter() - t0, "methods": {}}
         if truth is not None:
-            out["views"][vk]["exact_vs_truth"] = error_metrics_samples(exact, truth)
+            out["views"][vk]["exact_vs_truth"] = error_metrics(exact, truth, sampled=True)
     integral_max = max(float(r[0].max()) for r in references.values())
 
     def record(vk, key, image, seconds, **extra):
@@ -123,9 +126,10 @@ def bench_dataset(ds: datasets.Dataset, table, args, workdir: Path, log) -> dict
     for vk, view in view_set.items():
         timed = time_native(grid, views.camera(view), native, args.quick)
         for key, entry in timed.items():
-            record(vk, key, entry["image"], entry["times"], stride=entry["stride"])
+            rec = record(vk, key, entry["image"], entry["times"], stride=entry["stride"])
             if vk in keep_images:
-                np.save(workdir / ds.key / f"{key}_{vk}.npy", np.asarray(entry["image"], dtype=np.float32))
+                rec["image_path"] = str(workdir / ds.key / f"{key}_{vk}.npy")
+                np.save(rec["image_path"], np.asarray(entry["image"], dtype=np.float32))
         log(f"  {vk} {view['width']}x{view['height']}: " + ", ".join(
             f"{k} {1e3 * out['views'][vk]['methods'][k]['median_s']:.1f} ms "
             f"{100 * out['views'][vk]['methods'][k]['vs_exact']['rel_rmse']:.2f}%" for k in timed))
@@ -151,13 +155,6 @@ def bench_dataset(ds: datasets.Dataset, table, args, workdir: Path, log) -> dict
             extra["image_path"] = rec["image"]
             record(vk, key, image, rec["seconds"], **extra)
     return out
-
-
-def error_metrics_samples(samples, reference) -> dict:
-    """error_metrics for images already sampled at PIXEL_STEP."""
-    full = np.zeros((samples.shape[0] * PIXEL_STEP, samples.shape[1] * PIXEL_STEP))
-    full[::PIXEL_STEP, ::PIXEL_STEP] = samples
-    return error_metrics(full, reference)
 
 
 def run(args, workdir: Path, log) -> dict:

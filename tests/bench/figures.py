@@ -163,16 +163,17 @@ def combined_filters(path: Path) -> dict:
                 post = post_1d(p, freqs / math.sqrt(2.0)) ** 2
             H = splat[s] * post
             lab = labels.get((s, p), f"{s} + {p}")
-            ax.plot(freqs, H, label=lab)
+            ax.plot(freqs, np.maximum(np.abs(H), 1e-7), label=lab)
             rec = values.setdefault(lab, {})
             rec[direction] = {"at_0.25": float(np.interp(0.25, freqs, H)), "at_0.5": float(np.interp(0.5, freqs, H)),
                               "stop_band_max": float(np.abs(H[freqs >= 0.75]).max()),
                               "half_power_f": float(freqs[np.argmax(H < 0.5)])}
         for lab, d in REPLICAS.items():
             ax.axvline(d, color="0.6", lw=0.8, ls=":")
-        ax.axhline(0, color="k", lw=0.5)
+        ax.set_yscale("log")
+        ax.set_ylim(1e-6, 1.5)
         ax.set_xlabel("frequency (cycles per voxel)")
-        ax.set_title(f"combined filter along the image {direction}", fontsize=10)
+        ax.set_title(f"|combined filter| along the image {direction} (log)", fontsize=10)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     fig.tight_layout()

@@ -27,7 +27,7 @@ from pathlib import Path
 import bpy
 import mathutils
 import numpy as np
-from budget import Budget, ordered
+from budget import Budget
 
 MAX_STEPS = 65536
 
@@ -171,38 +171,28 @@ def main(job_path):
     scene = build_scene(job["vdb"], k)
     budget = Budget(job["budget_s"])
     results = []
-    for config in job["configs"]:
-        warm = False
-        for view_key, view in ordered(job["views"]):
-            record = {"config": config["key"], "view": view_key}
-            results.append(record)
-            reason = budget.skip_reason(config["key"], view)
-            if reason:
-                record["skipped"] = reason
-                log(f"{config['key']} {view_key}: skipped, {reason}")
-                continue
-            set_view(scene, view)
-            configure(scene, config, view)
-            w2c, proj = blender_matrices(scene, view)
-            record["camera_error"] = max(
-                float(np.abs(w2c - np.linalg.inv(np.asarray(view["matrix_world"]))).max()),
-                float(np.abs(proj - np.asarray(job["projections"][view_key])).max()
-                      / np.abs(job["projections"][view_key]).max()))
-            if not warm:  # kernels, shaders and the volume's upload, once per configuration
-                log(f"{config['key']} {view_key}: warm-up {render_seconds():.1f} s")
-                warm = True
-            seconds = [render_seconds()]
-            while len(seconds) < budget.runs(seconds[0]):
-                seconds.append(render_seconds())
-            budget.record(config["key"], view, min(seconds))
-            t = transmittance(scene)
-            record["min_transmittance"] = float(t.min())
-            path = out_dir / f"{config['key']}_{view_key}.npy"
-            np.save(path, (-np.log(np.clip(t, 1e-30, None)) / k).astype(np.float32))
-            record.update(seconds=seconds, image=str(path))
-            log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, min T {t.min():.3g}, "
-                f"camera error {record['camera_error']:.1e}")
-            Path(job["result"]).write_text(json.dumps(results))
+    warmed = set()
+    for config, view_key, view, record in budget.renders(job, results, log):
+        set_view(scene, view)
+        configure(scene, config, view)
+        w2c, proj = blender_matrices(scene, view)
+        record["camera_error"] = max(
+            float(np.abs(w2c - np.linalg.inv(np.asarray(view["matrix_world"]))).max()),
+            float(np.abs(proj - np.asarray(job["projections"][view_key])).max()
+                  / np.abs(job["projections"][view_key]).max()))
+        if config["key"] not in warmed:  # kernels, shaders and the volume's upload, once per configuration
+            log(f"{config['key']} {view_key}: warm-up {render_seconds():.1f} s")
+            warmed.add(config["key"])
+        seconds, _ = budget.repeat(lambda: (render_seconds(), None))
+        budget.record(config["key"], view, min(seconds))
+        t = transmittance(scene)
+        record["min_transmittance"] = float(t.min())
+        path = out_dir / f"{config['key']}_{view_key}.npy"
+        np.save(path, (-np.log(np.clip(t, 1e-30, None)) / k).astype(np.float32))
+        record.update(seconds=seconds, image=str(path))
+        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, min T {t.min():.3g}, "
+            f"camera error {record['camera_error']:.1e}")
+        Path(job["result"]).write_text(json.dumps(results))
     Path(job["result"]).write_text(json.dumps(results))
     return 0
 

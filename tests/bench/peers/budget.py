@@ -31,6 +31,27 @@ class Budget:
     def record(self, config_key, view, seconds):
         self.last[config_key] = (seconds, pixels(view))
 
-    def runs(self, seconds, most=3):
-        """Timed runs for a render that took `seconds` once: up to `most` while they fit a tenth of the budget."""
-        return max(1, min(most, int(0.1 * self.seconds / max(seconds, 1e-9))))
+    def repeat(self, render, most=3):
+        """Timed runs of `render` (returning (seconds, result)): one, and more up to `most` while they fit
+        a tenth of the budget. Returns the list of seconds and the last result."""
+        seconds, result = render()
+        times = [seconds]
+        while len(times) < max(1, min(most, int(0.1 * self.seconds / max(seconds, 1e-9)))):
+            seconds, result = render()
+            times.append(seconds)
+        return times, result
+
+    def renders(self, job, results, log):
+        """(config, view key, view, record) for each render of `job` that fits: configurations in the job's
+        order, views from the fewest pixels up. Every render gets a record in `results`; a skipped one's
+        says why."""
+        for config in job["configs"]:
+            for view_key, view in ordered(job["views"]):
+                record = {"config": config["key"], "view": view_key}
+                results.append(record)
+                reason = self.skip_reason(config["key"], view)
+                if reason:
+                    record["skipped"] = reason
+                    log(f"{config['key']} {view_key}: skipped, {reason}")
+                    continue
+                yield config, view_key, view, record

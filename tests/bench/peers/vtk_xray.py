@@ -36,7 +36,7 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 import vtk  # noqa: E402
 from vtk.util import numpy_support  # noqa: E402
 
-from budget import Budget, ordered  # noqa: E402
+from budget import Budget  # noqa: E402
 
 OPTICAL_DEPTH = 1.0   # fixed-point mapper: k * largest integral
 ADDITIVE_TOP = 0.95   # GPU mapper: largest integral -> this pixel value
@@ -140,7 +140,7 @@ def main(job_path):
     out_dir = Path(job["out_dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
     grid = pn.read_vdb(job["vdb"])
-    (i0, j0, k0), (i1, j1, k1) = grid.index_bbox
+    (i0, j0, k0), _ = grid.index_bbox
     values = np.asarray(grid.to_dense())
     xf = np.asarray(grid.index_to_world, dtype=np.float64).copy()
     xf[:3, 3] = xf[:3, :3] @ [i0, j0, k0] + xf[:3, 3]  # the dense array starts at the bbox corner
@@ -149,49 +149,39 @@ def main(job_path):
     vmax = float(values.max())
     budget = Budget(job["budget_s"])
     results = []
-    for config in job["configs"]:
-        for view_key, view in ordered(job["views"]):
-            record = {"config": config["key"], "view": view_key}
-            results.append(record)
-            reason = budget.skip_reason(config["key"], view)
-            if reason:
-                record["skipped"] = reason
-                log(f"{config['key']} {view_key}: skipped, {reason}")
-                continue
-            w2c = np.linalg.inv(np.asarray(view["matrix_world"], dtype=np.float64))
-            proj = np.asarray(job["projections"][view_key], dtype=np.float64)
-            volume, decode = make_mapper(config, img, vmax, job["integral_max"], voxel)
-            renderer = vtk.vtkRenderer()
-            renderer.SetBackground(0.0, 0.0, 0.0)
-            renderer.AddVolume(volume)
-            window = vtk.vtkRenderWindow()
-            window.SetOffScreenRendering(1)
-            window.SetMultiSamples(0)
-            window.AddRenderer(renderer)
-            window.SetSize(view["width"], view["height"])
-            cam_err = set_camera(renderer, view, w2c, proj)
-            window.Render()  # warm-up: context, shaders, volume upload
+    for config, view_key, view, record in budget.renders(job, results, log):
+        w2c = np.linalg.inv(np.asarray(view["matrix_world"], dtype=np.float64))
+        proj = np.asarray(job["projections"][view_key], dtype=np.float64)
+        volume, decode = make_mapper(config, img, vmax, job["integral_max"], voxel)
+        renderer = vtk.vtkRenderer()
+        renderer.SetBackground(0.0, 0.0, 0.0)
+        renderer.AddVolume(volume)
+        window = vtk.vtkRenderWindow()
+        window.SetOffScreenRendering(1)
+        window.SetMultiSamples(0)
+        window.AddRenderer(renderer)
+        window.SetSize(view["width"], view["height"])
+        cam_err = set_camera(renderer, view, w2c, proj)
+        window.Render()  # warm-up: context, shaders, volume upload
 
-            def timed():
-                # Rendering is asynchronous under OpenGL: reading the pixels back waits for it.
-                renderer.GetActiveCamera().Modified()
-                t0 = time.perf_counter()
-                window.Render()
-                pixels = read_pixels(window, view["width"], view["height"])
-                return time.perf_counter() - t0, pixels
+        def timed():
+            # Rendering is asynchronous under OpenGL: reading the pixels back waits for it.
+            renderer.GetActiveCamera().Modified()
+            t0 = time.perf_counter()
+            window.Render()
+            pixels = read_pixels(window, view["width"], view["height"])
+            return time.perf_counter() - t0, pixels
 
-            seconds, pixels = [], None
-            while not seconds or len(seconds) < budget.runs(seconds[0]):
-                t, pixels = timed()
-                seconds.append(t)
-            budget.record(config["key"], view, min(seconds))
-            path = out_dir / f"{config['key']}_{view_key}.npy"
-            np.save(path, decode(pixels).astype(np.float32))
-            record.update(seconds=seconds, image=str(path), camera_error=cam_err,
-                          saturated=float((pixels >= 254.5 / 255).mean()), window=window.GetClassName())
-            log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s, camera error {cam_err:.1e}")
-            window.Finalize()
-            Path(job["result"]).write_text(json.dumps(results))
+        seconds, pixels = budget.repeat(timed)
+        budget.record(config["key"], view, min(seconds))
+        path = out_dir / f"{config['key']}_{view_key}.npy"
+        np.save(path, decode(pixels).astype(np.float32))
+        record.update(seconds=seconds, image=str(path), camera_error=cam_err,
+                      saturated=float((pixels >= 254.5 / 255).mean()), window=window.GetClassName())
+        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s, camera error {cam_err:.1e}")
+        window.Finalize()
+        Path(job["result"]).write_text(json.dumps(results))
+    Path(job["result"]).write_text(json.dumps(results))
     return 0
 
 
