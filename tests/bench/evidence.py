@@ -141,9 +141,7 @@ def bench_dataset(ds: datasets.Dataset, table, args, workdir: Path, log) -> dict
         if not configs:
             continue
         job = {"vdb": str(vdb), "views": view_set, "projections": projections, "configs": configs, "budget_s": budget,
-               # Blender: optical depth k * integral at most 0.5, so T stays above 0.6 and -ln(T) / k is
-               # not bent by averaging noisy samples of T (Jensen); float32 T resolves it everywhere.
-               "k": 0.5 / integral_max, "integral_max": integral_max}
+               "integral_max": integral_max}
         log(f"  {runner} peers: {len(configs)} configurations")
         recs = peers.run(runner, job, workdir / ds.key / runner, timeout_s=args.peer_timeout, log=log)
         for (key, vk), rec in recs.items():
