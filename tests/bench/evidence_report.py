@@ -84,6 +84,10 @@ def headline(results: dict) -> list[str]:
                 k, r, kind = match
                 ratio = r["median_s"] / p["median_s"]
                 verdict = "reaches PCVR's error" if kind == "reaches" else "its best; error above PCVR's"
+                skipped = sum(1 for kk, rr in view["methods"].items()
+                              if table.get(kk, {}).get("family") == family and "skipped" in rr)
+                if skipped:
+                    verdict += f"; {skipped} slower configuration{'s' if skipped > 1 else ''} skipped, over budget"
                 out.append(f"{lead} {name} | {table[k]['label']} ({verdict}) | {fmt_s(r['median_s'])} | "
                            f"{100 * judged(ds, r):.2f}% | **{ratio:,.0f}x** |")
                 if family == "cycles":

@@ -148,13 +148,24 @@ def fit_width(post: str) -> float:
     return float(fine[int(np.argmin(costs))])
 
 
+def shift_variance(phantom, view, a, post) -> float:
+    """figures.shift_variance for a prototype pair: the aliasing a slimmer kernel may bring."""
+    from figures import shifted
+    base = render(phantom, view, a, post)
+    errs = []
+    for s in range(1, int(round(view["magnification"]))):
+        moved = render(phantom, shifted(view, s), a, post)
+        errs.append(rel(moved[:, :-s], base[:, s:]))
+    return float(np.mean(errs))
+
+
 def rel(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
 
 
 def run(quick: bool, log) -> dict:
     import pcvr_native as pn
-    fitted = {p: fit_width(p) for p in ("bilinear", "bspline3")}
+    fitted = {p: round(fit_width(p), 2) for p in ("bilinear", "bspline3")}
     log("kernel search: fitted widths " + ", ".join(f"{p}: a={a:.2f}" for p, a in fitted.items()))
     candidates = sorted({(a, p) for a in GAUSS_A for p in POSTS if p in ("bilinear", "bspline3") or a in (1.4, 2.0)}
                         | {(a, p) for p, a in fitted.items()})
@@ -176,6 +187,10 @@ def run(quick: bool, log) -> dict:
             img = render(ph, view, a, post, cache)[::step, ::step]
             rows[f"{a:g}|{post}"] = {"vs_exact": rel(img, exact), **({"vs_truth": rel(img, truth)} if truth is not None else {})}
         out["datasets"][ds.key] = {"label": ds.label, "rows": rows}
+        if ds.key == "ct":
+            out["shift_variance"] = {f"{a:g}|{post}": shift_variance(ph, view, a, post)
+                                     for a, post in ((1.4, "bilinear"), (2.0, "bilinear"), (2.5, "bilinear"),
+                                                     (3.0, "bilinear"), (1.4, "gauss1.4"))}
         best = min(rows.items(), key=lambda kv: kv[1].get("vs_truth", kv[1]["vs_exact"]))
         log(f"kernel search {ds.key}: prototype vs native {100 * out['check'][ds.key]:.3f}%, best {best[0]} "
             f"{100 * best[1].get('vs_truth', best[1]['vs_exact']):.2f}%")

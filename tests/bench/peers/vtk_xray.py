@@ -7,7 +7,8 @@ What a scientific user would pick, offscreen (EGL, Mesa's llvmpipe on this CPU-o
 | mapper                               | X-ray set-up                                                    | integral from pixel I |
 |--------------------------------------|-----------------------------------------------------------------|-----------------------|
 | vtkGPUVolumeRayCastMapper, additive  | constant scalar opacity c: the shader sums c * (step / unit     | I / gain              |
-|                                      | distance) * value over the samples, clamps to [0, 1]            |                       |
+|                                      | distance) * value / max over the samples (values normalised to  |                       |
+|                                      | the data range; the minimum is 0 here), clamps to [0, 1]         |                       |
 | vtkFixedPointVolumeRayCastMapper     | composite, white colour on black, opacity per unit distance     | -ln(1 - I) / k        |
 |                                      | 1 - exp(-k v u) (256-point table): I = 1 - exp(-k * integral)   |                       |
 
@@ -98,11 +99,12 @@ def make_mapper(config, img, vmax, integral_max, voxel):
     if config["mapper"] == "gpu_additive":
         mapper = vtk.vtkGPUVolumeRayCastMapper()
         mapper.SetBlendModeToAdditive()
-        # sum over samples of c * (step / unit) * value = (c / unit) * integral
-        c = ADDITIVE_TOP * unit / integral_max
+        # The shader sums c * (step / unit) * s over the samples, s the value normalised to the data's
+        # range, (v - min) / (max - min): with min = 0 that is (c / unit) * integral / max.
+        c = ADDITIVE_TOP * unit * vmax / integral_max
         opacity.AddPoint(0.0, c)
         opacity.AddPoint(vmax, c)
-        decode = lambda i: np.asarray(i, dtype=np.float64) * unit / c  # noqa: E731
+        decode = lambda i: np.asarray(i, dtype=np.float64) * unit * vmax / c  # noqa: E731
     else:
         mapper = vtk.vtkFixedPointVolumeRayCastMapper()
         mapper.SetBlendModeToComposite()
@@ -147,6 +149,8 @@ def main(job_path):
     img = image_data(values, xf)
     voxel = float(abs(np.linalg.det(xf[:3, :3])) ** (1.0 / 3.0))
     vmax = float(values.max())
+    if values.min() > 1e-3 * vmax:  # the additive decode takes the data's minimum as 0 (see make_mapper)
+        raise ValueError(f"VTK peer: the volume's minimum {values.min():g} is not near 0 (max {vmax:g})")
     budget = Budget(job["budget_s"])
     results = []
     for config, view_key, view, record in budget.renders(job, results, log):
