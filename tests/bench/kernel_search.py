@@ -191,6 +191,8 @@ def run(quick: bool, log) -> dict:
             out["shift_variance"] = {f"{a:g}|{post}": shift_variance(ph, view, a, post)
                                      for a, post in ((1.4, "bilinear"), (2.0, "bilinear"), (2.5, "bilinear"),
                                                      (3.0, "bilinear"), (1.4, "gauss1.4"))}
+            import figures
+            out["shift_variance_bilinear_spread"] = figures.shift_variance(grid, view, "bilinear_spread")
         best = min(rows.items(), key=lambda kv: kv[1].get("vs_truth", kv[1]["vs_exact"]))
         log(f"kernel search {ds.key}: prototype vs native {100 * out['check'][ds.key]:.3f}%, best {best[0]} "
             f"{100 * best[1].get('vs_truth', best[1]['vs_exact']):.2f}%")

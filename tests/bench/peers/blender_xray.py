@@ -3,7 +3,8 @@
     python blender_xray.py JOB.json      # writes RESULT.json and one .npy image per render
 
 The volume is the benchmark's own .vdb file on a Volume object; its material is a Volume Absorption
-shader with black colour and density = grid value x k (k per engine, see OPTICAL_DEPTH), so a pixel's transmittance against a white
+shader with black colour and density = grid value x k (k per engine, see OPTICAL_DEPTH), so a
+pixel's transmittance against a white
 world is T = exp(-k * integral) and -ln(T) / k is the X-ray integral. Render settings that would
 change the pixel values are pinned: Standard view transform (the render result stays linear either
 way; this keeps EXR output linear too), a pixel filter 0.01 pixels wide (one point sample at the
