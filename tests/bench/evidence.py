@@ -149,7 +149,7 @@ def bench_dataset(ds: datasets.Dataset, table, args, workdir: Path, log) -> dict
                 out["views"][vk]["methods"][key] = {"skipped": rec["skipped"]}
                 continue
             image = np.load(rec["image"])
-            extra = {k: rec[k] for k in ("camera_error", "min_transmittance", "saturated", "window") if k in rec}
+            extra = {k: rec[k] for k in ("camera_error", "min_transmittance", "saturated", "software") if k in rec}
             extra["image_path"] = rec["image"]
             record(vk, key, image, rec["seconds"], **extra)
     return out

@@ -4,12 +4,11 @@
 
 The volume is the benchmark's own .vdb file on a Volume object; its material is a Volume Absorption
 shader with black colour and density = grid value x k (k per engine, see OPTICAL_DEPTH), so a
-pixel's transmittance against a white
-world is T = exp(-k * integral) and -ln(T) / k is the X-ray integral. Render settings that would
-change the pixel values are pinned: Standard view transform (the render result stays linear either
-way; this keeps EXR output linear too), a pixel filter 0.01 pixels wide (one point sample at the
-pixel centre, as PCVR's pixels), no denoising, no adaptive sampling, float output read back from
-the render result. Cycles runs in ray-marching mode (``volume_biased``; the default null-scattering
+pixel's transmittance against a white world is T = exp(-k * integral) and -ln(T) / k is the X-ray
+integral. Render settings that would change the pixel values are pinned: Standard view transform
+(the render result stays linear either way; this keeps EXR output linear too), a pixel filter 0.01
+pixels wide (one point sample at the pixel centre, as PCVR's pixels), no denoising, no adaptive
+sampling, float output read back from the render result. Cycles runs in ray-marching mode (``volume_biased``; the default null-scattering
 mode is unbiased but far noisier per sample), at the job's samples and step rates, with
 ``volume_max_steps`` raised so long rays are not cut short.
 
@@ -162,6 +161,15 @@ def render_seconds():
     return time.perf_counter() - t0
 
 
+def software(engine):
+    """What rendered: Blender's version, and for EEVEE the OpenGL renderer it got (llvmpipe here)."""
+    text = f"Blender {bpy.app.version_string}"
+    if engine != "CYCLES":
+        import gpu
+        text += f", OpenGL {gpu.platform.version_get()} on {gpu.platform.renderer_get()}"
+    return text
+
+
 def transmittance(scene):
     """Mean of R, G and B of the last render's Combined pass, float, row 0 on top."""
     from pcvr_addon import image_io
@@ -200,7 +208,7 @@ def main(job_path):
         record["min_transmittance"] = float(t.min())
         path = out_dir / f"{config['key']}_{view_key}.npy"
         np.save(path, (-np.log(np.clip(t, 1e-30, None)) / k).astype(np.float32))
-        record.update(seconds=seconds, image=str(path))
+        record.update(seconds=seconds, image=str(path), software=software(config["engine"]))
         log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, min T {t.min():.3g}, "
             f"camera error {record['camera_error']:.1e}")
         Path(job["result"]).write_text(json.dumps(results))

@@ -180,8 +180,11 @@ def main(job_path):
         budget.record(config["key"], view, min(seconds))
         path = out_dir / f"{config['key']}_{view_key}.npy"
         np.save(path, decode(pixels).astype(np.float32))
+        renderer_line = next((ln.split(":", 1)[1].strip() for ln in window.ReportCapabilities().splitlines()
+                              if ln.startswith("OpenGL renderer string")), "?")
         record.update(seconds=seconds, image=str(path), camera_error=cam_err,
-                      saturated=float((pixels >= 254.5 / 255).mean()), window=window.GetClassName())
+                      saturated=float((pixels >= 254.5 / 255).mean()),
+                      software=f"VTK {vtk.vtkVersion.GetVTKVersion()}, {window.GetClassName()} on {renderer_line}")
         log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s, camera error {cam_err:.1e}")
         window.Finalize()
         Path(job["result"]).write_text(json.dumps(results))
