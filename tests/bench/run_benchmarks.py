@@ -378,8 +378,10 @@ def machine_info() -> dict:
         pass
     try:
         rev = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO, capture_output=True,
-                               text=True).stdout.strip()
+        # The pages and plots this run rewrites do not count as changes to what is measured.
+        generated = [":!docs/benchmarks.md", ":!docs/img", ":!docs/figures"]
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *generated],
+                               cwd=REPO, capture_output=True, text=True).stdout.strip()
         info["commit"] = rev + (" (with uncommitted changes)" if dirty else "")
     except OSError:
         info["commit"] = "?"
