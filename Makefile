@@ -83,9 +83,20 @@ extension: $(EXTENSION_ZIP)
 $(EXTENSION_ZIP): $(VENV)/.native-stamp blender_manifest.toml tools/build_extension.py $(ADDON_SOURCES)
 	$(PY) tools/build_extension.py
 
+# The benchmark's own packages: the peers (VTK's wheel renders offscreen through EGL; EEVEE needs an
+# OpenGL context, which Mesa's EGL gives without a display) and the analysis (scipy, matplotlib).
+# QUICK=1: small volumes and budgets, about 2 minutes.
+BENCH_PIP := "vtk>=9.4" scipy matplotlib
+BENCH_APT := libegl1 libegl-mesa0 libgl1-mesa-dri
 bench: $(VENV)/.native-stamp
-	$(PY) -m pip install -q matplotlib
-	$(PY) tests/bench/run_benchmarks.py --output docs/benchmarks.md
+	@missing=""; for p in $(BENCH_APT); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
+	fi
+	$(PY) -m pip install -q $(BENCH_PIP)
+	$(PY) tests/bench/run_benchmarks.py --output docs/benchmarks.md $(if $(QUICK),--quick)
 
 clean:
 	rm -rf native/build $(WHEEL_DIR) out

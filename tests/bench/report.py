@@ -11,6 +11,8 @@ import math
 import os
 from pathlib import Path
 
+import analysis_report
+import evidence_report
 import speed_of_light as sol
 
 METHOD_ORDER = ["regular", "pcvr_bilinear", "pcvr_gauss", "bilinear_spread"]
@@ -250,7 +252,7 @@ def method_rows(label: str, cfg: dict) -> list[str]:
 
 
 def volume_table(v: dict) -> list[str]:
-    out = [f"### {vol_name(v)}: {v['active_voxels']:,} active voxels ({100 * v['fill']:.1f}% of the box)", ""]
+    out = [f"#### {vol_name(v)}: {v['active_voxels']:,} active voxels ({100 * v['fill']:.1f}% of the box)", ""]
     out += [TABLE_HEAD[0].format("m"), TABLE_HEAD[1]]
     for mag, cfg in sorted(v["configs"].items(), key=lambda kv: int(kv[0])):
         out += method_rows(str(mag), cfg)
@@ -271,7 +273,7 @@ def perspective_section(results: dict) -> list[str]:
     v = persp[0]
     cfg = v["perspective"]
     pc = cfg["methods"]["pcvr_bilinear"]
-    out = ["## Perspective", "",
+    out = ["### Perspective", "",
            f"{vol_name(v)} through a pinhole camera along the same direction, its eye {cfg['distance_diagonals']:g} volume "
            f"diagonals from the volume's centre, where a voxel spans {cfg['magnification']:g} pixels: from "
            f"{cfg['min_magnification']:.1f} pixels per voxel on the far side to {cfg['max_magnification']:.1f} on the near "
@@ -313,7 +315,7 @@ def accuracy_notes(results: dict) -> list[str]:
 
 
 def sol_section(results: dict, sd: SolData) -> list[str]:
-    out = ["## Speed of light", ""]
+    out = ["### Speed of light", ""]
     if not sd.ok:
         return out + [f"Not measured ({sd.error or 'skipped with --no-sol'})."]
     nt = max(sd.threads)
@@ -391,7 +393,7 @@ def sol_section(results: dict, sd: SolData) -> list[str]:
 
 def limits_section(results: dict, sd: SolData) -> list[str]:
     v = main_volume(results)
-    out = ["## What limits us", ""]
+    out = ["### What limits us", ""]
     if v is None or "limits" not in v:
         return out + ["Not measured."]
     lim = v["limits"]
@@ -511,8 +513,9 @@ def write(results: dict, output: Path) -> None:
     img_dir.mkdir(parents=True, exist_ok=True)
     tve = img_dir / "bench_time_vs_error.png"
     spd = img_dir / "bench_speedup.png"
-    plot_time_vs_error(results, tve)
-    plot_speedup(results, spd)
+    if results["volumes"]:
+        plot_time_vs_error(results, tve)
+        plot_speedup(results, spd)
     rel = lambda p: os.path.relpath(p, output.parent)  # noqa: E731
     sd = SolData(results)
     mi = results["machine"]
@@ -533,11 +536,22 @@ def write(results: dict, output: Path) -> None:
         + ("all cores" if st["threads"] == 0 else f"{st['threads']} threads") + ". Load average "
         f"{results['load_before'][0]:.2f} before and {results.get('load_after', [float('nan')])[0]:.2f} after the run: "
         "the machine is shared, which is why every ratio below is taken within one run. Absolute times of two runs "
-        "at different moments can differ by a third; the *cores busy* column shows how much CPU the renders got.", "",
-        "## Goals", ""]
+        "at different moments can differ by a third; the *cores busy* column shows how much CPU the renders got.", ""]
+    fig_dir = output.parent / "figures"
+    lines += evidence_report.section(results, output.parent, fig_dir)
+    lines += analysis_report.figures_section(results.get("figures"), output.parent, fig_dir)
+    lines += analysis_report.kernel_section(results.get("kernel_search"))
+    lines += analysis_report.shaded_section()
+    if not results["volumes"]:
+        output.write_text("\n".join(lines))
+        return
+    lines += ["## Throughput: PCVR's own speed, memory and limits", "",
+              "The rest of this page measures PCVR alone on larger volumes: speed-ups over regular splatting, "
+              "memory, the speed of light of a splat on this machine, and what limits the renderer.", "",
+              "### Goals", ""]
     lines += goal_lines(results, sd)
     lines += [
-        "", "## How to read this", "",
+        "", "### How to read this", "",
         "- **Volumes**: `pcvr_native.phantoms.dense_volume(n, seed=1)` (smooth noise, every voxel active) and "
         "`sparse_cloud(n, seed=2)` (thresholded fractal noise, about 15% active), spanning [-1, 1]³.",
         f"- **View**: orthographic, looking along {tuple(st['view_direction'])} with up {tuple(st.get('view_up', ()))} "
@@ -565,11 +579,11 @@ def write(results: dict, output: Path) -> None:
         "with every stride, so the samples cover all subgrid phases. **rel RMSE** = RMS(method − exact) / RMS(exact); "
         "**PSNR** = 20 log10(max |exact| / RMSE). Empty background pixels (zero in both) are among the samples: they do "
         "not change rel RMSE, but they raise PSNR.",
-        "", "## Results", ""]
+        "", "### Results", ""]
     for v in results["volumes"]:
         lines += volume_table(v) + [""]
     lines += perspective_section(results) + [""]
-    lines += ["## Time versus error", "", f"![time versus error]({rel(tve)})", "",
+    lines += ["### Time versus error (PCVR's methods on the throughput volumes)", "", f"![time versus error]({rel(tve)})", "",
               "Lower left is better. Each line is one method across magnifications 1 to 8 (the numbers at the points).", ""]
     lines += accuracy_notes(results) + [""]
     lines += [
