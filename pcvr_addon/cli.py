@@ -132,7 +132,9 @@ def render(args):
         scene = bpy.context.scene
         if args.input.lower().endswith(".vdb"):
             try:
-                _frame_vdb(scene, os.path.abspath(args.input), args)
+                vdb_scene(scene, os.path.abspath(args.input), grid=args.grid, frame=args.frame,
+                          magnification=args.magnification or DEFAULT_MAGNIFICATION,
+                          light_direction=args.light_direction or DEFAULT_LIGHT_DIRECTION)
             except RuntimeError as ex:
                 print(f"pcvr: {ex}", file=sys.stderr)
                 return 1
@@ -156,16 +158,21 @@ def render(args):
         unregister()
 
 
-def _frame_vdb(scene, filepath, args):
+def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGNIFICATION,
+              light_direction=DEFAULT_LIGHT_DIRECTION):
+    """Make `scene` (empty) show the .vdb `filepath` as the command line renders it: imported (grid `grid`, at
+    frame `frame` or the file's number), framed from above at `magnification`, lit by a sun travelling along
+    `light_direction` and Blender's default world. Returns the volume object; raises RuntimeError with the
+    operator's report when the volume cannot be read."""
     obj, file_frame = _import_vdb(filepath)
-    if args.grid:
-        obj.data.pcvr.grid = args.grid
-    frame = args.frame if args.frame is not None else file_frame
+    if grid:
+        obj.data.pcvr.grid = grid
+    frame = frame if frame is not None else file_frame
     if frame is not None:
         scene.frame_set(frame)
-    # Raises RuntimeError with the operator's report when the volume cannot be read.
-    bpy.ops.pcvr.frame_volume(magnification=args.magnification or DEFAULT_MAGNIFICATION)
-    _light(scene, args.light_direction or DEFAULT_LIGHT_DIRECTION)
+    bpy.ops.pcvr.frame_volume(magnification=magnification)
+    _light(scene, light_direction)
+    return obj
 
 
 def _light(scene, direction):

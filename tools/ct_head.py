@@ -37,6 +37,23 @@ def hounsfield_head(n=64, edge_width=2.0, cut_away=False):
     return values, head.index_to_world
 
 
+def _rotation(axis, angle):
+    """Right-handed rotation by `angle` radians about the coordinate axis 0 (X), 1 (Y) or 2 (Z)."""
+    c, s = np.cos(angle), np.sin(angle)
+    u, v = (axis + 1) % 3, (axis + 2) % 3  # the plane it turns, in right-handed order
+    m = np.eye(3)
+    m[u, u] = m[v, v] = c
+    m[u, v], m[v, u] = -s, s
+    return m
+
+
+def opened_upwards():
+    """The rotation that turns the cut-away quarter of the head up (+Z, towards a camera looking down, as the
+    command line frames a .vdb) and then tilts the head a little, so that both the skull and what is inside
+    it show: 45 degrees about Y, then 0.5 radians about X and 0.4 about Z."""
+    return _rotation(2, 0.4) @ _rotation(0, 0.5) @ _rotation(1, -np.pi / 4)
+
+
 def grid(n=64, edge_width=2.0, cut_away=False, rotation=None):
     """The head as a pcvr_native.Grid whose background (inactive) value is AIR, turned by the 3 x 3
     `rotation` about its centre when given."""
