@@ -236,29 +236,32 @@ def native_transfer_function(volume):
     return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance)
 
 
+def material(settings):
+    """A volume's material: (use_shading, ambient, diffuse, specular, shininess)."""
+    return (settings.use_shading, *(as_typed(getattr(settings, name))
+                                    for name in ("ambient", "diffuse", "specular", "shininess")))
+
+
 def native_lighting(frame):
     """(lights, ambient colour, Shading) for render_shaded: the scene's lights and world, and the material of
     the first volume (pcvr_native lights every volume of a render with one material: a volume whose
     material differs is reported). A volume without shading shows its transfer function's colours."""
     import pcvr_native
 
-    settings = frame.volumes[0].settings
-    material = (settings.use_shading, settings.ambient, settings.diffuse, settings.specular, settings.shininess)
+    first = frame.volumes[0]
+    use_shading, ambient, diffuse, specular, shininess = material(first.settings)
     differing = [volume.source.name for volume in frame.volumes[1:]
-                 if (volume.settings.use_shading, volume.settings.ambient, volume.settings.diffuse,
-                     volume.settings.specular, volume.settings.shininess) != material]
+                 if material(volume.settings) != material(first.settings)]
     if differing:
         frame.engine.report({'WARNING'}, f"PCVR lights every volume with the material of "
-                                         f"'{frame.volumes[0].source.name}'; "
-                                         f"{', '.join(repr(name) for name in differing)} differ")
-    if not settings.use_shading:
+                                         f"'{first.source.name}'; {', '.join(map(repr, differing))} differ")
+    if not use_shading:
         return [], (1.0, 1.0, 1.0), pcvr_native.Shading(ambient=1.0, diffuse=0.0, specular=0.0)
     lights = []
     for spec in lighting.scene_lights(frame.depsgraph):
         make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
         lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
-    shading = pcvr_native.Shading(ambient=settings.ambient, diffuse=settings.diffuse,
-                                  specular=settings.specular, shininess=settings.shininess)
+    shading = pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular, shininess=shininess)
     return lights, lighting.world_colour(frame.scene.world), shading
 
 
