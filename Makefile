@@ -73,10 +73,11 @@ test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp $(UNIT_TESTS)
 	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native
 
 # The phantom through the native module (timed, checked against exact), then through Blender's
-# PCVR engine by the command line.
+# PCVR engine by the command line: X-ray, and shaded in Hounsfield units with the CT Bone preset.
 demo: $(VENV)/.native-stamp
 	$(PY) tools/demo.py --output out/demo_xray.png
 	$(PY) -m pcvr_addon render out/phantom.vdb -o out/demo_blender.png --magnification 4
+	$(PY) -m pcvr_addon render out/ct_head.vdb -o out/demo_shaded.png --mode shaded --preset "CT Bone" --magnification 3
 
 extension: $(EXTENSION_ZIP)
 

@@ -6,24 +6,33 @@
 
 A .vdb is placed in an empty scene and framed from above by an orthographic camera at
 --magnification pixels per voxel (a numbered .vdb brings its siblings along as a sequence, and
---frame N picks file N); a .blend renders with its own camera and settings, overridden by the
-options given. The image is read back from Blender's render result (after compositing) and
-written with OpenImageIO: .exr holds R, G, B, A and the raw XRay integral, .png and .tif the
-Combined pass.
+--frame N picks file N), lit by a sun along --light-direction and Blender's default grey world;
+a .blend renders with its own camera, lights and settings, overridden by the options given.
+--preset applies a transfer-function preset to every volume. The image is read back from
+Blender's render result (after compositing) and written with OpenImageIO: .exr holds R, G, B, A,
+in shaded mode the Depth pass as Z, and the raw XRay integral; .png and .tif the Combined pass.
 """
 
 import argparse
+import math
 import os
 import re
 import sys
 
 import bpy
 import numpy as np
+from mathutils import Vector
 
-from . import image_io, register, unregister
+from . import image_io, presets, register, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
+# The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
+# a white surface facing it as white, as in Cycles (see lighting.py).
+DEFAULT_LIGHT_DIRECTION = (0.4, -0.4, -0.8)
+SUN_STRENGTH = math.pi
+# Blender's default world colour, the ambient light and background of a .vdb.
+WORLD_COLOUR = (0.05, 0.05, 0.05)
 
 
 def _native_choices(items):
@@ -46,6 +55,8 @@ def _resolution(text):
     return width, height
 
 
+
+
 def make_parser():
     parser = argparse.ArgumentParser(prog="python -m pcvr_addon", description=__doc__.split("\n\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -56,16 +67,25 @@ def make_parser():
     render.add_argument("-o", "--output", metavar="OUTPUT", required=True,
                         help="the image to write: " + ", ".join(image_io.FORMATS))
     render.add_argument("--mode", type=str.upper, choices=MODES, help="what the image shows")
+    render.add_argument("--preset", metavar="NAME",
+                        help="transfer-function preset for every volume, e.g. 'CT Bone' (shaded and mip)")
     render.add_argument("--method", choices=METHODS, help="splatting algorithm")
     render.add_argument("--splat-kernel", choices=SPLAT_KERNELS, help="reconstruction kernel of a voxel")
-    render.add_argument("--post-filter", choices=POST_FILTERS, help="filter from the subgrid to the image")
+    render.add_argument("--post-filter", choices=POST_FILTERS,
+                        help="filter from the subgrid to the image (of the chosen mode)")
     render.add_argument("--stride", type=int, help="subgrid stride in pixels, 0 = automatic")
+    render.add_argument("--sheet-spacing", type=float, help="shaded and mip: voxels between sheets")
+    render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
+    render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
     render.add_argument("--gain", type=float, help="X-ray gain of the Combined pass")
     render.add_argument("--frame", type=int,
                         help="frame to render; for a numbered .vdb, the number of the file (default: INPUT's)")
     render.add_argument("--magnification", type=float,
                         help=f".vdb only: pixels per voxel (default {DEFAULT_MAGNIFICATION:g})")
     render.add_argument("--grid", help=".vdb only: grid to render (default 'density', or the first float grid)")
+    render.add_argument("--light-direction", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                        help=".vdb only: direction the sun's light travels, world space (default "
+                             f"{' '.join(map(str, DEFAULT_LIGHT_DIRECTION))}; the camera looks down -Z)")
     render.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help=".blend only: image size in pixels")
     return parser
@@ -82,10 +102,18 @@ def main(argv=None):
         parser.error(f"'{args.input}' does not exist")
     if os.path.splitext(args.output)[1].lower() not in image_io.FORMATS:
         parser.error(f"OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
-    if extension == ".blend" and (args.magnification is not None or args.grid is not None):
-        parser.error("--magnification and --grid apply to a .vdb; a .blend renders with its own camera")
+    if extension == ".blend" and (args.magnification, args.grid, args.light_direction) != (None, None, None):
+        parser.error("--magnification, --grid and --light-direction apply to a .vdb; a .blend renders with "
+                     "its own camera and lights")
     if extension == ".vdb" and args.resolution is not None:
         parser.error("--resolution applies to a .blend; a .vdb is sized by --magnification")
+    if args.light_direction is not None and not any(args.light_direction):
+        parser.error("--light-direction needs a direction, not 0 0 0")
+    if args.preset is not None:
+        try:
+            presets.find(args.preset)
+        except KeyError as ex:
+            parser.error(ex.args[0])
     try:
         image_io.openimageio()  # before rendering, not after
     except ImportError as ex:
@@ -104,7 +132,9 @@ def render(args):
         scene = bpy.context.scene
         if args.input.lower().endswith(".vdb"):
             try:
-                _frame_vdb(scene, os.path.abspath(args.input), args)
+                vdb_scene(scene, os.path.abspath(args.input), grid=args.grid, frame=args.frame,
+                          magnification=args.magnification or DEFAULT_MAGNIFICATION,
+                          light_direction=args.light_direction or DEFAULT_LIGHT_DIRECTION)
             except RuntimeError as ex:
                 print(f"pcvr: {ex}", file=sys.stderr)
                 return 1
@@ -128,15 +158,35 @@ def render(args):
         unregister()
 
 
-def _frame_vdb(scene, filepath, args):
+def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGNIFICATION,
+              light_direction=DEFAULT_LIGHT_DIRECTION):
+    """Make `scene` (empty) show the .vdb `filepath` as the command line renders it: imported (grid `grid`, at
+    frame `frame` or the file's number), framed from above at `magnification`, lit by a sun travelling along
+    `light_direction` and Blender's default world. Returns the volume object; raises RuntimeError with the
+    operator's report when the volume cannot be read."""
     obj, file_frame = _import_vdb(filepath)
-    if args.grid:
-        obj.data.pcvr.grid = args.grid
-    frame = args.frame if args.frame is not None else file_frame
+    if grid:
+        obj.data.pcvr.grid = grid
+    frame = frame if frame is not None else file_frame
     if frame is not None:
         scene.frame_set(frame)
-    # Raises RuntimeError with the operator's report when the volume cannot be read.
-    bpy.ops.pcvr.frame_volume(magnification=args.magnification or DEFAULT_MAGNIFICATION)
+    bpy.ops.pcvr.frame_volume(magnification=magnification)
+    _light(scene, light_direction)
+    return obj
+
+
+def _light(scene, direction):
+    """A sun whose light travels along `direction`, and Blender's default world."""
+    sun = bpy.data.lights.new("Sun", 'SUN')
+    sun.energy = SUN_STRENGTH
+    obj = bpy.data.objects.new("Sun", sun)
+    # A sun shines along its local -Z axis.
+    obj.rotation_euler = (-Vector(direction)).to_track_quat('Z', 'Y').to_euler()
+    scene.collection.objects.link(obj)
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = WORLD_COLOUR
+    if scene.world.node_tree is not None:  # 5.0 gives a new world nodes, which it renders
+        scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD_COLOUR, 1.0)
 
 
 def _import_vdb(filepath):
@@ -174,7 +224,11 @@ def _apply_options(scene, args):
     if args.splat_kernel is not None:
         settings.splat_kernel = SPLAT_KERNELS[args.splat_kernel]
     if args.post_filter is not None:
-        settings.post_filter = POST_FILTERS[args.post_filter]
+        setattr(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter",
+                POST_FILTERS[args.post_filter])
+    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff"):
+        if getattr(args, option) is not None:
+            setattr(settings, option, getattr(args, option))
     if args.stride is not None:
         settings.subgrid_stride = args.stride
     if args.gain is not None:
@@ -184,8 +238,12 @@ def _apply_options(scene, args):
         scene.render.resolution_percentage = 100
     if args.frame is not None and scene.frame_current != args.frame:
         scene.frame_set(args.frame)
+    if args.preset is not None:
+        for volume in bpy.data.volumes:
+            volume.pcvr.apply_preset(args.preset)
     for view_layer in scene.view_layers:
         view_layer.pcvr.use_pass_xray = True
+        view_layer.use_pass_z = settings.mode == 'SHADED'
 
 
 def _write_output(scene, view_layer, filepath):
@@ -194,6 +252,9 @@ def _write_output(scene, view_layer, filepath):
     if not filepath.lower().endswith(".exr"):
         image_io.write_image(filepath, combined)
         return
-    xray = passes[f"{view_layer.name}.XRay"]
-    image_io.write_image(filepath, np.concatenate([combined, xray], axis=-1),
-                         channel_names=["R", "G", "B", "A", "XRay"])
+    channels, names = [combined], ["R", "G", "B", "A"]
+    for pass_name, channel_name in (("Depth", "Z"), ("XRay", "XRay")):
+        if f"{view_layer.name}.{pass_name}" in passes:
+            channels.append(passes[f"{view_layer.name}.{pass_name}"])
+            names.append(channel_name)
+    image_io.write_image(filepath, np.concatenate(channels, axis=-1), channel_names=names)

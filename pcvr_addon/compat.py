@@ -9,6 +9,7 @@ Each function tests for a feature, not a version number, so the releases in betw
 | `bundled_module`     | bpy 4.4 and later hide the bundled OpenImageIO; the bpy 4.2 package has none   |
 | `set_file_format`    | 5.0 moved multi-layer OpenEXR from `file_format` to `media_type`               |
 | `unregister_at_exit` | bpy 4.2 crashes and 4.5 hangs at exit unless the add-on lets go of bpy first   |
+| `world_uses_nodes`   | 5.0 always renders a world through its nodes and deprecated World.use_nodes    |
 """
 
 import atexit
@@ -46,6 +47,16 @@ def set_file_format(image_settings, file_format):
     if "media_type" in image_settings.bl_rna.properties:
         image_settings.media_type = _MEDIA_TYPES.get(file_format, 'IMAGE')
     image_settings.file_format = file_format
+
+
+def world_uses_nodes(world):
+    """Whether `world` renders through its node tree (rather than its viewport colour). Before 5.0 its
+    use_nodes chooses; 5.0 always uses the nodes, ignores use_nodes and warns when it is read."""
+    if world.node_tree is None:
+        return False
+    if getattr(world.bl_rna.properties["use_nodes"], "is_deprecated", False):
+        return True
+    return world.use_nodes
 
 
 def _blender_is_a_python_module():

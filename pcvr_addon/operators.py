@@ -2,12 +2,29 @@
 
 import bpy
 import numpy as np
+from bl_operators.presets import AddPresetBase
 from bpy.props import FloatProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import engine
+from . import engine, presets, transfer_function
 from .volumes import KERNEL_RADIUS_VOXELS
+
+
+def volume_grid(operator, context, obj):
+    """The world-space grid of the volume object `obj`, or None after `operator` reported why there is none."""
+    if obj is None or obj.type != 'VOLUME':
+        operator.report({'ERROR'}, "The active object is not a volume")
+        return None
+    try:
+        grid = engine.object_grid(context.evaluated_depsgraph_get(), obj)
+    except (OSError, ValueError, RuntimeError, MemoryError, ImportError) as ex:
+        operator.report({'ERROR'}, f"Volume object '{obj.name}': {ex}")
+        return None
+    if grid.active_voxel_count == 0:
+        operator.report({'ERROR'}, f"Volume object '{obj.name}' has no active voxels")
+        return None
+    return grid
 
 
 class PCVR_OT_frame_volume(Operator):
@@ -25,17 +42,8 @@ class PCVR_OT_frame_volume(Operator):
     )
 
     def execute(self, context):
-        obj = context.active_object
-        if obj is None or obj.type != 'VOLUME':
-            self.report({'ERROR'}, "The active object is not a volume")
-            return {'CANCELLED'}
-        try:
-            grid = engine.object_grid(context.evaluated_depsgraph_get(), obj)
-        except (OSError, ValueError, RuntimeError, MemoryError, ImportError) as ex:
-            self.report({'ERROR'}, f"Volume object '{obj.name}': {ex}")
-            return {'CANCELLED'}
-        if grid.active_voxel_count == 0:
-            self.report({'ERROR'}, f"Volume object '{obj.name}' has no active voxels")
+        grid = volume_grid(self, context, context.active_object)
+        if grid is None:
             return {'CANCELLED'}
 
         index_to_world = np.asarray(grid.index_to_world)
@@ -88,8 +96,60 @@ def _scene_camera(context):
     return camera_object
 
 
+class VolumeOperator:
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, "volume", None) is not None
+
+
+class PCVR_OT_transfer_function_new(VolumeOperator, Operator):
+    """Give the volume a transfer function of its own: a copy of the one it has, or the default grey ramp"""
+    bl_idname = "pcvr.transfer_function_new"
+    bl_label = "New Transfer Function"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        settings = context.volume.pcvr
+        if settings.transfer_function is not None:
+            settings.transfer_function = settings.transfer_function.copy()
+        else:
+            settings.ensure_transfer_function()
+        return {'FINISHED'}
+
+
+class PCVR_OT_transfer_function_range_from_grid(VolumeOperator, Operator):
+    """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
+    or its lowest value to its highest"""
+    bl_idname = "pcvr.transfer_function_range_from_grid"
+    bl_label = "Range from Grid Values"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        grid = volume_grid(self, context, context.object)
+        if grid is None:
+            return {'CANCELLED'}
+        settings = context.object.data.pcvr
+        settings.tf_min, settings.tf_max = transfer_function.grid_range(grid.value_range, settings.density_scale)
+        settings.use_grid_range = False
+        return {'FINISHED'}
+
+
+class PCVR_OT_transfer_function_preset_add(VolumeOperator, AddPresetBase, Operator):
+    """Save the volume's transfer function and material as a preset, or remove the preset chosen last"""
+    bl_idname = "pcvr.transfer_function_preset_add"
+    bl_label = "Add Transfer Function Preset"
+    preset_menu = "PCVR_PT_transfer_function_presets"
+    preset_subdir = presets.SUBDIR
+
+    def add(self, context, filepath):
+        presets.write(context.volume.pcvr, filepath)
+
+
 classes = (
     PCVR_OT_frame_volume,
+    PCVR_OT_transfer_function_new,
+    PCVR_OT_transfer_function_range_from_grid,
+    PCVR_OT_transfer_function_preset_add,
 )
 
 

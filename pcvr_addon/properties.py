@@ -1,8 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""PCVR settings: one property group per datablock (scene, view layer, volume)."""
+"""PCVR settings: one property group per datablock (scene, view layer, volume). Defaults that pcvr_native
+also has come from defaults.py."""
 
 import bpy
+import numpy as np
 from bpy.props import (
     BoolProperty,
     EnumProperty,
@@ -11,6 +13,8 @@ from bpy.props import (
     PointerProperty,
     StringProperty,
 )
+
+from . import defaults, transfer_function
 
 # How pcvr_native and the command line spell the enum items below.
 NATIVE_NAMES = {
@@ -22,10 +26,27 @@ NATIVE_NAMES = {
     'LINEAR': "linear",
     'BOX': "box",
     'BILINEAR': "bilinear",
+    'CATMULL_ROM': "catmull_rom",
 }
+
+
+def as_typed(value):
+    """A float setting as typed: Blender keeps them in single precision, and the shortest decimal that rounds
+    to the stored value is what the user entered (0.99 rather than 0.9900000095367432)."""
+    return float(str(np.float32(value)))
+
+
+def identifier(native_name):
+    """The enum identifier of a pcvr_native name."""
+    return next(key for key, value in NATIVE_NAMES.items() if value == native_name)
+
 
 enum_modes = (
     ('XRAY', "X-Ray", "Line integral of the density along each pixel's ray"),
+    ('SHADED', "Shaded",
+     "Each volume's transfer function gives colour and opacity, lit by the scene's lights and world"),
+    ('MIP', "Maximum Intensity",
+     "The largest density along each pixel's ray, through the transfer function's colours or in grey"),
 )
 
 enum_methods = (
@@ -48,6 +69,12 @@ enum_post_filters = (
     ('BILINEAR', "Bilinear", "Linear interpolation of the subgrid samples"),
     ('GAUSS_1_4', "Gaussian 1.4", "exp(-1.4 t\u00b2) over 2 subgrid nodes: smoother"),
     ('GAUSS_2_0', "Gaussian 2.0", "exp(-2 t\u00b2) over 2 subgrid nodes"),
+    ('CATMULL_ROM', "Catmull-Rom", "Cubic through the subgrid samples: sharp, with slight overshoot at edges"),
+)
+
+enum_mip_colors = (
+    ('TRANSFER_FUNCTION', "Transfer Function", "The colour of the transfer function at the largest density"),
+    ('GREYSCALE', "Greyscale", "Black at the transfer function's lowest density to white at its highest"),
 )
 
 
@@ -69,6 +96,12 @@ class DatablockSettings:
         del cls.owner.pcvr
 
 
+def update_render_passes(self, context):
+    # So that the Render Layers node of the compositor shows the passes right away.
+    for view_layer in context.scene.view_layers:
+        view_layer.update_render_passes()
+
+
 class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     owner = bpy.types.Scene
     label = "Render"
@@ -78,30 +111,62 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         description="What the image shows",
         items=enum_modes,
         default='XRAY',
+        update=update_render_passes,
     )
     method: EnumProperty(
         name="Method",
         description="Splatting algorithm",
         items=enum_methods,
-        default='PCVR',
+        default=identifier(defaults.XRAY["method"]),
     )
     splat_kernel: EnumProperty(
         name="Splat Kernel",
         description="Reconstruction kernel of a voxel",
         items=enum_splat_kernels,
-        default='GAUSS_1_4',
+        default=identifier(defaults.XRAY["splat_kernel"]),
     )
     post_filter: EnumProperty(
         name="Post Filter",
-        description="Filter that turns the subgrid into the image",
+        description="Filter that turns the subgrid into the image (X-ray)",
         items=enum_post_filters,
-        default='BILINEAR',
+        default=identifier(defaults.XRAY["post_filter"]),
     )
     subgrid_stride: IntProperty(
         name="Subgrid Stride",
         description="Spacing of the splatting subgrid in pixels; 0 picks it from the projected voxel spacing",
         min=0, soft_max=16,
-        default=0,
+        default=defaults.XRAY["stride"],
+    )
+    sheet_post_filter: EnumProperty(
+        name="Post Filter",
+        description="Filter that turns each sheet's subgrid into pixels (shaded and maximum intensity)",
+        items=enum_post_filters,
+        default=identifier(defaults.SHEETS["post_filter"]),
+    )
+    sheet_spacing: FloatProperty(
+        name="Sheet Spacing",
+        description="Voxels along the view between the sheets the volume is cut into: smaller is finer and slower",
+        min=0.05, soft_min=0.25, soft_max=4.0,
+        default=defaults.SHEETS["sheet_spacing"],
+    )
+    samples_per_sheet: IntProperty(
+        name="Samples per Sheet",
+        description="Classified samples from one sheet to the next, interpolated between them: more resolve "
+                    "thin features of the transfer function",
+        min=1, soft_max=8,
+        default=defaults.SHEETS["samples_per_sheet"],
+    )
+    opacity_cutoff: FloatProperty(
+        name="Opacity Cutoff",
+        description="A pixel this opaque takes no more samples (1: never stop early)",
+        min=0.5, max=1.0,
+        default=defaults.SHEETS["opacity_cutoff"],
+    )
+    mip_color: EnumProperty(
+        name="Colors",
+        description="How the largest density along a ray becomes a colour",
+        items=enum_mip_colors,
+        default='TRANSFER_FUNCTION',
     )
     xray_gain: FloatProperty(
         name="Gain",
@@ -109,11 +174,6 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=0.0, soft_max=10.0,
         default=1.0,
     )
-
-
-def update_render_passes(self, context):
-    # So that the Render Layers node of the compositor shows the pass right away.
-    context.view_layer.update_render_passes()
 
 
 class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
@@ -143,6 +203,98 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=0.0, soft_max=10.0,
         default=1.0,
     )
+
+    # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
+    transfer_function: PointerProperty(
+        name="Transfer Function",
+        description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
+        type=bpy.types.Texture,
+        poll=lambda _self, texture: texture.use_color_ramp,
+    )
+    use_grid_range: BoolProperty(
+        name="Range from Grid",
+        description="Spread the colour ramp over the grid's values (times the density scale), from the lowest "
+                    "to the highest, at every render",
+        default=True,
+    )
+    tf_min: FloatProperty(
+        name="Min",
+        description="Density at the left end of the colour ramp (the grid's units: e.g. Hounsfield for CT)",
+        default=0.0,
+    )
+    tf_max: FloatProperty(
+        name="Max",
+        description="Density at the right end of the colour ramp",
+        default=1.0,
+    )
+    opacity_scale: FloatProperty(
+        name="Opacity Scale",
+        description="Multiplier of the extinction: 2 makes a voxel as opaque as two were",
+        min=0.001, soft_max=10.0,
+        default=1.0,
+    )
+    # The material of shaded mode (Blinn-Phong, as VTK and 3D Slicer light volumes).
+    use_shading: BoolProperty(
+        name="Shading",
+        description="Light the volume with the scene's lights and world; off: the transfer function's colours "
+                    "as they are (3D Slicer's presets without shading)",
+        default=True,
+    )
+    ambient: FloatProperty(
+        name="Ambient", description="Share of the world colour a sample reflects",
+        min=0.0, soft_max=1.0, default=defaults.MATERIAL["ambient"],
+    )
+    diffuse: FloatProperty(
+        name="Diffuse", description="Share of the lights a sample reflects diffusely",
+        min=0.0, soft_max=1.0, default=defaults.MATERIAL["diffuse"],
+    )
+    specular: FloatProperty(
+        name="Specular", description="Strength of the white highlights",
+        min=0.0, soft_max=1.0, default=defaults.MATERIAL["specular"],
+    )
+    shininess: FloatProperty(
+        name="Shininess", description="Exponent of the highlights: higher is smaller and sharper",
+        min=0.0, soft_max=100.0, default=defaults.MATERIAL["shininess"],
+    )
+
+    @property
+    def ramp(self):
+        """The ColorRamp of the transfer function, or None (the default ramp applies)."""
+        texture = self.transfer_function
+        return texture.color_ramp if texture is not None and texture.use_color_ramp else None
+
+    def ensure_transfer_function(self):
+        """The transfer function's texture, a new one holding the default ramp when the volume has none."""
+        if self.transfer_function is None:
+            self.transfer_function = transfer_function.new_ramp_texture(
+                bpy.data.textures, f"{self.id_data.name} Transfer Function")
+        return self.transfer_function
+
+    def set_transfer_function(self, tf_min, tf_max, elements, interpolation='LINEAR', color_mode='RGB'):
+        """The ramp `elements`, (position, rgba) pairs, over densities tf_min to tf_max (range no longer
+        from the grid). What presets call."""
+        transfer_function.set_ramp(self.ensure_transfer_function().color_ramp, elements, interpolation, color_mode)
+        self.use_grid_range = False
+        self.tf_min, self.tf_max = tf_min, tf_max
+
+    def set_material(self, ambient, diffuse, specular, shininess):
+        self.ambient, self.diffuse, self.specular, self.shininess = ambient, diffuse, specular, shininess
+
+    def apply_slicer_preset(self, scalar_opacity, color_transfer, shade, ambient, diffuse, specular,
+                            specular_power):
+        """A 3D Slicer volume-rendering preset, its numbers as presets.xml has them (see
+        transfer_function.slicer_ramp); the opacity scale returns to 1."""
+        tf_min, tf_max, elements = transfer_function.slicer_ramp(scalar_opacity, color_transfer)
+        self.set_transfer_function(tf_min, tf_max, elements)
+        self.set_material(ambient, diffuse, specular, specular_power)
+        self.use_shading = shade
+        self.opacity_scale = 1.0
+
+    def apply_preset(self, name):
+        """The transfer-function preset called `name` (as the preset menu lists it, e.g. "CT Bone"), shipped
+        or saved by the user. Raises KeyError naming the presets there are."""
+        from . import presets  # which writes settings as this module types them
+        presets.apply(self.id_data, name)
 
 
 classes = (

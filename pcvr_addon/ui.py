@@ -5,7 +5,9 @@
 import bpy
 from bpy.types import Panel
 
-from . import engine
+from bl_ui.utils import PresetPanel
+
+from . import engine, lighting, presets
 
 
 def property_split(layout):
@@ -26,33 +28,70 @@ class PCVRButtonsPanel:
         return context.engine in cls.COMPAT_ENGINES
 
 
-class PCVR_RENDER_PT_xray(PCVRButtonsPanel, Panel):
-    bl_label = "X-Ray"
+class PCVRRenderPanel(PCVRButtonsPanel):
+    """A panel of the PCVR render settings, drawn in some modes only."""
+    modes = {'XRAY', 'SHADED', 'MIP'}
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.scene.pcvr.mode in cls.modes
+
+
+class PCVR_RENDER_PT_pcvr(PCVRRenderPanel, Panel):
+    bl_label = "PCVR"
 
     def draw(self, context):
         layout = property_split(self.layout)
         settings = context.scene.pcvr
         layout.prop(settings, "mode")
-        layout.prop(settings, "xray_gain")
+        if settings.mode == 'XRAY':
+            layout.prop(settings, "xray_gain")
+        elif settings.mode == 'MIP':
+            layout.prop(settings, "mip_color")
 
 
-class PCVR_RENDER_PT_splatting(PCVRButtonsPanel, Panel):
-    bl_label = "Splatting"
+class PCVR_RENDER_PT_method(PCVRRenderPanel, Panel):
+    bl_label = "Method"
+    bl_parent_id = "PCVR_RENDER_PT_pcvr"
 
     def draw(self, context):
         layout = property_split(self.layout)
         settings = context.scene.pcvr
         col = layout.column()
         col.prop(settings, "method")
-        # Only the settings the chosen method uses: bilinear spreading has no splat kernel, and
-        # regular splatting has no subgrid.
+        # Only the settings the chosen method and mode use: bilinear spreading has no splat kernel, regular
+        # splatting no subgrid, X-ray no sheets.
         if settings.method != 'BILINEAR_SPREAD':
             col.prop(settings, "splat_kernel")
         if settings.method != 'REGULAR':
-            col.prop(settings, "post_filter")
+            col.prop(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter")
             col.prop(settings, "subgrid_stride", text="Stride")
+        if settings.mode != 'XRAY':
+            col = layout.column()
+            col.prop(settings, "sheet_spacing")
+        if settings.mode == 'SHADED':
+            col.prop(settings, "samples_per_sheet")
+            col.prop(settings, "opacity_cutoff")
 
         draw_sampling_estimate(layout.column(align=True), context)
+
+
+class PCVR_RENDER_PT_statistics(PCVRRenderPanel, Panel):
+    bl_label = "Last Render"
+    bl_parent_id = "PCVR_RENDER_PT_pcvr"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        last = engine.last_render.get(context.scene.session_uid)
+        if last is None:
+            layout.label(text="Render to see what was splatted and culled", icon='INFO')
+            return
+        mode, stats = last
+        grid = layout.grid_flow(row_major=True, columns=2, even_columns=False, align=True)
+        for label, value in engine.statistics_rows(mode, stats):
+            grid.label(text=label)
+            grid.label(text=value)
 
 
 def draw_sampling_estimate(layout, context):
@@ -96,6 +135,8 @@ class PCVR_RENDER_PT_passes(PCVRButtonsPanel, Panel):
     def draw(self, context):
         layout = property_split(self.layout)
         col = layout.column(heading="Include", align=True)
+        if context.scene.pcvr.mode == 'SHADED':
+            col.prop(context.view_layer, "use_pass_z", text="Depth")
         col.prop(context.view_layer.pcvr, "use_pass_xray")
 
 
@@ -116,11 +157,135 @@ class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
         layout.operator("pcvr.frame_volume", icon='CAMERA_DATA')
 
 
+class PCVR_PT_transfer_function_presets(PresetPanel, Panel):
+    """Blender's preset menu, listing the presets shipped with the add-on as well as the user's."""
+    bl_label = "Transfer Function Presets"
+    preset_subdir = presets.SUBDIR
+    preset_operator = "script.execute_preset"
+    preset_add_operator = "pcvr.transfer_function_preset_add"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.emboss = 'PULLDOWN_MENU'
+        layout.operator_context = 'EXEC_DEFAULT'
+        self.path_menu(presets.search_paths(), self.preset_operator, add_operator=self.preset_add_operator,
+                       filter_ext=lambda extension: extension.lower() == ".py",
+                       display_name=presets.display_name)
+
+
+class VolumeSheetPanel(PCVRButtonsPanel):
+    """A sub-panel of the volume's PCVR panel for the shaded and MIP modes."""
+    bl_context = "data"
+    bl_parent_id = "PCVR_DATA_PT_volume"
+    modes = {'SHADED', 'MIP'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.volume and super().poll(context) and context.scene.pcvr.mode in cls.modes
+
+
+class PCVR_DATA_PT_transfer_function(VolumeSheetPanel, Panel):
+    bl_label = "Transfer Function"
+
+    def draw_header_preset(self, _context):
+        PCVR_PT_transfer_function_presets.draw_panel_header(self.layout)
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.volume.pcvr
+        layout.template_ID(settings, "transfer_function", new="pcvr.transfer_function_new")
+        if settings.ramp is not None:
+            layout.template_color_ramp(settings.transfer_function, "color_ramp", expand=True)
+        else:
+            layout.label(text="Grey ramp, 5% opacity per voxel at the top", icon='INFO')
+
+        layout = property_split(layout)
+        layout.prop(settings, "use_grid_range")
+        col = layout.column(align=True)
+        col.active = not settings.use_grid_range
+        col.prop(settings, "tf_min")
+        col.prop(settings, "tf_max")
+        layout.operator("pcvr.transfer_function_range_from_grid", icon='IMPORT')
+        if context.scene.pcvr.mode == 'SHADED':
+            layout.prop(settings, "opacity_scale")
+
+
+class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
+    bl_label = "Shading"
+    modes = {'SHADED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.volume.pcvr, "use_shading", text="")
+
+    def draw(self, context):
+        layout = property_split(self.layout)
+        settings = context.volume.pcvr
+        layout.active = settings.use_shading
+        col = layout.column(align=True)
+        col.prop(settings, "ambient")
+        col.prop(settings, "diffuse")
+        col.prop(settings, "specular")
+        col.prop(settings, "shininess")
+
+
+class PCVR_LIGHT_PT_light(PCVRButtonsPanel, Panel):
+    """The light settings shaded mode uses (Blender's own light panels belong to Cycles and EEVEE)."""
+    bl_label = "Light"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        return context.light and super().poll(context) and context.scene.pcvr.mode == 'SHADED'
+
+    def draw(self, context):
+        layout = self.layout
+        light = context.light
+        layout.row().prop(light, "type", expand=True)
+        layout = property_split(layout)
+        col = layout.column()
+        if "use_temperature" in light.bl_rna.properties:
+            row = col.row(heading="Temperature", align=True)
+            row.prop(light, "use_temperature", text="")
+            sub = row.row()
+            sub.active = light.use_temperature
+            sub.prop(light, "temperature", text="")
+        col.prop(light, "color")
+        col.prop(light, "energy")
+        for name in ("exposure", "normalize"):
+            if name in light.bl_rna.properties:
+                col.prop(light, name)
+        if light.type in {'SPOT', 'AREA'}:
+            layout.label(text="Lights as a point light: no cone, no size", icon='INFO')
+
+
+class PCVR_WORLD_PT_ambient(PCVRButtonsPanel, Panel):
+    """The world colour: the ambient light of shaded mode and the background of an opaque film."""
+    bl_label = "Ambient"
+    bl_context = "world"
+
+    @classmethod
+    def poll(cls, context):
+        return context.world and super().poll(context) and context.scene.pcvr.mode in {'SHADED', 'MIP'}
+
+    def draw(self, context):
+        layout = property_split(self.layout)
+        world = context.world
+        background = lighting.world_background_node(world)
+        if background is None:
+            layout.prop(world, "color")
+            return
+        for name in ("Color", "Strength"):
+            socket = background.inputs[name]
+            row = layout.row()
+            row.active = not socket.is_linked
+            row.prop(socket, "default_value", text=name)
+
+
 def get_panels():
     """The built-in panels that PCVR shares with Blender's own engines, less those whose settings PCVR
-    ignores (materials, world, lights, light probes, Freestyle, Grease Pencil, Simplify, stereoscopy,
-    EEVEE's volume settings)."""
-    exclude_contexts = {'material', 'world'}
+    ignores (materials, light probes, Freestyle, Grease Pencil, Simplify, stereoscopy, EEVEE's volume
+    settings) and those it replaces with its own (the light's settings)."""
+    exclude_contexts = {'material'}
     exclude_prefixes = (
         'DATA_PT_camera_stereoscopy',
         'DATA_PT_context_lightprobe',
@@ -147,11 +312,17 @@ def get_panels():
 
 
 classes = (
-    PCVR_RENDER_PT_xray,
-    PCVR_RENDER_PT_splatting,
+    PCVR_RENDER_PT_pcvr,
+    PCVR_RENDER_PT_method,
+    PCVR_RENDER_PT_statistics,
     PCVR_RENDER_PT_film,
     PCVR_RENDER_PT_passes,
     PCVR_DATA_PT_volume,
+    PCVR_PT_transfer_function_presets,
+    PCVR_DATA_PT_transfer_function,
+    PCVR_DATA_PT_shading,
+    PCVR_LIGHT_PT_light,
+    PCVR_WORLD_PT_ambient,
 )
 
 

@@ -8,6 +8,10 @@ and read it back, frame it with an orthographic camera at the given magnificatio
 direction, render with PCVR (gauss1.4 splats, bilinear post-convolution; median time of 3), render
 `regular` for the speed-up and `exact` on every 7th pixel for the error, print the numbers and write
 the image (1 - exp(-gain * integral), gain putting the median non-zero pixel at mid-grey).
+
+It also writes <output dir>/ct_head.vdb, the same head in Hounsfield units with a quarter cut away and
+turned to open towards a camera above (tools/ct_head.py), which `make demo` renders shaded through the
+add-on with the CT Bone preset.
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 import pcvr_native as pn  # noqa: E402
 from pcvr_native import phantoms  # noqa: E402
 from pcvr_native.cameras import look_at, ortho  # noqa: E402
+
+import ct_head  # noqa: E402  (beside this file)
 
 EXACT_STEP = 7
 
@@ -114,6 +120,10 @@ def main(argv=None) -> int:
     grid = pn.read_vdb(vdb_path)
     print(f"phantom: {args.size}^3 CT head, {grid.active_voxel_count} active voxels, written to and read "
           f"back from {os.path.relpath(vdb_path)} in {time.perf_counter() - t0:.2f} s")
+
+    head_path = os.path.join(out_dir, "ct_head.vdb")
+    ct_head.grid(args.size, cut_away=True, rotation=ct_head.opened_upwards()).write_vdb(head_path, "density")
+    print(f"CT head in Hounsfield units, opened: {os.path.relpath(head_path)}")
 
     camera = frame(grid, args.magnification, direction=(0.35, -0.25, -1.0))
     print(f"camera: orthographic {camera.width}x{camera.height}, magnification {args.magnification:g}, oblique view")

@@ -15,6 +15,7 @@ import bpy
 import numpy as np
 
 import blender_scenes as bs
+import lit_scenes as ls
 
 MODULE = "bl_ext.pcvr_test.pcvr"
 
@@ -31,6 +32,13 @@ def main(archive, work_dir, leave_enabled):
     obj = bs.add_volume("Blob", bs.write_vdb(work_dir / "blob.vdb", bs.blob(np.random.default_rng(7))))
     bs.assert_matches(bs.xray(bs.render(scene)), bs.exact(bs.world_grid(obj)))
     assert f"{MODULE}.engine" in sys.modules, "the render did not go through the installed extension"
+
+    # Shaded, with a preset that the extension ships.
+    assert Path(sys.modules[f"{MODULE}.presets"].find("Cloud")).is_relative_to(work_dir / "repo")
+    obj.data.pcvr.apply_preset("Cloud")
+    scene.pcvr.mode = 'SHADED'
+    ls.add_light('SUN', power=3.0)
+    assert ls.combined(bs.render(scene))[..., 3].max() > 0.5
 
     if not leave_enabled:
         bpy.ops.preferences.addon_disable(module=MODULE)

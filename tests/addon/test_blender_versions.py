@@ -1,5 +1,6 @@
 """What differs between Blender 4.2, 4.5 and 5.0 (pcvr_addon.compat), and a smoke test of each: register,
-frame a volume, F12 render with the XRay pass, write an EXR through the command line, exit cleanly.
+frame a volume, F12 render with the XRay pass, a shaded render with a preset, a sun and the world, a MIP, write
+an EXR through the command line in each mode, exit cleanly.
 
 `make test` runs this file on every Blender the manifest claims (one virtual environment each); `make
 test-compat` runs all the add-on tests there."""
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 import blender_scenes as bs
+import lit_scenes as ls
 from pcvr_addon import compat, image_io
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -107,3 +109,42 @@ def test_command_line_writes_exr_and_exits_cleanly(tmp_path):
     exr = image_io.read_passes(str(tmp_path / "box.exr"))[""]
     assert exr.shape[2] == 5  # R, G, B, A, XRay
     assert exr[exr.shape[0] // 2, exr.shape[1] // 2, 4] == pytest.approx(BOX_INTEGRAL, rel=1e-2)
+
+
+def test_world_uses_nodes():
+    world = bpy.data.worlds.new("World")
+    if world.node_tree is None:  # before 5.0: a new world has no nodes until asked for them
+        assert not compat.world_uses_nodes(world)
+        world.use_nodes = True
+        assert compat.world_uses_nodes(world)
+        world.use_nodes = False
+    # 5.0 renders the nodes whatever use_nodes says; before, use_nodes decides.
+    assert compat.world_uses_nodes(world) == (bpy.app.version >= (5, 0, 0))
+
+
+def test_shaded_and_mip_render(tmp_path):
+    scene, obj = ls.head_scene(tmp_path)
+    bpy.context.view_layer.use_pass_z = True
+    obj.data.pcvr.apply_preset("CT Bone")
+    passes = bs.render(scene)
+    image, depth = ls.combined(passes), passes["ViewLayer.Depth"][..., 0]
+    covered = image[..., 3] > 0.5
+    # The head's front, lit (test_transfer_function measures every preset on 5.0).
+    assert 0.2 < covered.mean() < 0.6 and image[..., :3].max() > 0.3
+    assert (depth[covered] < 10).all() and (depth[image[..., 3] == 0] == 1e10).all()
+
+    scene.pcvr.mode = 'MIP'
+    mip = ls.combined(bs.render(scene))
+    assert mip[..., :3].max() > 0.5 and (mip[image[..., 3] == 0] == 0).all()
+
+
+@pytest.mark.parametrize("mode, channels", [("shaded", 6), ("mip", 5)])
+def test_command_line_renders_each_mode(tmp_path, mode, channels):
+    head = ls.head_vdb(tmp_path / "head.vdb")
+    run = subprocess.run([sys.executable, "-m", "pcvr_addon", "render", head, "-o", tmp_path / "head.exr",
+                          "--mode", mode, "--preset", "CT Bone", "--magnification", "1"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    image = image_io.read_passes(str(tmp_path / "head.exr"))[""]
+    assert image.shape[2] == channels  # R, G, B, A, (Z,) XRay
+    assert image[..., :3].max() > 0.3

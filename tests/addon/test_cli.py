@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import blender_scenes as bs
+import lit_scenes as ls
 from pcvr_addon import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -88,3 +89,42 @@ def test_without_openimageio(tmp_path, box_vdb):
                          cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert run.returncode == 1 and "pip install openimageio" in run.stderr, run.stdout + run.stderr
     assert "Rendering" not in run.stdout and not (tmp_path / "box.exr").exists()
+
+
+def test_shaded_vdb_with_a_preset_and_a_sun(tmp_path):
+    head = ls.head_vdb(tmp_path / "head.vdb")
+    lit = {}
+    for side, direction in (("left", (1, 0, -1)), ("right", (-1, 0, -1))):  # light travelling right, then left
+        check(pcvr(head, "-o", tmp_path / f"{side}.exr", "--mode", "shaded", "--preset", "ct-bone",
+                   "--light-direction", *direction, "--magnification", 1))
+        lit[side] = image_io.read_passes(str(tmp_path / f"{side}.exr"))[""]
+    image = lit["left"]
+    assert image.shape[2] == 6  # R, G, B, A, Z (the Depth pass), XRay
+    alpha, depth = image[..., 3], image[..., 4]
+    # The film is opaque: the world's grey shows where the head is not, at the background depth.
+    assert (alpha == 1).all() and (depth[image[..., 5] == 0] == 1e10).all()
+    # The head is lit from the side the light comes from: its left half is the brighter one, then its right
+    # (measured: 1.50 times as bright, background included).
+    half = image.shape[1] // 2
+    brightness = {side: (pixels[:, :half, :3].sum(), pixels[:, half:, :3].sum()) for side, pixels in lit.items()}
+    assert brightness["left"][0] > 1.3 * brightness["left"][1]
+    assert brightness["right"][1] > 1.3 * brightness["right"][0]
+
+
+def test_mip_png(tmp_path):
+    check(pcvr(ls.head_vdb(tmp_path / "head.vdb"), "-o", tmp_path / "head.png", "--mode", "mip",
+               "--preset", "CT MIP", "--magnification", 1, "--post-filter", "catmull_rom"))
+    image = image_io.read_passes(str(tmp_path / "head.png"))[""]
+    # White where bone is, the world's grey (0.05, sRGB-encoded) around the head.
+    assert image[..., :3].max() > 0.9
+    np.testing.assert_allclose(image[0, 0, :3], image_io.srgb_encode(0.05), atol=1 / 255)
+
+
+def test_shaded_arguments(tmp_path, box_vdb):
+    run = pcvr(box_vdb, "-o", tmp_path / "out.exr", "--mode", "shaded", "--preset", "CT Teeth")
+    assert run.returncode == 2 and "no transfer-function preset 'CT Teeth'; there are: " in run.stderr
+    run = pcvr(box_vdb, "-o", tmp_path / "out.exr", "--light-direction", 0, 0, 0)
+    assert run.returncode == 2 and "needs a direction" in run.stderr
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"), copy=True)
+    run = pcvr(tmp_path / "scene.blend", "-o", tmp_path / "out.exr", "--light-direction", 0, 0, -1)
+    assert run.returncode == 2 and "--light-direction" in run.stderr

@@ -1,5 +1,6 @@
 """Panels: the built-in ones PCVR shares, and the magnification estimate of the render panel."""
 
+import os
 from types import SimpleNamespace
 
 import bpy
@@ -8,19 +9,21 @@ import pytest
 
 import blender_scenes as bs
 import pcvr_addon
-from pcvr_addon import cache, engine, ui
+from pcvr_addon import cache, engine, presets, ui
 
 
 def test_shares_output_dimensions_color_management_and_camera_panels():
     shared = {panel.__name__ for panel in bpy.types.Panel.__subclasses__()
               if 'PCVR' in getattr(panel, 'COMPAT_ENGINES', ())}
     assert {'RENDER_PT_format', 'RENDER_PT_frame_range', 'RENDER_PT_output', 'RENDER_PT_color_management',
-            'RENDER_PT_post_processing', 'DATA_PT_lens', 'DATA_PT_volume_file'} <= shared
-    # Settings PCVR ignores stay hidden.
-    assert not {'RENDER_PT_simplify', 'RENDER_PT_freestyle', 'MATERIAL_PT_custom_props', 'WORLD_PT_context_world',
-                'DATA_PT_volume_render', 'DATA_PT_light'} & shared
-    assert {'PCVR_RENDER_PT_xray', 'PCVR_RENDER_PT_splatting', 'PCVR_RENDER_PT_film', 'PCVR_RENDER_PT_passes',
-            'PCVR_DATA_PT_volume'} <= {cls.__name__ for cls in ui.classes}
+            'RENDER_PT_post_processing', 'DATA_PT_lens', 'DATA_PT_volume_file', 'WORLD_PT_context_world',
+            'DATA_PT_context_light'} <= shared
+    # Settings PCVR ignores, or draws itself (the light's), stay hidden.
+    assert not {'RENDER_PT_simplify', 'RENDER_PT_freestyle', 'MATERIAL_PT_custom_props', 'DATA_PT_volume_render',
+                'DATA_PT_light', 'DATA_PT_spot'} & shared
+    assert {'PCVR_RENDER_PT_pcvr', 'PCVR_RENDER_PT_method', 'PCVR_RENDER_PT_statistics', 'PCVR_RENDER_PT_film',
+            'PCVR_RENDER_PT_passes', 'PCVR_DATA_PT_volume', 'PCVR_DATA_PT_transfer_function', 'PCVR_DATA_PT_shading',
+            'PCVR_LIGHT_PT_light', 'PCVR_WORLD_PT_ambient'} <= {cls.__name__ for cls in ui.classes}
 
 
 def test_unregister_removes_pcvr_from_shared_panels():
@@ -49,8 +52,8 @@ def test_sampling_estimate_uses_cached_grids_only(tmp_path):
 
 
 class Layout:
-    """Stands in for UILayout (there is none without a window): records the properties drawn and
-    checks that they exist."""
+    """Stands in for UILayout (there is none without a window): records the properties and widgets drawn
+    and checks that they exist."""
 
     def __init__(self, drawn):
         self.drawn = drawn
@@ -61,6 +64,8 @@ class Layout:
     def column(self, **kwargs):
         return self
 
+    row = grid_flow = column
+
     def prop(self, data, name, **kwargs):
         assert name in data.bl_rna.properties, f"{data} has no property {name}"
         self.drawn.append(name)
@@ -68,6 +73,18 @@ class Layout:
     def prop_search(self, data, name, search_data, search_name, **kwargs):
         assert search_name in search_data.bl_rna.properties
         self.prop(data, name)
+
+    def template_ID(self, data, name, new="", **kwargs):
+        self.prop(data, name)
+        self.operator(new)
+
+    def template_color_ramp(self, data, name, **kwargs):
+        assert isinstance(getattr(data, name), bpy.types.ColorRamp)
+        self.drawn.append("color_ramp")
+
+    def popover(self, panel, **kwargs):
+        assert hasattr(bpy.types, panel), f"no panel {panel}"
+        self.drawn.append(panel)
 
     def label(self, text="", **kwargs):
         self.drawn.append(text)
@@ -78,26 +95,105 @@ class Layout:
         self.drawn.append(idname)
 
 
-def draw(panel, context):
+def draw(panel, context, method="draw"):
     drawn = []
-    panel.draw(type("Panel", (), {"layout": Layout(drawn)})(), context)
+    getattr(panel, method)(type("Panel", (), {"layout": Layout(drawn)})(), context)
     return drawn
 
 
-@pytest.mark.parametrize("method, hidden", [('REGULAR', {"post_filter", "subgrid_stride"}),
-                                            ('PCVR', set()),
-                                            ('BILINEAR_SPREAD', {"splat_kernel"})])
-def test_panels_draw_only_settings_in_use(tmp_path, method, hidden):
-    scene = bs.setup(method=method)
-    obj = bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
-    context = SimpleNamespace(scene=scene, view_layer=bpy.context.view_layer, volume=obj.data, engine='PCVR',
-                              evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
+def panel_context(scene, **members):
+    return SimpleNamespace(scene=scene, view_layer=bpy.context.view_layer, engine='PCVR',
+                           evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get, **members)
 
-    settings = {"method", "splat_kernel", "post_filter", "subgrid_stride"}
-    splatting = draw(ui.PCVR_RENDER_PT_splatting, context)
-    assert settings & set(splatting) == settings - hidden
-    assert "No scene camera" in splatting
-    assert {"mode", "xray_gain"} <= set(draw(ui.PCVR_RENDER_PT_xray, context))
+
+SHEET_SETTINGS = {"sheet_post_filter", "sheet_spacing", "samples_per_sheet", "opacity_cutoff"}
+ALL = {"method", "splat_kernel", "post_filter", "subgrid_stride"} | SHEET_SETTINGS
+
+
+@pytest.mark.parametrize("mode, method, shown", [
+    ('XRAY', 'REGULAR', {"method", "splat_kernel"}),
+    ('XRAY', 'PCVR', {"method", "splat_kernel", "post_filter", "subgrid_stride"}),
+    ('XRAY', 'BILINEAR_SPREAD', {"method", "post_filter", "subgrid_stride"}),
+    ('SHADED', 'PCVR', {"method", "splat_kernel", "subgrid_stride"} | SHEET_SETTINGS),
+    ('SHADED', 'REGULAR', {"method", "splat_kernel", "sheet_spacing", "samples_per_sheet", "opacity_cutoff"}),
+    ('MIP', 'PCVR', {"method", "splat_kernel", "sheet_post_filter", "subgrid_stride", "sheet_spacing"}),
+])
+def test_method_panel_draws_only_settings_in_use(tmp_path, mode, method, shown):
+    scene = bs.setup(method=method)
+    scene.pcvr.mode = mode
+    bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
+    drawn = draw(ui.PCVR_RENDER_PT_method, panel_context(scene))
+    assert ALL & set(drawn) == shown
+    assert "No scene camera" in drawn
+
+
+@pytest.mark.parametrize("mode", ['XRAY', 'SHADED', 'MIP'])
+def test_panels_of_each_mode(tmp_path, mode):
+    scene = bs.setup()
+    scene.pcvr.mode = mode
+    obj = bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
+    light = bpy.data.lights.new("Spot", 'SPOT')
+    world = bpy.data.worlds.new("World")
+    context = panel_context(scene, volume=obj.data, light=light, world=world)
+
+    main = draw(ui.PCVR_RENDER_PT_pcvr, context)
+    assert main[0] == "mode" and ("xray_gain" in main) == (mode == 'XRAY') and ("mip_color" in main) == (mode == 'MIP')
     assert draw(ui.PCVR_RENDER_PT_film, context) == ["film_transparent"]
-    assert draw(ui.PCVR_RENDER_PT_passes, context) == ["use_pass_xray"]
+    assert draw(ui.PCVR_RENDER_PT_passes, context) == (["use_pass_z", "use_pass_xray"] if mode == 'SHADED'
+                                                       else ["use_pass_xray"])
     assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale", "pcvr.frame_volume"]
+
+    sheets = mode in {'SHADED', 'MIP'}
+    assert ui.PCVR_DATA_PT_transfer_function.poll(context) == sheets
+    assert ui.PCVR_DATA_PT_shading.poll(context) == (mode == 'SHADED')
+    assert ui.PCVR_LIGHT_PT_light.poll(context) == (mode == 'SHADED')
+    assert ui.PCVR_WORLD_PT_ambient.poll(context) == sheets
+    if not sheets:
+        return
+    assert draw(ui.PCVR_DATA_PT_transfer_function, context, "draw_header_preset") == [
+        "PCVR_PT_transfer_function_presets"]
+    transfer = draw(ui.PCVR_DATA_PT_transfer_function, context)
+    assert transfer[:2] == ["transfer_function", "pcvr.transfer_function_new"] and "color_ramp" not in transfer
+    assert {"use_grid_range", "tf_min", "tf_max", "pcvr.transfer_function_range_from_grid"} <= set(transfer)
+    assert ("opacity_scale" in transfer) == (mode == 'SHADED')
+    obj.data.pcvr.ensure_transfer_function()
+    assert "color_ramp" in draw(ui.PCVR_DATA_PT_transfer_function, context)
+    if mode == 'SHADED':
+        assert draw(ui.PCVR_DATA_PT_shading, context, "draw_header") == ["use_shading"]
+        assert draw(ui.PCVR_DATA_PT_shading, context) == ["ambient", "diffuse", "specular", "shininess"]
+        lit = draw(ui.PCVR_LIGHT_PT_light, context)
+        assert {"type", "color", "energy"} <= set(lit) and "Lights as a point light: no cone, no size" in lit
+    world_drawn = draw(ui.PCVR_WORLD_PT_ambient, context)
+    assert world_drawn in (["color"], ["default_value", "default_value"])
+
+
+def test_statistics_panel_shows_the_last_render(tmp_path):
+    scene = bs.setup()
+    scene.pcvr.mode = 'SHADED'
+    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.0)
+    bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
+    context = panel_context(scene)
+    assert draw(ui.PCVR_RENDER_PT_statistics, context) == ["Render to see what was splatted and culled"]
+    bs.render(scene)
+    drawn = draw(ui.PCVR_RENDER_PT_statistics, context)
+    assert drawn[:2] == ["Blocks", f"{engine.last_render[scene.session_uid][1]['blocks']:,}"]
+    assert "Transparent" in drawn and "Behind opaque" in drawn
+
+
+def test_preset_menu_lists_shipped_and_user_presets(tmp_path, monkeypatch):
+    """The preset popover's listing (Menu.path_menu), fed the shipped folder and the user's."""
+    monkeypatch.setenv("BLENDER_USER_SCRIPTS", str(tmp_path))
+    user = tmp_path / "presets" / presets.SUBDIR
+    user.mkdir(parents=True)
+    (user / "My_Smoke.py").write_text("")
+    listed = []
+
+    def path_menu(paths, operator, **kwargs):
+        assert operator == "script.execute_preset"
+        assert kwargs["add_operator"] == "pcvr.transfer_function_preset_add"
+        listed.extend(kwargs["display_name"](name) for path in paths for name in sorted(os.listdir(path)))
+
+    panel = SimpleNamespace(layout=SimpleNamespace(), path_menu=path_menu, preset_operator="script.execute_preset",
+                            preset_add_operator="pcvr.transfer_function_preset_add")
+    ui.PCVR_PT_transfer_function_presets.draw(panel, None)
+    assert "CT Bone" in listed and "My Smoke" in listed

@@ -1,0 +1,36 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""The native renderers' defaults, in one table: the add-on's settings take their defaults from here.
+
+pcvr_native is still tuned (sheet spacing, samples per sheet and the shaded post filter may change), so
+tests/addon/test_defaults.py compares this table with the defaults in pcvr_native's own signatures: a change
+there fails that test until it is made here too, and the interface, the command line and scripts follow.
+Names and values are pcvr_native's keyword arguments.
+"""
+
+# render_xray
+XRAY = {
+    "method": "pcvr",
+    "splat_kernel": "gauss1.4",
+    "post_filter": "bilinear",
+    "stride": 0,
+}
+
+# render_shaded, and render_mip for the arguments it shares
+SHEETS = {
+    "method": "pcvr",
+    "splat_kernel": "gauss1.4",
+    "post_filter": "bilinear",
+    "stride": 0,
+    "sheet_spacing": 1.0,
+    "samples_per_sheet": 1,
+    "opacity_cutoff": 0.99,
+}
+
+# pcvr_native.Shading(): the Blinn-Phong material, VTK's and 3D Slicer's usual one
+MATERIAL = {
+    "ambient": 0.1,
+    "diffuse": 0.9,
+    "specular": 0.2,
+    "shininess": 10.0,
+}

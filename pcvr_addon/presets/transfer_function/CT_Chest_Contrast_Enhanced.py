@@ -1,0 +1,19 @@
+# 3D Slicer's volume-rendering preset "CT-Chest-Contrast-Enhanced", its numbers as published in Slicer's
+# Modules/Loadable/VolumeRendering/Resources/presets.xml (scalarOpacity, colorTransfer, shading).
+import bpy
+
+bpy.context.volume.pcvr.apply_slicer_preset(
+    scalar_opacity=[10,
+        -3024, 0,
+        67.0106, 0,
+        251.105, 0.446429,
+        439.291, 0.625,
+        3071, 0.616071],
+    color_transfer=[20,
+        -3024, 0, 0, 0,
+        67.0106, 0.54902, 0.25098, 0.14902,
+        251.105, 0.882353, 0.603922, 0.290196,
+        439.291, 1, 0.937033, 0.954531,
+        3071, 0.827451, 0.658824, 1],
+    shade=True, ambient=0.1, diffuse=0.9, specular=0.2, specular_power=10,
+)
