@@ -88,4 +88,24 @@ std::optional<Mat4> Mat4::inverse() const {
     return out;
 }
 
+double largest_singular_value(const Mat4& m) {
+    // The largest eigenvalue of the symmetric A^T A in closed form (Smith, 1961), then its root.
+    double a[3][3] = {};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            for (int k = 0; k < 3; ++k) a[i][j] += m.m[k][i] * m.m[k][j];
+    const double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+    const double q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+    const double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) + (a[2][2] - q) * (a[2][2] - q) + 2.0 * off;
+    if (!(p2 > 1e-30 * q * q)) return std::sqrt(std::max({a[0][0], a[1][1], a[2][2]}));
+    const double p = std::sqrt(p2 / 6.0);
+    double b[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) b[i][j] = (a[i][j] - (i == j ? q : 0.0)) / p;
+    const double half_det = 0.5 * (b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1]) - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0]) +
+                                   b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0]));
+    const double angle = std::acos(std::clamp(half_det, -1.0, 1.0)) / 3.0;
+    return std::sqrt(std::max(0.0, q + 2.0 * p * std::cos(angle)));
+}
+
 }  // namespace pcvr

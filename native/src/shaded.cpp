@@ -126,19 +126,33 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::unique_ptr<Shader> shader;
     if (!mip) shader = std::make_unique<Shader>(*lighting);
 
-    // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis.
+    // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis;
+    // planes for orthographic views, spheres around the eye for perspective ones.
+    const SheetGeometry geometry(camera);
+    SheetLattice sheets;
+    sheets.spherical = !camera.orthographic();
+    sheets.eye = geometry.origin0;
     std::vector<ViewProjection> projections;
     double spacing = INFINITY;
     for (const ShadedVolume& v : volumes) {
         projections.emplace_back(camera, v.grid->index_to_world());
-        if (v.grid->active_voxel_count() > 0) spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid));
+        if (v.grid->active_voxel_count() > 0)
+            spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid, sheets.spherical));
     }
     if (!std::isfinite(spacing)) return;  // nothing to render
     const auto [near_depth, far_depth] = clip_depths(camera);
-    SheetLattice sheets;
-    sheets.first_depth = near_depth;
     sheets.spacing = spacing * params.sheet_spacing;
-    sheets.count = int64_t(std::ceil((far_depth - near_depth) / sheets.spacing));
+    if (sheets.spherical) {
+        // From the near plane's distance on the axis to the far plane's in the image's corners.
+        double farthest = 0;
+        for (double px : {0.0, double(camera.width() - 1)})
+            for (double py : {0.0, double(camera.height() - 1)}) farthest = std::max(farthest, far_depth * length(geometry.direction(px, py)));
+        sheets.first_depth = near_depth * geometry.world_per_depth;
+        sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
+    } else {
+        sheets.first_depth = near_depth;
+        sheets.count = int64_t(std::ceil((far_depth - near_depth) / sheets.spacing));
+    }
 
     SlabSplatParams splat;
     splat.kernel = &kernel;
@@ -197,9 +211,10 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             setup.layers.push_back({&view, uint32_t(g), filter, !regular});
             if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
 
-            const CullingReach culling = culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid));
-            const double reach = view.depth_reach();
+            const CullingReach culling =
+                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets.spherical));
             const Vec3& n = view.projection().depth_gradient();
+            const double reach = kernel.radius() * length(n);  // in depth, for the clip planes
             const double span = VoxelBlock::kDim - 1;
             const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
             // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
@@ -218,7 +233,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_transparent;
                     continue;
                 }
-                tiles.add(layer, pb.index, nearest - reach, pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach);
+                tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
+                          float(view.limit_scale(block)));
                 ++stats.blocks_listed;
             }
         }
@@ -228,13 +244,14 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     stats.tiles = tiles.size();
     setup.tiles = &tiles;
     setup.sheets = sheets;
-    const SheetGeometry geometry(camera);
     setup.geometry = &geometry;
     setup.shader = shader.get();
     setup.opacity_cutoff = float(params.opacity_cutoff);
     setup.samples_per_sheet = params.samples_per_sheet;
     setup.width = camera.width();
     setup.height = camera.height();
+    setup.near_depth = float(near_depth);
+    setup.far_depth = float(far_depth);
     stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
 
     control.begin_phase(tiles.size(), 0.02, 1.0);

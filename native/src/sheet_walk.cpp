@@ -34,6 +34,7 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
     origin_dy = o2 - origin0;
     dir_dx = d1 - dir0;
     dir_dy = d2 - dir0;
+    world_per_depth = 1.0 / length(Vec3{w2c.m[2][0], w2c.m[2][1], w2c.m[2][2]});
 }
 
 void WalkStats::add(const WalkStats& o) {
@@ -232,7 +233,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
                 stats.voxels_occluded += view.voxels_left(block, active[a].next_rank);
                 continue;
             }
-            const float limit = float(splat_front + view.depth_reach() - view.origin_depth(block));
+            // The voxels whose kernels reach sheet s + 1 come first in depth order (planar depth; for
+            // spherical sheets a bound, SlabView::limit_scale).
+            const float limit = float((splat_front + view.depth_reach()) * tb.limit_scale - view.origin_depth(block));
             const std::vector<float>& depth = view.depth_order().depth;
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
@@ -361,16 +364,39 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
 
 inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8(float(v.y)), broadcast8(float(v.z))}; }
 
-/// World displacement per unit of depth along the rays of eight pixels.
-inline Vec3x8 ray_directions(const SheetGeometry& geo, const PixelLanes& p) {
-    return lanes3(geo.dir0 + geo.dir_dy * double(p.py)) + lanes3(geo.dir_dx) * p.px;
-}
-
-
 }  // namespace
+
+SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
+    const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
+    const Vec3x8 origin = lanes3(geo.origin0 + geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
+    SampleFrames f;
+    if (!spherical) {
+        f.position = origin + dir * float(u);
+        f.per_pixel_x = lanes3(geo.origin_dx + geo.dir_dx * u);
+        f.per_pixel_y = lanes3(geo.origin_dy + geo.dir_dy * u);
+        f.along = dir;
+        f.depth = broadcast8(float(u));
+        return f;
+    }
+    // On the sphere of radius u around the eye: the point u along the unit direction d = dir / |dir|,
+    // which turns per pixel by the part of dir's change across d, over |dir|.
+    const float8 inverse_length = 1.0f / sqrt8(dot(dir, dir));
+    const Vec3x8 d = dir * inverse_length;
+    auto turn = [&](const Vec3& change) {
+        const Vec3x8 c = lanes3(change);
+        return (c - d * dot(d, c)) * (inverse_length * float(u));
+    };
+    f.position = origin + d * float(u);
+    f.per_pixel_x = turn(geo.dir_dx);
+    f.per_pixel_y = turn(geo.dir_dy);
+    f.along = d;
+    f.depth = inverse_length * float(u);  // dir advances one unit of depth per |dir| of world length
+    return f;
+}
 
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {
     const float spacing = float(setup.sheets.spacing);
+    const double middle = setup.sheets.boundary(s) + 0.5 * setup.sheets.spacing;
     for (size_t gi = 0; gi < grids_.size(); ++gi) {
         if (!grids_[gi] || !grids_[gi]->used || !grids_[gi]->has(s)) continue;
         const GridState& g = *grids_[gi];
@@ -389,10 +415,11 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 const float8 slope = a - b;
                 const float8 safe = select8(peak_here, curvature, broadcast8(1.0f));
                 const float8 peak = m + select8(peak_here, slope * slope / (8.0f * safe) + curvature / 24.0f, broadcast8(0.0f));
-                const Vec3x8 dir = ray_directions(*setup.geometry, p);
+                const SampleFrames f = sample_frames(*setup.geometry, setup.sheets.spherical, p.px, p.py, middle);
                 float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
                 // Zero means no voxel reaches: empty, not a density of 0.
-                store8(most, select8(p.inside & (m != 0), max8(load8(most), peak / (spacing * sqrt8(dot(dir, dir)))), load8(most)));
+                const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
+                store8(most, select8(counted, max8(load8(most), peak / (spacing * sqrt8(dot(f.along, f.along)))), load8(most)));
             }
     }
 }
@@ -401,9 +428,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     const SheetGeometry& geo = *setup.geometry;
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
     // The sample lies t of the way from sheet s's middle to sheet s + 1's, and stands for 1 / samples of a slab.
-    const double depth = setup.sheets.boundary(s) + (0.5 + double(t)) * setup.sheets.spacing;
-    const Vec3x8 a = lanes3(geo.origin_dx + geo.dir_dx * depth), b = lanes3(geo.origin_dy + geo.dir_dy * depth);
-    const Vec3x8 a_cross_b = cross(a, b);
+    const double u = setup.sheets.boundary(s) + (0.5 + double(t)) * setup.sheets.spacing;
 
     // The grids with something at this sample, their sheets s - 1, s and s + 1, and the pixels where
     // any of them is not zero.
@@ -430,11 +455,18 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const size_t p = size_t(y) * row_pitch_ + x;
             const float8 alpha = load8(alpha_.data() + p);
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
-            const int8x open = lanes.inside & (alpha < cutoff);
+            int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
-            const Vec3x8 dir = ray_directions(geo, lanes);
-            const float8 dir_length = sqrt8(dot(dir, dir));
-            const float8 slab_length = spacing * dir_length;  // world length of the ray across a slab
+            const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
+            open &= setup.within_clip(f.depth);
+            if (!any8(open)) continue;
+            const float8 along_length = sqrt8(dot(f.along, f.along));
+            const float8 slab_length = spacing * along_length;  // world length of the ray across a slab
+            // The rows of the inverse of [per_pixel_x per_pixel_y along], times its determinant: they turn
+            // derivatives per pixel and per unit of the sheet parameter into a world gradient.
+            const Vec3x8 from_x = cross(f.per_pixel_y, f.along), from_y = cross(f.along, f.per_pixel_x),
+                         from_u = cross(f.per_pixel_x, f.per_pixel_y);
+            const Vec3x8 to_eye = f.along * (-1.0f / along_length);
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
             for (int k = 0; k < source_count; ++k) {
@@ -449,7 +481,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const ClassificationTable::Samples c = (*src.classification)(density);
                 valid &= c.extinction > 0;
                 if (!any8(valid)) continue;
-                // Density change per pixel right, per pixel down and per unit of depth along the ray, of
+                // Density change per pixel right, per pixel down and per unit of the sheet parameter, of
                 // the density interpolated linearly between the sheets (common factors dropped: only the
                 // gradient's direction matters). On a sheet the depth slope is the central difference.
                 const int L = g.halo;
@@ -459,12 +491,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const float8 g2 =
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
                 const float8 g3 = t == 0 ? (next - load8(src.before + i)) * (0.5f / spacing) : (next - here) * (1.0f / spacing);
-                // World gradient from the derivatives along the pixel axes and the ray: the rows of the
-                // inverse of [a b dir] are (b x dir, dir x a, a x b) / det.
-                const Vec3x8 gradient = cross(b, dir) * g1 + cross(dir, a) * g2 + a_cross_b * g3;
-                const Vec3x8 to_eye = dir * (-1.0f / dir_length);
-                const Vec3x8 position = lanes3(geo.origin0 + geo.origin_dy * double(lanes.py)) + lanes3(geo.origin_dx) * lanes.px + dir * broadcast8(float(depth));
-                const Vec3x8 lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, position);
+                const Vec3x8 gradient = from_x * g1 + from_y * g2 + from_u * g3;
+                const Vec3x8 lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
                 const float8 extinction = select8(valid, c.extinction, broadcast8(0.0f));
                 sigma_sum += extinction;
                 emission = emission + lit * extinction;
@@ -480,7 +508,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const float8 new_alpha = alpha + weight * sigma_sum;
             store8(alpha_.data() + p, new_alpha);
             const int8x half_way = (alpha < 0.5f) & (new_alpha >= 0.5f);
-            if (any8(half_way)) store8(depth_.data() + p, select8(half_way, broadcast8(float(depth)), load8(depth_.data() + p)));
+            if (any8(half_way)) store8(depth_.data() + p, select8(half_way, f.depth, load8(depth_.data() + p)));
             newly_opaque += __builtin_popcount(lane_mask(lanes.inside & (new_alpha >= cutoff) & (alpha < cutoff)));
         }
     }

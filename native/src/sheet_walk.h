@@ -15,6 +15,7 @@
 /// A SheetWalker holds one thread's scratch memory and is reused tile after tile.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -34,13 +35,25 @@ namespace pcvr {
 /// World positions along pixel rays in terms of depth: point(px, py, z) = origin(px, py) + z dir(px, py),
 /// both affine in pixel coordinates (every pinhole and orthographic camera).
 struct SheetGeometry {
-    Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0
+    Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0 (the eye, in perspective)
     Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
+    double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
 
     explicit SheetGeometry(const Camera& camera);
     Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
     Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
 };
+
+/// Eight pixels' samples on one sheet: world position, the world displacement per pixel right and
+/// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
+struct SampleFrames {
+    Vec3x8 position, per_pixel_x, per_pixel_y, along;
+    float8 depth;  ///< camera-space depth (the clip planes and the Depth pass use it)
+};
+
+/// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
+/// world radius u around the eye.
+SampleFrames sample_frames(const SheetGeometry& geometry, bool spherical, float8 px, float py, double u);
 
 /// One grid as the walk sees it: what classifies its sheets, and the finest subgrid stride of its
 /// layers (the step of its in-sheet gradient).
@@ -69,6 +82,9 @@ struct SheetWalkSetup {
     float opacity_cutoff = 0.99f;
     int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
     int width = 0, height = 0;
+    float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
+
+    int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
 };
 
 struct WalkStats {

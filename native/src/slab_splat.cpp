@@ -72,12 +72,14 @@ struct SlabBatch {
     float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
 };
 
-double depth_per_voxel(const ViewProjection& projection, const Grid& grid) {
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical) {
     Footprint centre;
     const auto [i0, j0, k0, i1, j1, k1] = grid.index_bbox();
     const Vec3 middle{0.5 * (i0 + i1), 0.5 * (j0 + j1), 0.5 * (k0 + k1)};
     // Behind the eye there is no central ray through the grid: fall back to the steepest direction.
-    return projection.footprint_unclipped(middle, centre) ? centre.depth_per_index : length(projection.depth_gradient());
+    if (!projection.footprint_unclipped(middle, centre))
+        return spherical ? largest_singular_value(grid.index_to_world()) : length(projection.depth_gradient());
+    return spherical ? centre.line_scale : centre.depth_per_index;
 }
 
 SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params)
@@ -85,7 +87,12 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     if (!params.kernel || !params.table || !params.profile || params.stride < 1)
         throw InvalidArgument("SlabView: kernel, footprint table, depth profile and a stride >= 1 are required");
     const Vec3& n = projection_.depth_gradient();
-    depth_reach_ = params.kernel->radius() * length(n);
+    index_to_camera_ = camera.world_to_camera() * grid.index_to_world();
+    const Mat4 camera_to_world = *camera.world_to_camera().inverse();
+    world_per_camera_ = length(camera_to_world.column(2));
+    // A kernel's reach in the sheet parameter: along the depth gradient for planes; for spheres the
+    // longest world length of an index-space radius (the largest singular value of the linear part).
+    depth_reach_ = params.kernel->radius() * (sheets.spherical ? largest_singular_value(grid.index_to_world()) : length(n));
     slabs_per_voxel_ = int(std::ceil(2.0 * depth_reach_ / sheets.spacing - 1e-9)) + 1;
     if (!(slabs_per_voxel_ <= kMostSlabs)) {
         const double factor = 2.0 * depth_reach_ / (kMostSlabs - 1) / sheets.spacing;
@@ -149,6 +156,32 @@ uint64_t SlabView::voxels_left(const VoxelBlock& block, int first) const {
     uint64_t n = 0;
     for (int rank = first; rank < VoxelBlock::kSize; ++rank) n += block.active(order_.offset[rank]);
     return n;
+}
+
+double SlabView::limit_scale(const VoxelBlock& block) const {
+    if (!sheets_.spherical) return 1.0;
+    // The block's voxel centres in camera space: their largest cosine to the axis is at most the
+    // largest depth over the hypotenuse with the smallest distance from the axis.
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))};
+        const Vec3 c = index_to_camera_.transform_point(p);
+        for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a]);
+    }
+    auto nearest_to_zero = [](double a, double b) { return a <= 0 && b >= 0 ? 0.0 : std::min(std::abs(a), std::abs(b)); };
+    const double off_axis = std::hypot(nearest_to_zero(lo[0], hi[0]), nearest_to_zero(lo[1], hi[1]));
+    const double deepest = std::max(-lo[2], 1e-300);  // depth = -z
+    return deepest / std::hypot(deepest, off_axis) / world_per_camera_;
+}
+
+double SlabView::front(const VoxelBlock& block) const {
+    const Vec3& n = projection_.depth_gradient();
+    const double span = VoxelBlock::kDim - 1;
+    const double nearest = origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+    // Spheres: a voxel's distance is its planar depth over its cosine to the axis, at least this.
+    return (sheets_.spherical ? std::max(0.0, nearest) / limit_scale(block) : nearest) - depth_reach_;
 }
 
 double SlabView::origin_depth(const VoxelBlock& block) const {
@@ -403,8 +436,16 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                         continue;
                     }
                     const double qxx = f.qxx[l] * stride * stride, qxy = f.qxy[l] * stride * stride, qyy = f.qyy[l] * stride * stride;
-                    const double det = qxx * qyy - qxy * qxy, kappa = f.depth_per_index[l];
-                    const double slabs = (f.depth[l] - sheets_.first_depth) * inv_spacing;
+                    const double det = qxx * qyy - qxy * qxy;
+                    // Spheres: the sheet parameter is the world distance from the eye, which the ray
+                    // through the centre covers at the world length per index length (line_scale); it
+                    // changes across the footprint only where the kernel is not round in world space.
+                    double kappa = f.depth_per_index[l], parameter = f.depth[l];
+                    if (sheets_.spherical) {
+                        kappa = f.line_scale[l];
+                        parameter = length(grid_->index_to_world().transform_point(Vec3{x[l], y[l], z[l]}) - sheets_.eye);
+                    }
+                    const double slabs = (parameter - sheets_.first_depth) * inv_spacing;
                     const double front = std::floor(slabs - depth_reach_ * inv_spacing);
                     b.cx[lane] = float(f.px[l] * inv_stride - placement.node_x0);
                     b.cy[lane] = float(f.py[l] * inv_stride - placement.node_y0);
@@ -416,8 +457,8 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                     b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det) : 1.0));
                     b.first_sheet[lane] = int64_t(front);
                     b.s0[lane] = float((front - slabs) * spacing / kappa);
-                    b.s_dx[lane] = float(-f.depth_dx[l] * stride / kappa);
-                    b.s_dy[lane] = float(-f.depth_dy[l] * stride / kappa);
+                    b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa);
+                    b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa);
                     b.s_step[lane] = float(spacing / kappa);
                 }
             }

@@ -34,11 +34,17 @@
 
 namespace pcvr {
 
-/// Planes of constant depth cutting space into slabs: slab s spans depths [boundary(s), boundary(s + 1)].
+/// The surfaces cutting space into slabs: slab s spans [boundary(s), boundary(s + 1)] of the sheet
+/// parameter. Orthographic views: planes of constant depth (camera-space units along the view axis).
+/// Perspective views: spheres around the eye (`spherical`; the parameter is the world distance from
+/// the eye), which every ray crosses at right angles, so that a kernel's slabs are the same at every
+/// tap of its footprint (planes would cut off-axis kernels at an angle and need each tap's own share).
 struct SheetLattice {
-    double first_depth = 0;  ///< boundary 0: the near clip plane
-    double spacing = 1;      ///< depth between boundaries (camera-space units)
-    int64_t count = 0;       ///< slabs before the far clip plane
+    bool spherical = false;
+    Vec3 eye;                ///< world position of the eye (spherical)
+    double first_depth = 0;  ///< boundary 0: the near clip plane (spherical: its distance on the axis)
+    double spacing = 1;      ///< between boundaries
+    int64_t count = 0;       ///< slabs up to the far clip plane
 
     double boundary(int64_t s) const { return first_depth + double(s) * spacing; }
     /// The slab holding depth z (may lie outside [0, count)).
@@ -70,9 +76,10 @@ struct DepositCounts {
     uint64_t occluded = 0;  ///< voxels whose window lay wholly on occluded nodes
 };
 
-/// Depth of one index unit along the view axis through the grid's centre: what "one voxel" of sheet
-/// spacing means for this grid (its voxel size along the view direction, anisotropy included).
-double depth_per_voxel(const ViewProjection& projection, const Grid& grid);
+/// The sheet parameter's change over one index unit along the ray through the grid's centre: what
+/// "one voxel" of sheet spacing means for this grid (its voxel size along the view direction,
+/// anisotropy included): depth for planes, world length for spheres.
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical);
 
 class SlabView {
 public:
@@ -83,8 +90,14 @@ public:
     int stride() const { return params_.stride; }
     /// Sheets a voxel's slabs can reach: ceil(2 reach / spacing) + 1.
     int slabs_per_voxel() const { return slabs_per_voxel_; }
-    /// How far a kernel reaches in depth from its centre.
+    /// How far a kernel reaches in the sheet parameter from its centre.
     double depth_reach() const { return depth_reach_; }
+    /// For the walk's order, which follows planar depth: a voxel of a block whose planar depth is at
+    /// least `limit_scale(block) * (sheet parameter)` has at least that sheet parameter (1 for planes;
+    /// for spheres the block's largest cosine to the view axis over world units per camera unit).
+    /// And where the block's kernels begin in the sheet parameter.
+    double limit_scale(const VoxelBlock& block) const;
+    double front(const VoxelBlock& block) const;
 
     /// A block's voxel offsets in order of depth (structure of arrays, padded to whole batches of
     /// eight with entries that lie beyond every block's voxels).
@@ -124,6 +137,8 @@ private:
     Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
     double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
     Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
+    Mat4 index_to_camera_;
+    double world_per_camera_ = 1;   // world length of one camera-space unit
     std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
 };
 

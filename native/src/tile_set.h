@@ -24,8 +24,9 @@ struct PixelRect {
 struct TileBlock {
     uint32_t layer;  ///< the grid and stride it is splatted at (the renderer's list of layers)
     uint32_t block;  ///< index into that grid's blocks()
-    double front;    ///< depth where the block's kernels begin: its nearest voxel centre's, less the kernel's reach
+    double front;    ///< sheet parameter where the block's kernels begin (SlabView::front)
     float min_x, min_y, max_x, max_y;  ///< pixels its footprints can reach
+    float limit_scale = 1;  ///< SlabView::limit_scale of the block
 };
 
 class TileSet {
@@ -38,7 +39,8 @@ public:
 
     /// Lists a block in every tile that the pixel bounds [min_x, max_x] x [min_y, max_y], widened by
     /// `reach` pixels, overlap.
-    void add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach);
+    void add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach,
+             float limit_scale = 1.0f);
     /// Orders each tile's blocks nearest first (ties by layer, then block: deterministic).
     void sort();
     const std::vector<TileBlock>& blocks(size_t tile) const { return lists_[tile]; }

@@ -35,6 +35,14 @@ ViewProjection::ViewProjection(const Camera& camera, const Mat4& index_to_world)
     wd0_ = r0.direction;
     wdx_ = rx.direction;
     wdy_ = ry.direction;
+    // W^T (W d) = W^T wd: the world direction turned back by the transposed linear part.
+    auto transposed_times = [&](const Vec3& w) {
+        const Vec3 a = index_to_world.column(0), b = index_to_world.column(1), c = index_to_world.column(2);
+        return Vec3{dot(a, w), dot(b, w), dot(c, w)};
+    };
+    gd0_ = transposed_times(wd0_);
+    gdx_ = transposed_times(wdx_);
+    gdy_ = transposed_times(wdy_);
     // Depth = -z in camera space: minus the third row of world_to_camera * index_to_world.
     const Mat4 index_to_camera = camera.world_to_camera() * index_to_world;
     depth_gradient_ = Vec3{-index_to_camera.m[2][0], -index_to_camera.m[2][1], -index_to_camera.m[2][2]};
@@ -67,6 +75,8 @@ void ViewProjection::footprint_at(const Vec3& c, const Vec4& clip, Footprint& ou
     out.depth = f.depth;
     out.depth_dx = f.depth_dx;
     out.depth_dy = f.depth_dy;
+    out.distance_dx = f.distance_dx;
+    out.distance_dy = f.distance_dy;
     out.depth_per_index = f.depth_per_index;
 }
 

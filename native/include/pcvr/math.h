@@ -56,4 +56,7 @@ struct Mat4 {
     std::optional<Mat4> inverse() const;
 };
 
+/// The largest singular value of the upper-left 3x3 block: how far a unit vector can be stretched.
+double largest_singular_value(const Mat4& m);
+
 }  // namespace pcvr

@@ -30,6 +30,7 @@ struct FootprintLanes {
     T depth;             ///< depth of the centre
     T depth_dx, depth_dy;  ///< change per pixel offset of the depth where each ray passes closest to the centre
     T depth_per_index;   ///< depth per index length along the ray (> 0)
+    T distance_dx, distance_dy;  ///< the same for the world distance along the ray (spherical sheets)
 };
 
 struct Footprint {
@@ -37,6 +38,7 @@ struct Footprint {
     double qxx = 0, qxy = 0, qyy = 0;   ///< rho^2 in index units^2 per pixel offset, see above
     double line_scale = 1;              ///< world length per index length along the ray
     double depth = 0, depth_dx = 0, depth_dy = 0, depth_per_index = 1;  ///< see FootprintLanes
+    double distance_dx = 0, distance_dy = 0;                            ///< see FootprintLanes
 
     /// Smallest number of pixels that one index unit spans in any direction (the magnification that
     /// limits the subgrid stride).
@@ -84,6 +86,7 @@ private:
     // Pixel rays in index space (affine in pixel coordinates) and their world-space directions.
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
+    Vec3 gd0_, gdx_, gdy_;  // the index-space metric times d: (W d) . (W u) = (W^T W d) . u
     Vec3 depth_gradient_;
     double depth_offset_ = 0;
 };
@@ -124,7 +127,13 @@ FootprintLanes<T> ViewProjection::footprint_lanes(T x, T y, T z, T clip_x, T cli
     out.depth_per_index = n.dot(d) / sqrt(dd);
 
     const V wd = lanes(wd0_) + lanes(wdx_) * out.px + lanes(wdy_) * out.py;
-    out.line_scale = sqrt(wd.dot(wd)) / sqrt(dd);
+    const T world_length = sqrt(wd.dot(wd));
+    out.line_scale = world_length / sqrt(dd);
+    // World distance along the ray: the closest approach moves along it by the part of W u along W d
+    // (zero when voxels are cubes; anisotropic kernels are cut at an angle).
+    const V gd = lanes(gd0_) + lanes(gdx_) * out.px + lanes(gdy_) * out.py;
+    out.distance_dx = gd.dot(u) / world_length;
+    out.distance_dy = gd.dot(v) / world_length;
     return out;
 }
 
