@@ -11,14 +11,24 @@ registers, and its settings can be edited, even where the native module cannot l
 
 Passes: Combined always; Depth in shaded mode with the view layer's Z pass (where opacity first reaches one
 half; background 1e10, as Cycles writes it); XRay with the view layer's PCVR X-ray pass, in every mode.
+
+A render goes through four stages, so that the viewport can run the last three on a worker thread (where
+Blender's data must not be touched) and repeat only those that a change reaches:
+
+| stage   | function               | runs on                | gives                                              |
+|---------|------------------------|------------------------|----------------------------------------------------|
+| read    | scene_inputs.read      | Blender's main thread  | the scene as plain values                          |
+| prepare | prepare                | any thread             | world-space grids (through the cache), transfer functions, lights |
+| render  | render_raw             | any thread             | the native results: integral, RGBA and depth, maxima |
+| finish  | finish                 | any thread             | the passes                                         |
 """
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import cache, camera, lighting, transfer_function, volumes
-from .properties import NATIVE_NAMES, as_typed
+from . import cache, camera, scene_inputs, transfer_function, volumes
 
 # Depth where a ray meets nothing opaque enough: what Cycles and Workbench write for the background.
 BACKGROUND_DEPTH = 1e10
@@ -47,15 +57,18 @@ def read_grid(filepath, grid_name):
     return pcvr_native.read_vdb(filepath, grid_name)
 
 
+def export_grid(source):
+    """The grid of a procedural VolumeSource (made or changed by modifiers), through a temporary file.
+    Blender's data: call on its main thread."""
+    with volumes.exported_grids(source.volume) as filepath:
+        return read_grid(filepath, source.grid_name)
+
+
 def load_grid(source):
     """The grid of a VolumeSource in world space. Raises OSError or ValueError naming the cause."""
     if source.error:
         raise OSError(source.error)
-    if source.filepath:
-        grid = cache.grids.get(source.filepath, source.grid_name, read_grid)
-    else:
-        with volumes.exported_grids(source.volume) as filepath:
-            grid = read_grid(filepath, source.grid_name)
+    grid = cache.grids.get(source.filepath, source.grid_name, read_grid) if source.filepath else export_grid(source)
     return grid.with_index_to_world(source.object_to_world @ grid.index_to_world)
 
 
@@ -64,27 +77,25 @@ def native_camera(view):
     return pcvr_native.Camera(view.world_to_camera, view.projection, view.width, view.height)
 
 
+# -------------------------------------------------------------------------------------------------
+# Prepare
+
 @dataclass
 class LoadedVolume:
-    source: volumes.VolumeSource
-    grid: object  # pcvr_native.Grid in world space
-
-    @property
-    def settings(self):
-        return self.source.volume.pcvr
+    index: int                          # in RenderInputs.volumes
+    inputs: scene_inputs.VolumeInputs
+    grid: object                        # pcvr_native.Grid in world space
 
 
 @dataclass
-class Frame:
-    """What every mode's renderer needs."""
-    engine: object
-    depsgraph: object
-    view: camera.CameraView
-    volumes: list
-
-    @property
-    def scene(self):
-        return self.depsgraph.scene
+class PreparedScene:
+    """RenderInputs with their grids read and their native objects made: what every render of them, from any
+    view, re-uses."""
+    inputs: scene_inputs.RenderInputs
+    volumes: list                       # LoadedVolume
+    errors: list = field(default_factory=list)    # volumes that could not be read, one message each
+    warnings: list = field(default_factory=list)
+    lighting: tuple = ()                # shaded: (transfer functions, lights, ambient, Shading)
 
     @property
     def grids(self):
@@ -92,177 +103,189 @@ class Frame:
 
     @property
     def density_scales(self):
-        return [volume.source.density_scale for volume in self.volumes]
-
-    def zeros(self, channels=None):
-        shape = (self.view.height, self.view.width) + ((channels,) if channels else ())
-        return np.zeros(shape, dtype=np.float32)
-
-    def control(self, part=0, parts=1):
-        """progress, cancel and threads arguments; progress of call `part` of `parts`."""
-        update = self.engine.update_progress
-        return dict(progress=lambda fraction: update((part + fraction) / parts), cancel=self.engine.test_break,
-                    threads=self.scene.render.threads)
+        return [volume.inputs.density_scale for volume in self.volumes]
 
 
-def render(engine, depsgraph):
-    import pcvr_native
-
-    view = camera.render_view(engine, depsgraph)
-    if view is None:
-        _fail(engine, "PCVR: the scene has no camera")
-        return
-
-    loaded = _load_volumes(engine, depsgraph, view)
-    if engine.test_break():
-        return
-
-    frame = Frame(engine, depsgraph, view, loaded)
-    mode = depsgraph.scene.pcvr.mode
-    engine.update_stats("", "Rendering")
-    stats = {}
-    try:
-        pixels = RENDERERS[mode](frame, stats)
-        if depsgraph.view_layer.pcvr.use_pass_xray and "XRay" not in pixels:
-            pixels["XRay"] = _xray_integral(frame, {})[:, :, None]
-    except pcvr_native.RenderCancelled:
-        return
-    except (MemoryError, ValueError, RuntimeError) as ex:  # RuntimeError: any other native error
-        _fail(engine, f"PCVR: {ex}")
-        return
-
-    _write_result(engine, depsgraph, view, pixels)
-    last_render[depsgraph.scene.session_uid] = (mode, stats)
-    engine.update_stats("", format_stats(stats) if mode == 'XRAY' else format_sheet_stats(stats))
+def _grid(volume):
+    if volume.error:
+        raise OSError(volume.error)
+    if volume.grid is not None:
+        return volume.grid
+    return cache.grids.get(volume.filepath, volume.grid_name, read_grid)
 
 
-def _load_volumes(engine, depsgraph, view):
-    """The volumes in view with their world-space grids. A volume that cannot be read is reported and
-    left out; the others still render."""
+def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
+    """PreparedScene of RenderInputs. A volume that cannot be read is left out with a message in `errors`;
+    `reading(name)` is told of each volume before it is read; a true `cancelled()` stops reading. Raises
+    ValueError for a transfer function without a range."""
     loaded, errors = [], []
-    for source in volumes.in_view(depsgraph, view):
-        if engine.test_break():
+    for index, volume in enumerate(inputs.volumes):
+        if cancelled():
             break
-        engine.update_stats("", f"Reading {source.name}")
+        reading(volume.name)
         try:
-            loaded.append(LoadedVolume(source, load_grid(source)))
+            grid = _grid(volume)
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
-            errors.append(f"Volume object '{source.name}': {ex}")
-    _report_errors(engine, errors)
-    return loaded
+            errors.append(f"Volume object '{volume.name}': {ex}")
+            continue
+        loaded.append(LoadedVolume(index, volume, grid.with_index_to_world(volume.matrix @ grid.index_to_world)))
+    prepared = PreparedScene(inputs, loaded, errors)
+    if inputs.mode == 'SHADED' and loaded:
+        prepared.lighting = _native_lighting(prepared)
+    return prepared
 
 
-def _report_errors(engine, errors):
-    for message in errors:
-        engine.report({'ERROR'}, message)
-    if errors:
-        engine.error_set("\n".join(errors))
+def density_range(ramp, volume):
+    """The densities a LoadedVolume's ramp (RampInputs) spans: (tf_min, tf_max), or its grid's."""
+    return transfer_function.density_range(ramp, volume.grid.value_range, volume.inputs.density_scale)
 
 
-def _fail(engine, message):
-    engine.report({'ERROR'}, message)
-    engine.error_set(message)
-
-
-# -------------------------------------------------------------------------------------------------
-# X-ray
-
-def _xray_integral(frame, stats):
-    import pcvr_native
-
-    if not frame.volumes:
-        return frame.zeros()
-    settings = frame.scene.pcvr
-    return pcvr_native.render_xray(
-        frame.grids, native_camera(frame.view),
-        method=NATIVE_NAMES[settings.method],
-        splat_kernel=NATIVE_NAMES[settings.splat_kernel],
-        post_filter=NATIVE_NAMES[settings.post_filter],
-        stride=settings.subgrid_stride,
-        density_scale=frame.density_scales,
-        stats=stats,
-        **frame.control(),
-    )
-
-
-def pass_pixels(settings, film_transparent, integral):
-    """The pixels of every pass from the line integral: {name: float32 (height, width, channels)}."""
-    height, width = integral.shape
-    combined = np.empty((height, width, 4), dtype=np.float32)
-    combined[:, :, :3] = (-np.expm1(-settings.xray_gain * integral))[:, :, None]
-    combined[:, :, 3] = (integral != 0) if film_transparent else 1.0
-    return {"Combined": combined, "XRay": integral[:, :, None]}
-
-
-def _render_xray(frame, stats):
-    return pass_pixels(frame.scene.pcvr, frame.scene.render.film_transparent, _xray_integral(frame, stats))
-
-
-# -------------------------------------------------------------------------------------------------
-# Shaded and MIP: the sheet renderers
-
-def _sheet_arguments(settings):
-    return dict(
-        method=NATIVE_NAMES[settings.method],
-        splat_kernel=NATIVE_NAMES[settings.splat_kernel],
-        post_filter=NATIVE_NAMES[settings.sheet_post_filter],
-        stride=settings.subgrid_stride,
-        sheet_spacing=as_typed(settings.sheet_spacing),
-    )
-
-
-def density_range(volume):
-    """The densities a LoadedVolume's ramp spans: (tf_min, tf_max), or its grid's."""
-    return transfer_function.density_range(volume.settings, volume.grid.value_range, volume.source.density_scale)
-
-
-def control_points(volume):
-    """The transfer function of a LoadedVolume as ControlPoints over its density range. ValueError names
-    the volume."""
-    settings = volume.settings
-    low, high = density_range(volume)
+def control_points(ramp, volume):
+    """A LoadedVolume's ramp (RampInputs) as ControlPoints over its density range. ValueError names the
+    volume."""
+    low, high = density_range(ramp, volume)
     try:
-        return transfer_function.control_points(settings.ramp, low, high)
+        return transfer_function.points_over_range(ramp.positions, ramp.rgba, low, high)
     except ValueError as ex:
-        raise ValueError(f"Volume object '{volume.source.name}': {ex}") from None
+        raise ValueError(f"Volume object '{volume.inputs.name}': {ex}") from None
 
 
 def native_transfer_function(volume):
-    """pcvr_native.TransferFunction of a LoadedVolume."""
+    """pcvr_native.TransferFunction of a LoadedVolume in shaded mode."""
     import pcvr_native
 
-    points = control_points(volume)
-    unit_distance = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / volume.settings.opacity_scale
+    ramp = volume.inputs.ramp
+    points = control_points(ramp, volume)
+    unit_distance = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / ramp.opacity_scale
     return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance)
 
 
-def material(settings):
-    """A volume's material: (use_shading, ambient, diffuse, specular, shininess)."""
-    return (settings.use_shading, *(as_typed(getattr(settings, name))
-                                    for name in ("ambient", "diffuse", "specular", "shininess")))
-
-
-def native_lighting(frame):
-    """(lights, ambient colour, Shading) for render_shaded: the scene's lights and world, and the material of
-    the first volume (pcvr_native lights every volume of a render with one material: a volume whose
-    material differs is reported). A volume without shading shows its transfer function's colours."""
+def _native_lighting(prepared):
+    """(transfer functions, lights, ambient colour, Shading) for render_shaded: the scene's lights and world,
+    and the material of the first volume (pcvr_native lights every volume of a render with one material: a
+    volume whose material differs gets a warning). A volume without shading shows its transfer function's
+    colours."""
     import pcvr_native
 
-    first = frame.volumes[0]
-    use_shading, ambient, diffuse, specular, shininess = material(first.settings)
-    differing = [volume.source.name for volume in frame.volumes[1:]
-                 if material(volume.settings) != material(first.settings)]
+    first = prepared.volumes[0]
+    use_shading, ambient, diffuse, specular, shininess = first.inputs.material
+    differing = [volume.inputs.name for volume in prepared.volumes[1:]
+                 if volume.inputs.material != first.inputs.material]
     if differing:
-        frame.engine.report({'WARNING'}, f"PCVR lights every volume with the material of "
-                                         f"'{first.source.name}'; {', '.join(map(repr, differing))} differ")
+        prepared.warnings.append(f"PCVR lights every volume with the material of '{first.inputs.name}'; "
+                                 f"{', '.join(map(repr, differing))} differ")
+    transfer_functions = [native_transfer_function(volume) for volume in prepared.volumes]
     if not use_shading:
-        return [], (1.0, 1.0, 1.0), pcvr_native.Shading(ambient=1.0, diffuse=0.0, specular=0.0)
+        return (transfer_functions, [], (1.0, 1.0, 1.0),
+                pcvr_native.Shading(ambient=1.0, diffuse=0.0, specular=0.0))
     lights = []
-    for spec in lighting.scene_lights(frame.depsgraph):
+    for spec in prepared.inputs.lights:
         make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
         lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
     shading = pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular, shininess=shininess)
-    return lights, lighting.world_colour(frame.scene.world), shading
+    return transfer_functions, lights, prepared.inputs.world, shading
+
+
+# -------------------------------------------------------------------------------------------------
+# Render: native results, {name: array}
+
+@dataclass
+class Control:
+    """The progress and cancel arguments of the native calls."""
+    progress: object = None   # callable taking the fraction of the whole render, or None
+    cancel: object = None     # callable or threading.Event, or None
+
+    def arguments(self, threads, part=0, parts=1):
+        """Keyword arguments of native call `part` of `parts`."""
+        progress = self.progress
+        if progress is not None and parts > 1:
+            progress = lambda fraction: self.progress((part + fraction) / parts)  # noqa: E731
+        return dict(progress=progress, cancel=self.cancel, threads=threads)
+
+
+def _zeros(view, channels=None):
+    return np.zeros((view.height, view.width) + ((channels,) if channels else ()), dtype=np.float32)
+
+
+def _xray_integral(prepared, view, control, stats):
+    import pcvr_native
+
+    if not prepared.volumes:
+        return _zeros(view)
+    settings = prepared.inputs.xray
+    return pcvr_native.render_xray(
+        prepared.grids, native_camera(view),
+        method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
+        stride=settings.stride, density_scale=prepared.density_scales, stats=stats,
+        **control.arguments(prepared.inputs.threads))
+
+
+def _render_xray(prepared, view, control, stats, sheets):
+    return {"integral": _xray_integral(prepared, view, control, stats)}
+
+
+def _render_shaded(prepared, view, control, stats, sheets):
+    import pcvr_native
+
+    with_depth = prepared.inputs.with_depth
+    if not prepared.volumes:
+        return {"rgba": _zeros(view, 4), "depth": np.full((view.height, view.width), np.inf, dtype=np.float32)}
+    transfer_functions, lights, ambient, shading = prepared.lighting
+    result = pcvr_native.render_shaded(
+        prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shading,
+        stats=stats, density_scale=prepared.density_scales, return_depth=with_depth,
+        **dataclasses.asdict(sheets), **control.arguments(prepared.inputs.threads))
+    rgba, depth = result if with_depth else (result, None)
+    return {"rgba": rgba, "depth": depth}
+
+
+def _render_mip(prepared, view, control, stats, sheets):
+    import pcvr_native
+
+    maxima = []
+    for index, volume in enumerate(prepared.volumes):
+        volume_stats = {}
+        maxima.append(pcvr_native.render_mip(
+            volume.grid, native_camera(view), density_scale=volume.inputs.density_scale, stats=volume_stats,
+            **sheets.mip_arguments(), **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
+        _add_stats(stats, volume_stats)
+    return {"maxima": maxima, "shape": (view.height, view.width)}
+
+
+def _add_stats(total, stats):
+    for key, value in stats.items():
+        total[key] = total.get(key, type(value)()) + value
+
+
+RENDERERS = {
+    'XRAY': _render_xray,
+    'SHADED': _render_shaded,
+    'MIP': _render_mip,
+}
+
+
+def render_raw(prepared, view, control=Control(), stats=None, sheet_spacing_factor=1.0):
+    """The native results of a PreparedScene seen by `view` (a CameraView): {"integral"}, {"rgba", "depth"} or
+    {"maxima"}, and the integral too where the XRay pass is on. `sheet_spacing_factor` times the sheet spacing
+    of shaded and MIP modes (the viewport's coarse images). Raises pcvr_native.RenderCancelled."""
+    stats = {} if stats is None else stats
+    inputs = prepared.inputs.with_sheet_spacing(sheet_spacing_factor)
+    raw = RENDERERS[inputs.mode](prepared, view, control, stats, inputs.sheets)
+    if inputs.xray is not None and "integral" not in raw:
+        raw["integral"] = _xray_integral(prepared, view, control, {})
+    return raw
+
+
+# -------------------------------------------------------------------------------------------------
+# Finish: {pass name: float32 (height, width, channels)}
+
+def pass_pixels(gain, film_transparent, integral):
+    """The pixels of every pass from the line integral: {name: float32 (height, width, channels)}."""
+    height, width = integral.shape
+    combined = np.empty((height, width, 4), dtype=np.float32)
+    combined[:, :, :3] = (-np.expm1(-gain * integral))[:, :, None]
+    combined[:, :, 3] = (integral != 0) if film_transparent else 1.0
+    return {"Combined": combined, "XRay": integral[:, :, None]}
 
 
 def over_background(rgba, world, film_transparent):
@@ -273,28 +296,6 @@ def over_background(rgba, world, film_transparent):
     combined[:, :, :3] += (1.0 - rgba[:, :, 3:]) * np.asarray(world, dtype=np.float32)
     combined[:, :, 3] = 1.0
     return combined
-
-
-def _render_shaded(frame, stats):
-    import pcvr_native
-
-    settings = frame.scene.pcvr
-    with_depth = frame.depsgraph.view_layer.use_pass_z
-    rgba, depth = frame.zeros(4), np.full((frame.view.height, frame.view.width), np.inf, dtype=np.float32)
-    if frame.volumes:
-        lights, ambient, shading = native_lighting(frame)
-        result = pcvr_native.render_shaded(
-            frame.grids, native_camera(frame.view), [native_transfer_function(v) for v in frame.volumes],
-            lights=lights, ambient=ambient, shading=shading,
-            opacity_cutoff=as_typed(settings.opacity_cutoff), stats=stats,
-            density_scale=frame.density_scales, samples_per_sheet=settings.samples_per_sheet,
-            return_depth=with_depth, **_sheet_arguments(settings), **frame.control())
-        rgba, depth = result if with_depth else (result, depth)
-    world = lighting.world_colour(frame.scene.world)
-    pixels = {"Combined": over_background(rgba, world, frame.scene.render.film_transparent)}
-    if with_depth:
-        pixels["Depth"] = np.where(np.isfinite(depth), depth, BACKGROUND_DEPTH).astype(np.float32)[:, :, None]
-    return pixels
 
 
 def mip_colours(maximum, points, density_range, mip_color):
@@ -311,35 +312,94 @@ def mip_colours(maximum, points, density_range, mip_color):
     return rgba.astype(np.float32)
 
 
-def _render_mip(frame, stats):
+def _finish_xray(prepared, display, raw):
+    return pass_pixels(display.xray_gain, display.film_transparent, raw["integral"])
+
+
+def _finish_shaded(prepared, display, raw):
+    pixels = {"Combined": over_background(raw["rgba"], display.world, display.film_transparent)}
+    if raw["depth"] is not None:
+        depth = raw["depth"]
+        pixels["Depth"] = np.where(np.isfinite(depth), depth, BACKGROUND_DEPTH).astype(np.float32)[:, :, None]
+    return pixels
+
+
+def _finish_mip(prepared, display, raw):
     """Each volume's maximum through its own transfer function; where volumes overlap on the image, the
     brighter of their colours in each channel (a maximum of the colours, as the mode's name says)."""
+    rgba = None
+    for volume, maximum in zip(prepared.volumes, raw["maxima"]):
+        ramp = display.ramps[volume.index]
+        colours = mip_colours(maximum, control_points(ramp, volume), density_range(ramp, volume), display.mip_color)
+        rgba = colours if rgba is None else np.maximum(rgba, colours)
+    if rgba is None:
+        rgba = np.zeros(raw["shape"] + (4,), dtype=np.float32)
+    return {"Combined": over_background(rgba, display.world, display.film_transparent)}
+
+
+FINISHERS = {
+    'XRAY': _finish_xray,
+    'SHADED': _finish_shaded,
+    'MIP': _finish_mip,
+}
+
+
+def finish(prepared, display, raw):
+    """The passes of native results `raw` under DisplayInputs: {name: float32 (height, width, channels)}."""
+    pixels = FINISHERS[display.mode](prepared, display, raw)
+    if "integral" in raw and "XRay" not in pixels:
+        pixels["XRay"] = raw["integral"][:, :, None]
+    return pixels
+
+
+# -------------------------------------------------------------------------------------------------
+# F12
+
+def render(engine, depsgraph):
     import pcvr_native
 
-    settings = frame.scene.pcvr
-    rgba = frame.zeros(4)
-    for index, volume in enumerate(frame.volumes):
-        points = control_points(volume)
-        volume_stats = {}
-        maximum = pcvr_native.render_mip(
-            volume.grid, native_camera(frame.view), density_scale=volume.source.density_scale,
-            stats=volume_stats, **_sheet_arguments(settings), **frame.control(index, len(frame.volumes)))
-        np.maximum(rgba, mip_colours(maximum, points, density_range(volume), settings.mip_color), out=rgba)
-        _add_stats(stats, volume_stats)
-    world = lighting.world_colour(frame.scene.world)
-    return {"Combined": over_background(rgba, world, frame.scene.render.film_transparent)}
+    view = camera.render_view(engine, depsgraph)
+    if view is None:
+        _fail(engine, "PCVR: the scene has no camera")
+        return
+
+    inputs, display = scene_inputs.read(depsgraph, export_grid, view)
+    try:
+        prepared = prepare(inputs, engine.test_break, lambda name: engine.update_stats("", f"Reading {name}"))
+    except ValueError as ex:
+        _fail(engine, f"PCVR: {ex}")
+        return
+    _report_errors(engine, prepared.errors)
+    for warning in prepared.warnings:
+        engine.report({'WARNING'}, warning)
+    if engine.test_break():
+        return
+
+    engine.update_stats("", "Rendering")
+    stats = {}
+    try:
+        raw = render_raw(prepared, view, Control(engine.update_progress, engine.test_break), stats)
+    except pcvr_native.RenderCancelled:
+        return
+    except (MemoryError, ValueError, RuntimeError) as ex:  # RuntimeError: any other native error
+        _fail(engine, f"PCVR: {ex}")
+        return
+
+    _write_result(engine, depsgraph, view, finish(prepared, display, raw))
+    last_render[depsgraph.scene.session_uid] = (inputs.mode, stats)
+    engine.update_stats("", format_stats(stats) if inputs.mode == 'XRAY' else format_sheet_stats(stats))
 
 
-def _add_stats(total, stats):
-    for key, value in stats.items():
-        total[key] = total.get(key, type(value)()) + value
+def _report_errors(engine, errors):
+    for message in errors:
+        engine.report({'ERROR'}, message)
+    if errors:
+        engine.error_set("\n".join(errors))
 
 
-RENDERERS = {
-    'XRAY': _render_xray,
-    'SHADED': _render_shaded,
-    'MIP': _render_mip,
-}
+def _fail(engine, message):
+    engine.report({'ERROR'}, message)
+    engine.error_set(message)
 
 
 def _write_result(engine, depsgraph, view, pixels):

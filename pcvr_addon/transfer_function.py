@@ -73,20 +73,32 @@ def _sampled(ramp):
     return positions, np.array([ramp.evaluate(float(p)) for p in positions], dtype=np.float64)
 
 
-def control_points(ramp, tf_min, tf_max):
-    """The control points of `ramp` (a ColorRamp, or None for DEFAULT_RAMP) over densities tf_min..tf_max.
-    Raises ValueError when the range is empty."""
-    if not tf_max > tf_min:
-        raise ValueError(f"the transfer function's range {tf_min:g} to {tf_max:g} is empty")
-    span = tf_max - tf_min
+def ramp_points(ramp):
+    """(positions in 0..1, rgba) of `ramp` (a ColorRamp, or None for DEFAULT_RAMP) as control points: its
+    elements where it is linear in RGB, else samples. Reads Blender data: call on Blender's main thread."""
     if ramp is None or (ramp.interpolation == 'LINEAR' and ramp.color_mode == 'RGB'):
         elements = ramp_elements(ramp)
         positions = [position for position, _rgba in elements]
         rgba = np.array([colour for _position, colour in elements], dtype=np.float64)
-    else:
-        positions, rgba = _sampled(ramp)
-    density = _strictly_increasing(tf_min + np.asarray(positions) * span, span)
+        return np.asarray(positions, dtype=np.float64), rgba
+    return _sampled(ramp)
+
+
+def points_over_range(positions, rgba, tf_min, tf_max):
+    """ControlPoints of ramp points (see ramp_points) spread over densities tf_min..tf_max. Raises ValueError
+    when the range is empty."""
+    if not tf_max > tf_min:
+        raise ValueError(f"the transfer function's range {tf_min:g} to {tf_max:g} is empty")
+    span = tf_max - tf_min
+    density = _strictly_increasing(tf_min + np.asarray(positions, dtype=np.float64) * span, span)
+    rgba = np.asarray(rgba, dtype=np.float64)
     return ControlPoints(density=density, rgba=np.clip(rgba, 0.0, [np.inf, np.inf, np.inf, 1.0]))
+
+
+def control_points(ramp, tf_min, tf_max):
+    """The control points of `ramp` (a ColorRamp, or None for DEFAULT_RAMP) over densities tf_min..tf_max.
+    Raises ValueError when the range is empty."""
+    return points_over_range(*ramp_points(ramp), tf_min, tf_max)
 
 
 def set_ramp(ramp, elements, interpolation='LINEAR', color_mode='RGB'):

@@ -76,14 +76,24 @@ def _world_corners(obj, volume, object_to_world):
     return (object_to_world[:3, :3] @ box.T).T + object_to_world[:3, 3]
 
 
-def in_view(depsgraph, view):
-    """Every volume instance that is visible in the render and may reach `view` (a CameraView)."""
+def _shown(instance, in_viewport, space):
+    """Whether a volume instance shows: in renders (render visibility), or in the 3D viewport (viewport
+    visibility; `space`, the SpaceView3D, adds its local view and local collections)."""
+    obj = instance.object
+    if not instance.show_self:
+        return False
+    if not in_viewport:
+        # Render depsgraphs leave these out already; the viewport depsgraph of the interface does not.
+        return not obj.original.hide_render
+    # The viewport's depsgraph already leaves out objects hidden in the viewport.
+    return space is None or instance.is_instance or obj.original.visible_in_viewport_get(space)
+
+
+def in_view(depsgraph, view=None, in_viewport=False, space=None):
+    """Every volume instance that shows (see _shown) and may reach `view` (a CameraView; None: anywhere)."""
     for instance in depsgraph.object_instances:
         obj = instance.object
-        if obj.type != 'VOLUME' or not instance.show_self:
-            continue
-        # Render depsgraphs leave these out already; the viewport depsgraph of the interface does not.
-        if obj.original.hide_render:
+        if obj.type != 'VOLUME' or not _shown(instance, in_viewport, space):
             continue
         source = source_of(obj, instance.matrix_world)
         if len(source.volume.grids) == 0:
@@ -91,7 +101,7 @@ def in_view(depsgraph, view):
             if source.error:
                 yield source
             continue
-        if view.sees_box(_world_corners(obj, source.volume, source.object_to_world)):
+        if view is None or view.sees_box(_world_corners(obj, source.volume, source.object_to_world)):
             yield source
 
 

@@ -1,0 +1,206 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""What a render reads from Blender, read at once into plain values that compare by content.
+
+A render then runs without touching Blender data (the viewport renders on a worker thread, where bpy must not
+be used), and two readings compare equal exactly when they would give the same image, which is how the
+viewport tells a change that needs a new render from one that needs none (selecting an object, or moving a
+light in X-ray mode). Each mode reads only what it uses:
+
+| type          | what                                                   | read for               |
+|---------------|--------------------------------------------------------|------------------------|
+| RenderInputs  | what the native render call depends on                 | every mode             |
+| VolumeInputs  | one volume instance: its grid's source and placement   | every mode             |
+| RampInputs    | a transfer function: the ramp's points and its range   | shaded (render), MIP (display) |
+| XRaySettings  | render_xray's options                                  | X-ray, and the XRay pass |
+| SheetSettings | render_shaded's and render_mip's options               | shaded and MIP         |
+| DisplayInputs | what turns the native result into the Combined pass    | every mode             |
+
+Call `read` on Blender's main thread (or in RenderEngine.render).
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import lighting, transfer_function, volumes
+from .properties import NATIVE_NAMES, as_typed
+
+
+@dataclass(frozen=True)
+class RampInputs:
+    positions: tuple     # ramp positions in 0..1, increasing
+    rgba: tuple          # one (r, g, b, a) per position
+    use_grid_range: bool
+    tf_min: float
+    tf_max: float
+    opacity_scale: float
+
+
+@dataclass(frozen=True)
+class VolumeInputs:
+    name: str                # object name, for messages
+    filepath: str            # the unchanged file the grid comes from, or "" (then `grid` holds it)
+    grid_name: str | None
+    object_to_world: tuple   # 4 rows of 4
+    density_scale: float
+    error: str = ""          # why the volume cannot be read, "" when it can
+    ramp: RampInputs | None = None     # shaded mode
+    material: tuple | None = None      # shaded mode: (use_shading, ambient, diffuse, specular, shininess)
+    # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
+    # a change).
+    grid: object = None
+
+    @property
+    def matrix(self):
+        return np.array(self.object_to_world, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class XRaySettings:
+    """render_xray's keyword arguments."""
+    method: str
+    splat_kernel: str
+    post_filter: str
+    stride: int
+
+
+@dataclass(frozen=True)
+class SheetSettings:
+    """render_shaded's and render_mip's keyword arguments (render_mip takes the first five)."""
+    method: str
+    splat_kernel: str
+    post_filter: str
+    stride: int
+    sheet_spacing: float
+    samples_per_sheet: int
+    opacity_cutoff: float
+
+    def mip_arguments(self):
+        return {name: getattr(self, name) for name in ("method", "splat_kernel", "post_filter", "stride",
+                                                        "sheet_spacing")}
+
+
+@dataclass(frozen=True)
+class RenderInputs:
+    mode: str                          # 'XRAY', 'SHADED' or 'MIP'
+    volumes: tuple                     # VolumeInputs
+    threads: int
+    xray: XRaySettings | None = None   # X-ray mode, or another mode with the XRay pass
+    sheets: SheetSettings | None = None
+    lights: tuple = ()                 # shaded mode: lighting.LightSpec
+    world: tuple = (0.0, 0.0, 0.0)     # shaded mode: the ambient light
+    with_depth: bool = False           # shaded mode with the Depth pass
+
+    def with_sheet_spacing(self, factor):
+        """The same inputs with `factor` times the sheet spacing (a coarser, faster shaded or MIP image)."""
+        if self.sheets is None or factor == 1:
+            return self
+        sheets = dataclasses.replace(self.sheets, sheet_spacing=self.sheets.sheet_spacing * factor)
+        return dataclasses.replace(self, sheets=sheets)
+
+
+@dataclass(frozen=True)
+class DisplayInputs:
+    mode: str
+    film_transparent: bool
+    world: tuple = (0.0, 0.0, 0.0)   # shaded and MIP: the background
+    xray_gain: float = 1.0
+    mip_color: str = 'TRANSFER_FUNCTION'
+    ramps: tuple = ()                # MIP: a RampInputs per volume of RenderInputs.volumes, in that order
+
+
+def _matrix(matrix):
+    return tuple(tuple(float(value) for value in row) for row in np.asarray(matrix, dtype=np.float64))
+
+
+def ramp_inputs(settings):
+    """RampInputs of a volume's PCVR settings."""
+    positions, rgba = transfer_function.ramp_points(settings.ramp)
+    return RampInputs(
+        positions=tuple(float(p) for p in positions),
+        rgba=tuple(tuple(float(c) for c in colour) for colour in rgba),
+        use_grid_range=settings.use_grid_range,
+        tf_min=settings.tf_min,
+        tf_max=settings.tf_max,
+        opacity_scale=settings.opacity_scale,
+    )
+
+
+def material(settings):
+    """A volume's material: (use_shading, ambient, diffuse, specular, shininess)."""
+    return (settings.use_shading, *(as_typed(getattr(settings, name))
+                                    for name in ("ambient", "diffuse", "specular", "shininess")))
+
+
+def volume_inputs(source, mode, export_grid):
+    """VolumeInputs of a VolumeSource. `export_grid(source)` returns the grid of a procedural volume."""
+    settings = source.volume.pcvr
+    grid, error = None, source.error
+    if not source.filepath and not error:
+        try:
+            grid = export_grid(source)
+        except (OSError, ValueError, RuntimeError, MemoryError) as ex:
+            error = str(ex)
+    return VolumeInputs(
+        name=source.name,
+        filepath=source.filepath,
+        grid_name=source.grid_name,
+        object_to_world=_matrix(source.object_to_world),
+        density_scale=source.density_scale,
+        error=error,
+        ramp=ramp_inputs(settings) if mode == 'SHADED' else None,
+        material=material(settings) if mode == 'SHADED' else None,
+        grid=grid,
+    )
+
+
+def _splatting(settings, post_filter):
+    """The options render_xray, render_shaded and render_mip share."""
+    return dict(method=NATIVE_NAMES[settings.method], splat_kernel=NATIVE_NAMES[settings.splat_kernel],
+                post_filter=NATIVE_NAMES[post_filter], stride=settings.subgrid_stride)
+
+
+def xray_settings(settings):
+    return XRaySettings(**_splatting(settings, settings.post_filter))
+
+
+def sheet_settings(settings):
+    return SheetSettings(**_splatting(settings, settings.sheet_post_filter),
+                         sheet_spacing=as_typed(settings.sheet_spacing),
+                         samples_per_sheet=settings.samples_per_sheet,
+                         opacity_cutoff=as_typed(settings.opacity_cutoff))
+
+
+def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
+    """(RenderInputs, DisplayInputs) of the evaluated depsgraph: the volumes that may reach `view` (None:
+    all), visible in renders, or `in_viewport` in the 3D viewport (`space`: its SpaceView3D). The passes
+    beyond Combined (Depth, XRay) are read for renders only."""
+    scene = depsgraph.scene
+    settings = scene.pcvr
+    mode = settings.mode
+    sources = list(volumes.in_view(depsgraph, view, in_viewport, space))
+    volume_list = tuple(volume_inputs(source, mode, export_grid) for source in sources)
+    with_xray_pass = not in_viewport and depsgraph.view_layer.pcvr.use_pass_xray
+    world = lighting.world_colour(scene.world)
+    shaded = mode == 'SHADED'
+    inputs = RenderInputs(
+        mode=mode,
+        volumes=volume_list,
+        threads=scene.render.threads,
+        xray=xray_settings(settings) if mode == 'XRAY' or with_xray_pass else None,
+        sheets=sheet_settings(settings) if mode != 'XRAY' else None,
+        lights=tuple(lighting.scene_lights(depsgraph)) if shaded else (),
+        world=world if shaded else (0.0, 0.0, 0.0),
+        with_depth=shaded and not in_viewport and depsgraph.view_layer.use_pass_z,
+    )
+    display = DisplayInputs(
+        mode=mode,
+        film_transparent=scene.render.film_transparent,
+        world=world if mode != 'XRAY' else (0.0, 0.0, 0.0),
+        xray_gain=settings.xray_gain if mode == 'XRAY' else 1.0,
+        mip_color=settings.mip_color if mode == 'MIP' else 'TRANSFER_FUNCTION',
+        ramps=tuple(ramp_inputs(source.volume.pcvr) for source in sources) if mode == 'MIP' else (),
+    )
+    return inputs, display
