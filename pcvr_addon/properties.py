@@ -102,6 +102,17 @@ def update_render_passes(self, context):
         view_layer.update_render_passes()
 
 
+def tag_changed(self, _context):
+    """Tag the datablock as changed. Blender does not for settings that Python defines, and the rendered
+    viewport hears of a change (view_update), and reads its evaluated copy, only through such a tag."""
+    self.id_data.update_tag()
+
+
+def update_mode(self, context):
+    update_render_passes(self, context)
+    tag_changed(self, context)
+
+
 class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     owner = bpy.types.Scene
     label = "Render"
@@ -111,43 +122,49 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         description="What the image shows",
         items=enum_modes,
         default='XRAY',
-        update=update_render_passes,
+        update=update_mode,
     )
     method: EnumProperty(
         name="Method",
         description="Splatting algorithm",
         items=enum_methods,
         default=identifier(defaults.XRAY["method"]),
+        update=tag_changed,
     )
     splat_kernel: EnumProperty(
         name="Splat Kernel",
         description="Reconstruction kernel of a voxel",
         items=enum_splat_kernels,
         default=identifier(defaults.XRAY["splat_kernel"]),
+        update=tag_changed,
     )
     post_filter: EnumProperty(
         name="Post Filter",
         description="Filter that turns the subgrid into the image (X-ray)",
         items=enum_post_filters,
         default=identifier(defaults.XRAY["post_filter"]),
+        update=tag_changed,
     )
     subgrid_stride: IntProperty(
         name="Subgrid Stride",
         description="Spacing of the splatting subgrid in pixels; 0 picks it from the projected voxel spacing",
         min=0, soft_max=16,
         default=defaults.XRAY["stride"],
+        update=tag_changed,
     )
     sheet_post_filter: EnumProperty(
         name="Post Filter",
         description="Filter that turns each sheet's subgrid into pixels (shaded and maximum intensity)",
         items=enum_post_filters,
         default=identifier(defaults.SHEETS["post_filter"]),
+        update=tag_changed,
     )
     sheet_spacing: FloatProperty(
         name="Sheet Spacing",
         description="Voxels along the view between the sheets the volume is cut into: smaller is finer and slower",
         min=0.05, soft_min=0.25, soft_max=4.0,
         default=defaults.SHEETS["sheet_spacing"],
+        update=tag_changed,
     )
     samples_per_sheet: IntProperty(
         name="Samples per Sheet",
@@ -155,24 +172,28 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
                     "thin features of the transfer function",
         min=1, soft_max=8,
         default=defaults.SHEETS["samples_per_sheet"],
+        update=tag_changed,
     )
     opacity_cutoff: FloatProperty(
         name="Opacity Cutoff",
         description="A pixel this opaque takes no more samples (1: never stop early)",
         min=0.5, max=1.0,
         default=defaults.SHEETS["opacity_cutoff"],
+        update=tag_changed,
     )
     mip_color: EnumProperty(
         name="Colors",
         description="How the largest density along a ray becomes a colour",
         items=enum_mip_colors,
         default='TRANSFER_FUNCTION',
+        update=tag_changed,
     )
     xray_gain: FloatProperty(
         name="Gain",
         description="Attenuation per unit of integrated density in the Combined pass: 1 - exp(-gain * integral)",
         min=0.0, soft_max=10.0,
         default=1.0,
+        update=tag_changed,
     )
 
 
@@ -196,12 +217,14 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Grid",
         description="Name of the grid to render; empty uses 'density', or else the first float grid",
         default="",
+        update=tag_changed,
     )
     density_scale: FloatProperty(
         name="Density Scale",
         description="Multiplier of the grid values",
         min=0.0, soft_max=10.0,
         default=1.0,
+        update=tag_changed,
     )
 
     # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
@@ -210,28 +233,33 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
         type=bpy.types.Texture,
         poll=lambda _self, texture: texture.use_color_ramp,
+        update=tag_changed,
     )
     use_grid_range: BoolProperty(
         name="Range from Grid",
         description="Spread the colour ramp over the grid's values (times the density scale), from the lowest "
                     "to the highest, at every render",
         default=True,
+        update=tag_changed,
     )
     tf_min: FloatProperty(
         name="Min",
         description="Density at the left end of the colour ramp (the grid's units: e.g. Hounsfield for CT)",
         default=0.0,
+        update=tag_changed,
     )
     tf_max: FloatProperty(
         name="Max",
         description="Density at the right end of the colour ramp",
         default=1.0,
+        update=tag_changed,
     )
     opacity_scale: FloatProperty(
         name="Opacity Scale",
         description="Multiplier of the extinction: 2 makes a voxel as opaque as two were",
         min=0.001, soft_max=10.0,
         default=1.0,
+        update=tag_changed,
     )
     # The material of shaded mode (Blinn-Phong, as VTK and 3D Slicer light volumes).
     use_shading: BoolProperty(
@@ -239,22 +267,27 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         description="Light the volume with the scene's lights and world; off: the transfer function's colours "
                     "as they are (3D Slicer's presets without shading)",
         default=True,
+        update=tag_changed,
     )
     ambient: FloatProperty(
         name="Ambient", description="Share of the world colour a sample reflects",
         min=0.0, soft_max=1.0, default=defaults.MATERIAL["ambient"],
+        update=tag_changed,
     )
     diffuse: FloatProperty(
         name="Diffuse", description="Share of the lights a sample reflects diffusely",
         min=0.0, soft_max=1.0, default=defaults.MATERIAL["diffuse"],
+        update=tag_changed,
     )
     specular: FloatProperty(
         name="Specular", description="Strength of the white highlights",
         min=0.0, soft_max=1.0, default=defaults.MATERIAL["specular"],
+        update=tag_changed,
     )
     shininess: FloatProperty(
         name="Shininess", description="Exponent of the highlights: higher is smaller and sharper",
         min=0.0, soft_max=100.0, default=defaults.MATERIAL["shininess"],
+        update=tag_changed,
     )
 
     @property
