@@ -4,7 +4,7 @@
 
 import bpy
 
-from . import compat, engine
+from . import compat, engine, viewport_session
 
 
 class PCVRRenderEngine(bpy.types.RenderEngine):
@@ -15,12 +15,26 @@ class PCVRRenderEngine(bpy.types.RenderEngine):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
+        self.viewport_session = None
+
+    # A class attribute, so that __del__ still finds it when Python clears the modules' globals at exit.
+    _free_viewport = staticmethod(viewport_session.free)
+
+    def __del__(self):
+        # Blender frees a viewport's engine when it leaves Rendered shading: stop the session's worker thread.
+        self._free_viewport(self)
 
     def render(self, depsgraph):
         engine.render(self, depsgraph)
 
     def update_render_passes(self, scene, view_layer):
         engine.register_passes(self, scene, view_layer)
+
+    def view_update(self, context, depsgraph):
+        viewport_session.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        viewport_session.view_draw(self, context, depsgraph)
 
 
 classes = (

@@ -1,18 +1,33 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""The render camera as pcvr_native sees it: a view matrix, an OpenGL projection and a pixel window."""
+"""The render camera as pcvr_native sees it: a view matrix, an OpenGL projection and a pixel window; for
+renders from the scene camera, and for the 3D viewport from its region (orthographic, perspective, or through
+the camera with its zoom, offset and render border)."""
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CameraView:
     world_to_camera: np.ndarray  # (4, 4), camera looks down -Z
     projection: np.ndarray       # (4, 4), camera space to the clip space of this window
     width: int                   # image size in pixels
     height: int
+
+    def __eq__(self, other):
+        return (isinstance(other, CameraView) and (self.width, self.height) == (other.width, other.height)
+                and np.array_equal(self.world_to_camera, other.world_to_camera)
+                and np.array_equal(self.projection, other.projection))
+
+    __hash__ = None
+
+    def scaled(self, scale):
+        """The same view at 1/scale of the pixels in each direction (at least one)."""
+        return CameraView(self.world_to_camera, self.projection,
+                          max(1, math.ceil(self.width / scale)), max(1, math.ceil(self.height / scale)))
 
     def sees_box(self, corners):
         """False when the world-space points `corners` (N, 3), e.g. a bounding box, all lie on the outer
@@ -104,3 +119,45 @@ def scene_view(depsgraph):
     height = render.resolution_y * render.resolution_percentage // 100
     camera_eval = scene.camera.evaluated_get(depsgraph)
     return camera_view(depsgraph, camera_eval, camera_eval.matrix_world.normalized(), width, height)
+
+
+# -------------------------------------------------------------------------------------------------
+# The 3D viewport
+
+@dataclass(frozen=True)
+class RegionView:
+    """What a 3D viewport region renders, and where the image goes."""
+    view: CameraView   # at full resolution: the window's pixels divided by the preview pixel size
+    rect: tuple        # (x, y, width, height) of the window in region pixels from the bottom left
+
+
+def window_view(view_matrix, window_matrix, region_size, window=None, pixel_size=1):
+    """RegionView of a region `region_size` (width, height) pixels large whose view and window matrices are
+    Blender's RegionView3D.view_matrix and .window_matrix, narrowed to `window` (x, y, width, height) in region
+    pixels when given, rendered at one image pixel per `pixel_size` region pixels. None for an empty window."""
+    width, height = region_size
+    x, y, w, h = window or (0, 0, width, height)
+    if w <= 0 or h <= 0:
+        return None
+    projection = np.array(window_matrix, dtype=np.float64)
+    if (x, y, w, h) != (0, 0, width, height):
+        projection = window_projection(projection, width, height, (x, y, w, h))
+    view = CameraView(np.array(view_matrix, dtype=np.float64), projection,
+                      max(1, math.ceil(w / pixel_size)), max(1, math.ceil(h / pixel_size)))
+    return RegionView(view, (x, y, w, h))
+
+
+def region_pixels(points, perspective_matrix, region_size):
+    """World points (N, 3) as region pixel coordinates (N, 2) from the bottom left."""
+    points = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))]
+    clip = points @ np.asarray(perspective_matrix, dtype=np.float64).T
+    ndc = clip[:, :2] / clip[:, 3:]
+    return (ndc + 1.0) / 2.0 * np.asarray(region_size, dtype=np.float64)
+
+
+def clipped_window(lo, hi, region_size):
+    """The whole pixels (x, y, width, height) from `lo` to `hi` (region pixels) inside the region, as Blender
+    rounds a render border."""
+    (x0, y0), (x1, y1) = np.floor(np.maximum(lo, 0)), np.floor(np.minimum(hi, region_size))
+    return int(x0), int(y0), max(0, int(x1 - x0)), max(0, int(y1 - y0))
+

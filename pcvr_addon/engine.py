@@ -353,6 +353,26 @@ def finish(prepared, display, raw):
 
 
 # -------------------------------------------------------------------------------------------------
+# The viewport's stages (viewport.ProgressiveRenderer runs them on its worker thread)
+
+def render_viewport_step(prepared, view, step, cancel):
+    """render_raw of a viewport.Step: at 1/step.scale of the view's pixels and step.sheet_spacing times the
+    sheet spacing. None when `cancel` (a threading.Event) stopped it."""
+    import pcvr_native
+
+    try:
+        return render_raw(prepared, view.scaled(step.scale), Control(cancel=cancel),
+                          sheet_spacing_factor=step.sheet_spacing)
+    except pcvr_native.RenderCancelled:
+        return None
+
+
+def viewport_pixels(prepared, display, raw):
+    """The Combined pass of a viewport render."""
+    return finish(prepared, display, raw)["Combined"]
+
+
+# -------------------------------------------------------------------------------------------------
 # F12
 
 def render(engine, depsgraph):
