@@ -66,6 +66,21 @@ def add_volume(name, filepath, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1,
     return obj
 
 
+def add_cube(name="Cube", size=1.0, location=(0, 0, 0)):
+    """A mesh cube object in the scene."""
+    import bmesh
+
+    mesh = bpy.data.meshes.new(name)
+    builder = bmesh.new()
+    bmesh.ops.create_cube(builder, size=size)
+    builder.to_mesh(mesh)
+    builder.free()
+    cube = bpy.data.objects.new(name, mesh)
+    cube.location = location
+    bpy.context.scene.collection.objects.link(cube)
+    return cube
+
+
 def add_camera(location=(0, 0, 5), rotation=(0, 0, 0), ortho_scale=None, lens=None, shift=(0, 0)):
     """A scene camera; orthographic when ortho_scale is given."""
     data = bpy.data.cameras.new("Camera")

@@ -4,7 +4,6 @@ import os
 import tempfile
 
 import bpy
-import bmesh
 import numpy as np
 import pytest
 
@@ -42,14 +41,7 @@ def test_sequence_renders_the_frames_file(scene, tmp_path):
 
 
 def test_mesh_to_volume_renders(scene, private_tempdir):
-    mesh = bpy.data.meshes.new("Cube")
-    builder = bmesh.new()
-    bmesh.ops.create_cube(builder, size=1.0)
-    builder.to_mesh(mesh)
-    builder.free()
-    cube = bpy.data.objects.new("Cube", mesh)
-    cube.location = (0.5, 0.5, 0.0)
-    scene.collection.objects.link(cube)
+    cube = bs.add_cube(location=(0.5, 0.5, 0.0))
 
     obj = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
     scene.collection.objects.link(obj)

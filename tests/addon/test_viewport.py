@@ -5,13 +5,14 @@ and the engine and region are stand-ins (viewport_scenes.py), since `bpy` in bac
 The draw itself is tested in test_viewport_draw.py.
 """
 
+import bpy
 import numpy as np
 import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import cache, viewport
+from pcvr_addon import cache, engine as pcvr_engine, viewport
 
 SIZE = (96, 64)
 
@@ -252,6 +253,27 @@ def test_what_does_not_show_renders_nothing(blob_scene, engine, draws):
     scene.pcvr.mode = 'SHADED'              # but in shaded mode they do
     engine.settle(context)
     assert renderer.schedule.generation == generation + 1
+
+
+def test_a_procedural_volume_is_exported_again_only_when_its_geometry_changes(engine, draws, monkeypatch):
+    scene = bs.setup(*SIZE)
+    camera = bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=3.0)
+    cube = bs.add_cube(location=(0.3, 0.2, 0.0))
+    volume = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
+    scene.collection.objects.link(volume)
+    volume.modifiers.new("Mesh to Volume", 'MESH_TO_VOLUME').object = cube
+    exports, export_grid = [], pcvr_engine.export_grid
+    monkeypatch.setattr(pcvr_engine, "export_grid", lambda source: exports.append(source.name) or export_grid(source))
+    context = vs.camera_context(camera, *SIZE)
+
+    engine.settle(context)
+    engine.settle(vs.moved(context, 0.2))
+    assert exports == ["CubeVolume"]
+
+    cube.location.x += 0.5       # the modifier's mesh moves: the volume's geometry changes
+    engine.settle(context)
+    assert exports == ["CubeVolume"] * 2
+    np.testing.assert_array_equal(engine.renderer.latest().pixels, combined(scene))
 
 
 def test_render_border_in_camera_view_matches_the_f12_border(blob_scene, engine, draws):

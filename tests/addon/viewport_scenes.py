@@ -50,7 +50,21 @@ class StandInEngine:
         return self.viewport_session.renderer
 
     def update(self, context):
-        viewport_session.view_update(self, context, bpy.context.evaluated_depsgraph_get())
+        """view_update as Blender calls it: from inside the depsgraph's update, whose `updates` then list what
+        changed; directly when nothing was tagged (as for the first draw)."""
+        called = []
+
+        def handler(_scene, depsgraph):
+            called.append(True)
+            viewport_session.view_update(self, context, depsgraph)
+
+        bpy.app.handlers.depsgraph_update_post.append(handler)
+        try:
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+        finally:
+            bpy.app.handlers.depsgraph_update_post.remove(handler)
+        if not called:
+            viewport_session.view_update(self, context, depsgraph)
 
     def draw(self, context):
         viewport_session.view_draw(self, context, bpy.context.evaluated_depsgraph_get())
