@@ -14,6 +14,7 @@ from pathlib import Path
 import analysis_report
 import evidence_report
 import speed_of_light as sol
+import viewport_bench
 
 METHOD_ORDER = ["regular", "pcvr_bilinear", "pcvr_gauss", "bilinear_spread"]
 LABELS = {"regular": "regular", "pcvr_bilinear": "pcvr + bilinear", "pcvr_gauss": "pcvr + gauss1.4",
@@ -542,6 +543,7 @@ def write(results: dict, output: Path) -> None:
     lines += analysis_report.figures_section(results.get("figures"), output.parent, fig_dir)
     lines += analysis_report.kernel_section(results.get("kernel_search"))
     lines += analysis_report.shaded_section()
+    lines += viewport_bench.section(results.get("viewport"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))
         return

@@ -11,6 +11,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | figures     | figures.py       | the paper's Figs 4-7, 11, 12 and the aliasing measurement (docs/figures) |
 | search      | kernel_search.py | splat kernel / post filter pairs, numpy prototype                       |
 | throughput  | this file        | PCVR's own speed, memory and limits on large volumes (below)             |
+| viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -432,6 +433,8 @@ def parse_args(argv=None):
     p.add_argument("--no-search", dest="search", action="store_false", help="skip the kernel search")
     p.add_argument("--no-throughput", dest="throughput", action="store_false",
                    help="skip PCVR's own throughput, memory and limits")
+    p.add_argument("--no-viewport", dest="viewport", action="store_false",
+                   help="skip the rendered viewport's speed")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.
@@ -502,6 +505,11 @@ def main(argv=None) -> int:
         f"load {results['load_before'][0]:.2f}")
 
     run_evidence(args, results, results_path, output)
+    if args.viewport:
+        import viewport_bench
+        log("rendered viewport")
+        results["viewport"] = viewport_bench.run(args.quick, log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
     for n in args.sizes if args.throughput else []:
         for kind in args.kinds:
             bench_volume(kind, n, args, workdir, results)
