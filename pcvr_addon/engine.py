@@ -229,7 +229,8 @@ def _render_shaded(prepared, view, control, stats, sheets):
 
     with_depth = prepared.inputs.with_depth
     if not prepared.volumes:
-        return {"rgba": _zeros(view, 4), "depth": np.full((view.height, view.width), np.inf, dtype=np.float32)}
+        nothing = np.full((view.height, view.width), np.inf, dtype=np.float32) if with_depth else None
+        return {"rgba": _zeros(view, 4), "depth": nothing}
     transfer_functions, lights, ambient, shading = prepared.lighting
     result = pcvr_native.render_shaded(
         prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shading,
@@ -264,10 +265,11 @@ RENDERERS = {
 }
 
 
-def render_raw(prepared, view, control=Control(), stats=None, sheet_spacing_factor=1.0):
+def render_raw(prepared, view, control=None, stats=None, sheet_spacing_factor=1.0):
     """The native results of a PreparedScene seen by `view` (a CameraView): {"integral"}, {"rgba", "depth"} or
     {"maxima"}, and the integral too where the XRay pass is on. `sheet_spacing_factor` times the sheet spacing
     of shaded and MIP modes (the viewport's coarse images). Raises pcvr_native.RenderCancelled."""
+    control = Control() if control is None else control
     stats = {} if stats is None else stats
     inputs = prepared.inputs.with_sheet_spacing(sheet_spacing_factor)
     raw = RENDERERS[inputs.mode](prepared, view, control, stats, inputs.sheets)

@@ -98,9 +98,13 @@ def test_a_change_cancels_all_but_a_first_image():
 # The viewport in Blender
 
 @pytest.mark.parametrize("mode", ['XRAY', 'SHADED', 'MIP'])
-def test_full_resolution_equals_the_f12_render(blob_scene, engine, draws, mode):
+@pytest.mark.parametrize("projection", ['ORTHO', 'PERSP'])
+def test_full_resolution_equals_the_f12_render(blob_scene, engine, draws, mode, projection):
     scene, camera, volume = blob_scene
+    camera.data.type = projection
+    camera.data.lens = 80.0
     scene.pcvr.mode = mode
+    scene.pcvr.method = 'PCVR'   # with its strides and, in perspective, depth bands
     scene.render.film_transparent = True
     ls.set_ramp(volume)
     ls.add_light('SUN', rotation=(0.6, -0.5, 0.0), power=3.0)
