@@ -53,6 +53,7 @@ class Job:
     generation: int   # the restart it belongs to
     index: int        # into the schedule's steps
     first: bool       # the first step of its restart
+    cost_key: object  # what its time depends on (see Schedule.restart)
 
 
 class Schedule:
@@ -79,13 +80,13 @@ class Schedule:
         """The next Job to render, or None."""
         if self.pending is None:
             return None
-        job = Job(self.generation, self.pending, self._first)
+        job = Job(self.generation, self.pending, self._first, self._cost_key)
         self.pending, self._first = None, False
         return job
 
     def finished(self, job, seconds):
         """`job` rendered in `seconds`; a job of an earlier restart only teaches its timing."""
-        self.seconds[(self._cost_key, job.index)] = seconds
+        self.seconds[(job.cost_key, job.index)] = seconds
         if job.generation == self.generation:
             self.pending = self._next(job.index)
 
@@ -246,7 +247,7 @@ class ProgressiveRenderer:
         if thread is not None and thread is not threading.current_thread():
             thread.join()
 
-    # -- internals (the lock held where the name says so)
+    # -- internals; _idle, _has_work and _restart expect the lock held
 
     def _idle(self):
         return self._stopped or not (self._working or self._has_work())

@@ -29,6 +29,10 @@ def _tag_redraw(engine_reference):
         pass  # Blender freed the engine; its __del__ stops this session
 
 
+def _resolution(step):
+    return "full resolution" if step.scale == 1 else f"1/{step.scale} resolution"
+
+
 class ViewportSession:
     def __init__(self, render_engine):
         reference = weakref.ref(render_engine)
@@ -77,9 +81,9 @@ class ViewportSession:
         problems = (prepared.errors + prepared.warnings) if prepared is not None else []
         running, image = self.renderer.running, self.renderer.latest()
         if running is not None:
-            state = f"Rendering 1/{self.renderer.schedule.steps[running.index].scale}"
+            state = f"Rendering {_resolution(self.renderer.schedule.steps[running.index])}"
         elif image is not None:
-            state = "Done" if image.step.scale == 1 else f"1/{image.step.scale} resolution"
+            state = "Done" if image.step.scale == 1 else _resolution(image.step)
         else:
             state = "Waiting"
         if image is not None:
