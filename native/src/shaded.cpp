@@ -142,17 +142,18 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     if (!std::isfinite(spacing)) return;  // nothing to render
     const auto [near_depth, far_depth] = clip_depths(camera);
     sheets.spacing = spacing * params.sheet_spacing;
+    // From one sheet in front of the near plane (samples between sheets cover the ray from there on,
+    // each counting for its share between the clip planes) to the far plane; along the rays through
+    // the image's corners for spheres.
+    double nearest = near_depth, farthest = far_depth;
     if (sheets.spherical) {
-        // From the near plane's distance on the axis to the far plane's in the image's corners.
-        double farthest = 0;
+        nearest = near_depth * geometry.world_per_depth;
+        farthest = 0;
         for (double px : {0.0, double(camera.width() - 1)})
             for (double py : {0.0, double(camera.height() - 1)}) farthest = std::max(farthest, far_depth * length(geometry.direction(px, py)));
-        sheets.first_depth = near_depth * geometry.world_per_depth;
-        sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
-    } else {
-        sheets.first_depth = near_depth;
-        sheets.count = int64_t(std::ceil((far_depth - near_depth) / sheets.spacing));
     }
+    sheets.first_depth = nearest - sheets.spacing;
+    sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
 
     SlabSplatParams splat;
     splat.kernel = &kernel;

@@ -376,6 +376,7 @@ SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, 
         f.per_pixel_y = lanes3(geo.origin_dy + geo.dir_dy * u);
         f.along = dir;
         f.depth = broadcast8(float(u));
+        f.depth_rate = broadcast8(1.0f);
         return f;
     }
     // On the sphere of radius u around the eye: the point u along the unit direction d = dir / |dir|,
@@ -390,7 +391,8 @@ SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, 
     f.per_pixel_x = turn(geo.dir_dx);
     f.per_pixel_y = turn(geo.dir_dy);
     f.along = d;
-    f.depth = inverse_length * float(u);  // dir advances one unit of depth per |dir| of world length
+    f.depth_rate = inverse_length;  // dir advances one unit of depth per |dir| of world length
+    f.depth = inverse_length * float(u);
     return f;
 }
 
@@ -458,7 +460,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
             const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
-            open &= setup.within_clip(f.depth);
+            const float8 share = setup.clip_share(f.depth, f.depth_rate * (0.5f * spacing / float(samples)));
+            open &= share > 0;
             if (!any8(open)) continue;
             const float8 along_length = sqrt8(dot(f.along, f.along));
             const float8 slab_length = spacing * along_length;  // world length of the ray across a slab
@@ -500,7 +503,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // Overlapping grids mix as media do: extinctions add, emissions weigh by extinction.
             const int8x lit = sigma_sum > 0;
             if (!any8(lit)) continue;
-            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * (1.0f / float(samples)));
+            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * share * (1.0f / float(samples)));
             const float8 weight = select8(lit, (1.0f - alpha) * opacity / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
             store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);

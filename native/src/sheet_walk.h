@@ -48,7 +48,8 @@ struct SheetGeometry {
 /// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
 struct SampleFrames {
     Vec3x8 position, per_pixel_x, per_pixel_y, along;
-    float8 depth;  ///< camera-space depth (the clip planes and the Depth pass use it)
+    float8 depth;       ///< camera-space depth (the clip planes and the Depth pass use it)
+    float8 depth_rate;  ///< camera-space depth per unit of the sheet parameter
 };
 
 /// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
@@ -85,6 +86,12 @@ struct SheetWalkSetup {
     float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
 
     int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
+    /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
+    /// spherical sheets cross the planes, and a sample half in front of the near plane counts half.
+    float8 clip_share(float8 depth, float8 half_extent) const {
+        const float8 covered = min8(depth + half_extent, broadcast8(far_depth)) - max8(depth - half_extent, broadcast8(near_depth));
+        return max8(broadcast8(0.0f), min8(broadcast8(1.0f), covered / (2.0f * half_extent)));
+    }
 };
 
 struct WalkStats {
