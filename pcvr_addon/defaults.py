@@ -20,10 +20,10 @@ XRAY = {
 SHEETS = {
     "method": "pcvr",
     "splat_kernel": "gauss1.4",
-    "post_filter": "bilinear",
+    "post_filter": "catmull_rom",
     "stride": 0,
     "sheet_spacing": 1.0,
-    "samples_per_sheet": 1,
+    "samples_per_sheet": 2,
     "opacity_cutoff": 0.99,
 }
 

@@ -243,26 +243,20 @@ def material(settings):
 
 
 def native_lighting(frame):
-    """(lights, ambient colour, Shading) for render_shaded: the scene's lights and world, and the material of
-    the first volume (pcvr_native lights every volume of a render with one material: a volume whose
-    material differs is reported). A volume without shading shows its transfer function's colours."""
+    """(lights, ambient colour, one Shading per volume) for render_shaded: the scene's lights and world, and
+    each volume's material. A volume without shading shows its transfer function's colours."""
     import pcvr_native
 
-    first = frame.volumes[0]
-    use_shading, ambient, diffuse, specular, shininess = material(first.settings)
-    differing = [volume.source.name for volume in frame.volumes[1:]
-                 if material(volume.settings) != material(first.settings)]
-    if differing:
-        frame.engine.report({'WARNING'}, f"PCVR lights every volume with the material of "
-                                         f"'{first.source.name}'; {', '.join(map(repr, differing))} differ")
-    if not use_shading:
-        return [], (1.0, 1.0, 1.0), pcvr_native.Shading(ambient=1.0, diffuse=0.0, specular=0.0)
+    shadings = []
+    for volume in frame.volumes:
+        use_shading, ambient, diffuse, specular, shininess = material(volume.settings)
+        shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
+                                            shininess=shininess, lit=use_shading))
     lights = []
     for spec in lighting.scene_lights(frame.depsgraph):
         make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
         lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
-    shading = pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular, shininess=shininess)
-    return lights, lighting.world_colour(frame.scene.world), shading
+    return lights, lighting.world_colour(frame.scene.world), shadings
 
 
 def over_background(rgba, world, film_transparent):
@@ -297,11 +291,11 @@ def _render_shaded(frame, stats):
     return pixels
 
 
-def mip_colours(maximum, points, density_range, mip_color):
+def mip_colours(maximum, points, density_range, mip_color, background=0.0):
     """Premultiplied RGBA of a volume's MIP: through the transfer function's colours (ControlPoints), or grey
     from black at the low end of its density range to white at the high end; alpha 1 where a voxel reaches
-    (maximum != 0)."""
-    reached = maximum != 0
+    (the maximum is not the grid's scaled background, which rays that meet no voxel return)."""
+    reached = maximum != np.float32(background)
     if mip_color == 'GREYSCALE':
         low, high = density_range
         rgb = np.repeat(np.clip((maximum - low) / (high - low), 0.0, 1.0)[:, :, None], 3, axis=2)
@@ -324,7 +318,8 @@ def _render_mip(frame, stats):
         maximum = pcvr_native.render_mip(
             volume.grid, native_camera(frame.view), density_scale=volume.source.density_scale,
             stats=volume_stats, **_sheet_arguments(settings), **frame.control(index, len(frame.volumes)))
-        np.maximum(rgba, mip_colours(maximum, points, density_range(volume), settings.mip_color), out=rgba)
+        background = volume.grid.background * volume.source.density_scale
+        np.maximum(rgba, mip_colours(maximum, points, density_range(volume), settings.mip_color, background), out=rgba)
         _add_stats(stats, volume_stats)
     world = lighting.world_colour(frame.scene.world)
     return {"Combined": over_background(rgba, world, frame.scene.render.film_transparent)}

@@ -128,7 +128,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     if (blocks.empty()) return;
     const PixelRect rect = tiles.rect(tile);
     const int tw = rect.width(), th = rect.height();
-    const bool mip = setup.shader == nullptr;
+    const bool mip = setup.mip;
     const SheetLattice& sheets = setup.sheets;
     const float cutoff = setup.opacity_cutoff;
     const bool occlusion_culling = !mip && cutoff < 1.0f;
@@ -194,7 +194,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     // Eight more: a run of eight pixels may start anywhere in the last row.
     for (auto* plane : {&red_, &green_, &blue_, &alpha_}) plane->assign(row_pitch_ * th + 8, 0.0f);
     depth_.assign(row_pitch_ * th + 8, INFINITY);
-    if (mip) maximum_.assign(row_pitch_ * th + 8, -INFINITY);
+    if (mip) maximum_.assign(row_pitch_ * th + 8, setup.mip_background);
     size_t opaque = 0, opaque_at_rebuild = 0;
     // The occlusion map is rebuilt (its cost: the tile's pixels) each time this many more became opaque.
     const size_t rebuild_step = std::max<size_t>(256, tile_pixels / 64);
@@ -330,7 +330,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         for (int x = 0; x < tw; ++x) {
             const size_t p = size_t(y) * row_pitch_ + x;
             if (mip) {
-                image[row + x] = std::isfinite(maximum_[p]) ? maximum_[p] : 0.0f;
+                image[row + x] = maximum_[p];
             } else {
                 float* out = image + 4 * (row + x);
                 out[0] = red_[p], out[1] = green_[p], out[2] = blue_[p], out[3] = alpha_[p];
@@ -416,12 +416,14 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 const int8x peak_here = (m >= b) & (m >= a) & (curvature > 0);
                 const float8 slope = a - b;
                 const float8 safe = select8(peak_here, curvature, broadcast8(1.0f));
-                const float8 peak = m + select8(peak_here, slope * slope / (8.0f * safe) + curvature / 24.0f, broadcast8(0.0f));
+                // |slope| <= curvature at a peak: slope / (8 curvature) is at most 1/8, and the product cannot overflow.
+                const float8 peak = m + select8(peak_here, slope * (slope / (8.0f * safe)) + curvature / 24.0f, broadcast8(0.0f));
                 const SampleFrames f = sample_frames(*setup.geometry, setup.sheets.spherical, p.px, p.py, middle);
                 float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
                 // Zero means no voxel reaches: empty, not a density of 0.
                 const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
-                store8(most, select8(counted, max8(load8(most), peak / (spacing * sqrt8(dot(f.along, f.along)))), load8(most)));
+                const float8 density = peak / (spacing * sqrt8(dot(f.along, f.along))) + setup.grids[gi].background;
+                store8(most, select8(counted, max8(load8(most), density), load8(most)));
             }
     }
 }
@@ -437,6 +439,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     struct Source {
         const GridState* grid;
         const ClassificationTable* classification;
+        const Shader* shader;
+        float background;
         const float *before, *here, *after;
     };
     Source sources[64];
@@ -446,7 +450,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         if (!grids_[gi] || !grids_[gi]->used) continue;
         const GridState& g = *grids_[gi];
         if (!g.has(s) && !(t > 0 && g.has(s + 1))) continue;
-        sources[source_count++] = {&g, setup.grids[gi].classification, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1)};
+        const WalkGrid& wg = setup.grids[gi];
+        sources[source_count++] = {&g, wg.classification, wg.shader, wg.background, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1)};
         box.include(tile_box(g.box(s), g.halo, rect));
         if (t > 0) box.include(tile_box(g.box(s + 1), g.halo, rect));
     }
@@ -478,7 +483,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
                 const float8 here = load8(src.here + i), next = load8(src.after + i);
                 const float8 raw = here + t * (next - here);
-                const float8 density = raw / slab_length;
+                const float8 density = raw / slab_length + src.background;
                 int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
                 const ClassificationTable::Samples c = (*src.classification)(density);
@@ -495,7 +500,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
                 const float8 g3 = t == 0 ? (next - load8(src.before + i)) * (0.5f / spacing) : (next - here) * (1.0f / spacing);
                 const Vec3x8 gradient = from_x * g1 + from_y * g2 + from_u * g3;
-                const Vec3x8 lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
+                const Vec3x8 lit = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
                 const float8 extinction = select8(valid, c.extinction, broadcast8(0.0f));
                 sigma_sum += extinction;
                 emission = emission + lit * extinction;

@@ -60,7 +60,9 @@ SampleFrames sample_frames(const SheetGeometry& geometry, bool spherical, float8
 /// layers (the step of its in-sheet gradient).
 struct WalkGrid {
     const ClassificationTable* classification;  ///< null for MIP
+    const Shader* shader;                       ///< null for MIP
     int gradient_step;
+    float background;  ///< added to the sheets' densities (SlabSplatParams::background), scaled
 };
 
 /// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,
@@ -79,11 +81,12 @@ struct SheetWalkSetup {
     const TileSet* tiles = nullptr;
     SheetLattice sheets;
     const SheetGeometry* geometry = nullptr;
-    const Shader* shader = nullptr;  ///< null: maximum intensity projection
+    bool mip = false;  ///< maximum intensity projection: no classification, no shading
     float opacity_cutoff = 0.99f;
     int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
     int width = 0, height = 0;
     float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
+    float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)
 
     int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
     /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
