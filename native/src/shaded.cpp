@@ -150,9 +150,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     double nearest = near_depth, farthest = far_depth;
     if (sheets.spherical) {
         nearest = near_depth * geometry.world_per_depth;
-        farthest = 0;
-        for (double px : {0.0, double(camera.width() - 1)})
-            for (double py : {0.0, double(camera.height() - 1)}) farthest = std::max(farthest, far_depth * length(geometry.direction(px, py)));
+        farthest = far_depth * geometry.longest_ray;
     }
     sheets.first_depth = nearest - sheets.spacing;
     sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));

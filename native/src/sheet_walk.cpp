@@ -35,6 +35,10 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
     dir_dx = d1 - dir0;
     dir_dy = d2 - dir0;
     world_per_depth = 1.0 / length(Vec3{w2c.m[2][0], w2c.m[2][1], w2c.m[2][2]});
+    // |direction| is convex in the pixel coordinates: largest in a corner of the image.
+    longest_ray = 0;
+    for (double px : {0.0, double(camera.width() - 1)})
+        for (double py : {0.0, double(camera.height() - 1)}) longest_ray = std::max(longest_ray, length(direction(px, py)));
 }
 
 void WalkStats::add(const WalkStats& o) {
@@ -366,6 +370,14 @@ inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8
 
 }  // namespace
 
+bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
+    if (!sheets.spherical) return u - half >= near_depth && u + half <= far_depth;
+    // depth = u / |direction|, |direction| from world_per_depth (on the axis) to longest_ray.
+    return (u - half) / geometry->longest_ray >= near_depth && (u + half) / geometry->world_per_depth <= far_depth;
+}
+
+double SheetWalkSetup::ray_length_per_unit() const { return sheets.spherical ? 1.0 : length(geometry->dir0); }
+
 SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
     const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
     const Vec3x8 origin = lanes3(geo.origin0 + geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
@@ -456,6 +468,17 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         if (t > 0) box.include(tile_box(g.box(s + 1), g.halo, rect));
     }
 
+    // Slabs are as long along every ray (see ray_length_per_unit), and samples away from the clip
+    // planes count in full: the frames are only needed where something is classified.
+    const float slab_length = float(setup.sheets.spacing * setup.ray_length_per_unit());
+    const double half_extent = 0.5 * setup.sheets.spacing / samples;
+    const bool whole = setup.within_clip_everywhere(u, half_extent);
+    auto reaches_something = [&](const Source& src, size_t i, int8x open) {
+        const float8 here = load8(src.here + i), next = load8(src.after + i);
+        const float8 raw = here + t * (next - here);
+        return any8(open & (raw != 0) & src.classification->maybe_opaque(raw / slab_length + src.background));
+    };
+
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
         for (int x = box.x0; x <= box.x1; x += 8) {
@@ -464,17 +487,21 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
             int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
+            bool any = false;
+            for (int k = 0; k < source_count && !any; ++k) {
+                const GridState& g = *sources[k].grid;
+                any = reaches_something(sources[k], size_t(y + g.halo) * g.pitch() + size_t(x + g.halo), open);
+            }
+            if (!any) continue;
             const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
-            const float8 share = setup.clip_share(f.depth, f.depth_rate * (0.5f * spacing / float(samples)));
+            const float8 share = whole ? broadcast8(1.0f) : setup.clip_share(f.depth, f.depth_rate * float(half_extent));
             open &= share > 0;
             if (!any8(open)) continue;
-            const float8 along_length = sqrt8(dot(f.along, f.along));
-            const float8 slab_length = spacing * along_length;  // world length of the ray across a slab
             // The rows of the inverse of [per_pixel_x per_pixel_y along], times its determinant: they turn
             // derivatives per pixel and per unit of the sheet parameter into a world gradient.
             const Vec3x8 from_x = cross(f.per_pixel_y, f.along), from_y = cross(f.along, f.per_pixel_x),
                          from_u = cross(f.per_pixel_x, f.per_pixel_y);
-            const Vec3x8 to_eye = f.along * (-1.0f / along_length);
+            const Vec3x8 to_eye = f.along * (-1.0f / sqrt8(dot(f.along, f.along)));
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
             for (int k = 0; k < source_count; ++k) {

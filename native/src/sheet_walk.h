@@ -38,6 +38,7 @@ struct SheetGeometry {
     Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0 (the eye, in perspective)
     Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
     double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
+    double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
 
     explicit SheetGeometry(const Camera& camera);
     Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
@@ -89,6 +90,12 @@ struct SheetWalkSetup {
     float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)
 
     int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
+    /// True when every pixel's stretch of ray from u - half to u + half (sheet parameter) lies between
+    /// the clip planes, so that no sample needs its share.
+    bool within_clip_everywhere(double u, double half) const;
+    /// World length of the ray per unit of the sheet parameter: 1 on spheres; planes are orthographic,
+    /// where every ray is the same.
+    double ray_length_per_unit() const;
     /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
     /// spherical sheets cross the planes, and a sample half in front of the near plane counts half.
     float8 clip_share(float8 depth, float8 half_extent) const {
