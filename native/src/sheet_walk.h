@@ -2,16 +2,16 @@
 /// @brief One tile's front-to-back walk through its sheets: splat, post-convolve, classify, shade,
 /// composite, sheet after sheet, until the tile is done or opaque.
 ///
-/// Before sheet s is composited, every voxel whose kernel reaches sheet s + 1 has been splatted (the
-/// gradient across sheets needs s - 1 and s + 1): voxels are taken from the tile's blocks in depth
-/// order, a block's voxels in the order of SlabView::depth_order, as the splat front moves on. Sheet
-/// s + 1 is then post-convolved to the tile's pixels plus a halo of one subgrid node (for the in-sheet
-/// gradient), and the samples from sheet s towards s + 1 are classified, shaded and composited into
-/// the tile: with samples_per_sheet > 1 the density and gradient are interpolated linearly between
-/// the two sheets, so that a surface crossing the sheets is not cut into terraces. Only three post-convolved
-/// sheets and a ring of node sheets per grid are alive at a time. Runs of sheets that no splat reaches
-/// are jumped over. The occlusion map is rebuilt as pixels become opaque, and splats that can only
-/// reach opaque pixels are skipped; a tile whose every pixel is opaque stops.
+/// Before the samples from sheet s towards s + 1 are composited, every voxel whose kernel reaches sheet
+/// s + 2 has been splatted: voxels are taken from the tile's blocks in depth order, a block's voxels in
+/// the order of SlabView::depth_order, as the splat front moves on. Sheet s + 2 is then post-convolved
+/// to the tile's pixels plus a halo of one subgrid node (for the in-sheet gradient), and the samples
+/// are classified, shaded and composited into the tile: with samples_per_sheet > 1 the density along
+/// the ray is the Catmull-Rom cubic through sheets s - 1 to s + 2, so that a surface crossing the sheets
+/// is not cut into terraces. Only four post-convolved sheets and a ring of node sheets per grid are
+/// alive at a time. Runs of sheets that no splat reaches are jumped over. The occlusion map is rebuilt
+/// as pixels become opaque, and splats that can only reach opaque pixels are skipped; a tile whose
+/// every pixel is opaque stops.
 /// A SheetWalker holds one thread's scratch memory and is reused tile after tile.
 #pragma once
 
