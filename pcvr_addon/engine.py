@@ -94,7 +94,6 @@ class PreparedScene:
     inputs: scene_inputs.RenderInputs
     volumes: list                       # LoadedVolume
     errors: list = field(default_factory=list)    # volumes that could not be read, one message each
-    warnings: list = field(default_factory=list)
     lighting: tuple = ()                # shaded: (transfer functions, lights, ambient, Shading)
 
     @property
@@ -161,29 +160,21 @@ def native_transfer_function(volume):
 
 
 def _native_lighting(prepared):
-    """(transfer functions, lights, ambient colour, Shading) for render_shaded: the scene's lights and world,
-    and the material of the first volume (pcvr_native lights every volume of a render with one material: a
-    volume whose material differs gets a warning). A volume without shading shows its transfer function's
-    colours."""
+    """(transfer functions, lights, ambient colour, one Shading per volume) for render_shaded: the scene's lights
+    and world, and each volume's material. A volume without shading shows its transfer function's colours."""
     import pcvr_native
 
-    first = prepared.volumes[0]
-    use_shading, ambient, diffuse, specular, shininess = first.inputs.material
-    differing = [volume.inputs.name for volume in prepared.volumes[1:]
-                 if volume.inputs.material != first.inputs.material]
-    if differing:
-        prepared.warnings.append(f"PCVR lights every volume with the material of '{first.inputs.name}'; "
-                                 f"{', '.join(map(repr, differing))} differ")
     transfer_functions = [native_transfer_function(volume) for volume in prepared.volumes]
-    if not use_shading:
-        return (transfer_functions, [], (1.0, 1.0, 1.0),
-                pcvr_native.Shading(ambient=1.0, diffuse=0.0, specular=0.0))
+    shadings = []
+    for volume in prepared.volumes:
+        use_shading, ambient, diffuse, specular, shininess = volume.inputs.material
+        shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
+                                            shininess=shininess, lit=use_shading))
     lights = []
     for spec in prepared.inputs.lights:
         make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
         lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
-    shading = pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular, shininess=shininess)
-    return transfer_functions, lights, prepared.inputs.world, shading
+    return transfer_functions, lights, prepared.inputs.world, shadings
 
 
 # -------------------------------------------------------------------------------------------------
@@ -231,9 +222,9 @@ def _render_shaded(prepared, view, control, stats, sheets):
     if not prepared.volumes:
         nothing = np.full((view.height, view.width), np.inf, dtype=np.float32) if with_depth else None
         return {"rgba": _zeros(view, 4), "depth": nothing}
-    transfer_functions, lights, ambient, shading = prepared.lighting
+    transfer_functions, lights, ambient, shadings = prepared.lighting
     result = pcvr_native.render_shaded(
-        prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shading,
+        prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shadings,
         stats=stats, density_scale=prepared.density_scales, return_depth=with_depth,
         **dataclasses.asdict(sheets), **control.arguments(prepared.inputs.threads))
     rgba, depth = result if with_depth else (result, None)
@@ -300,11 +291,11 @@ def over_background(rgba, world, film_transparent):
     return combined
 
 
-def mip_colours(maximum, points, density_range, mip_color):
+def mip_colours(maximum, points, density_range, mip_color, background=0.0):
     """Premultiplied RGBA of a volume's MIP: through the transfer function's colours (ControlPoints), or grey
     from black at the low end of its density range to white at the high end; alpha 1 where a voxel reaches
-    (maximum != 0)."""
-    reached = maximum != 0
+    (the maximum is not the grid's scaled background, which rays that meet no voxel return)."""
+    reached = maximum != np.float32(background)
     if mip_color == 'GREYSCALE':
         low, high = density_range
         rgb = np.repeat(np.clip((maximum - low) / (high - low), 0.0, 1.0)[:, :, None], 3, axis=2)
@@ -332,7 +323,9 @@ def _finish_mip(prepared, display, raw):
     rgba = None
     for volume, maximum in zip(prepared.volumes, raw["maxima"]):
         ramp = display.ramps[volume.index]
-        colours = mip_colours(maximum, control_points(ramp, volume), density_range(ramp, volume), display.mip_color)
+        background = volume.grid.background * volume.inputs.density_scale
+        colours = mip_colours(maximum, control_points(ramp, volume), density_range(ramp, volume), display.mip_color,
+                              background)
         rgba = colours if rgba is None else np.maximum(rgba, colours)
     if rgba is None:
         rgba = np.zeros(raw["shape"] + (4,), dtype=np.float32)
@@ -392,8 +385,6 @@ def render(engine, depsgraph):
         _fail(engine, f"PCVR: {ex}")
         return
     _report_errors(engine, prepared.errors)
-    for warning in prepared.warnings:
-        engine.report({'WARNING'}, warning)
     if engine.test_break():
         return
 

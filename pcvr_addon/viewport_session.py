@@ -78,7 +78,7 @@ class ViewportSession:
         if error:
             return f"PCVR: {error}"
         prepared = self.renderer.prepared()
-        problems = (prepared.errors + prepared.warnings) if prepared is not None else []
+        problems = prepared.errors if prepared is not None else []
         running, image = self.renderer.running, self.renderer.latest()
         if running is not None:
             state = f"Rendering {_resolution(self.renderer.schedule.steps[running.index])}"

@@ -177,6 +177,8 @@ void bind_grid(nb::module_& m) {
                 return nb::make_tuple(double(r.first), double(r.second));
             },
             "(min, max) over the active voxels; (0, 0) when empty.")
+        .def_prop_ro("background", &Grid::background,
+                     "The value of inactive voxels; shaded and MIP renders reconstruct towards it beyond the active ones.")
         .def_prop_ro("name", &Grid::name)
         .def_prop_ro(
             "source_path",

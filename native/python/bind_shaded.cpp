@@ -119,7 +119,7 @@ nb::object image_to_numpy(Image&& image, int channels) {
 }
 
 nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handle transfer_functions, nb::handle lights,
-                            nb::handle ambient, const Shading& shading, const std::string& method,
+                            nb::handle ambient, nb::handle shading, const std::string& method,
                             const std::string& splat_kernel, const std::string& post_filter, int stride,
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
@@ -138,10 +138,19 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     if (!lights.is_none())
         for (nb::handle item : lights) lighting.lights.push_back(nb::cast<Light>(item));
     lighting.ambient = vec3_from_python(ambient, "ambient");
-    lighting.material = shading;
+    // One material for every grid, or one each.
+    std::vector<Shading> materials;
+    if (nb::isinstance<Shading>(shading)) {
+        lighting.material = nb::cast<Shading>(shading);
+    } else {
+        for (nb::handle item : shading) materials.push_back(nb::cast<Shading>(item));
+        if (materials.size() != parts.grids.size())
+            throw nb::value_error("render_shaded: shading must be one Shading or one per grid");
+    }
 
     std::vector<ShadedVolume> volumes;
-    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i]});
+    for (size_t i = 0; i < parts.grids.size(); ++i)
+        volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i]});
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     RgbaImage image;
@@ -226,16 +235,19 @@ void bind_shaded(nb::module_& m) {
 
     nb::class_<Shading>(m, "Shading", "Blinn-Phong material of render_shaded (two-sided, as in VTK and 3D Slicer).")
         .def("__init__",
-             [](Shading* self, double ambient, double diffuse, double specular, double shininess) {
-                 new (self) Shading{ambient, diffuse, specular, shininess};
+             [](Shading* self, double ambient, double diffuse, double specular, double shininess, bool lit) {
+                 new (self) Shading{ambient, diffuse, specular, shininess, lit};
                  Lighting{{}, {0, 0, 0}, *self}.validate();
              },
-             "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0)
+             "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0, "lit"_a = true,
+             "lit=False: samples keep the transfer function's colours (shading off, as in VTK and 3D Slicer).")
         .def_rw("ambient", &Shading::ambient)
         .def_rw("diffuse", &Shading::diffuse)
         .def_rw("specular", &Shading::specular)
         .def_rw("shininess", &Shading::shininess)
+        .def_rw("lit", &Shading::lit)
         .def("__repr__", [](const Shading& s) {
+            if (!s.lit) return std::string("<pcvr_native.Shading unlit>");
             return "<pcvr_native.Shading ambient " + std::to_string(s.ambient) + " diffuse " + std::to_string(s.diffuse) +
                    " specular " + std::to_string(s.specular) + " shininess " + std::to_string(s.shininess) + ">";
         });
@@ -249,13 +261,14 @@ void bind_shaded(nb::module_& m) {
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
-          "inf where it never did.");
+          "inf where it never did. transfer_functions and shading: one for every grid, or one per grid.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
           "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
-          "reconstructed density along each ray, 0 where no voxel reaches.");
+          "reconstructed density along each ray, never below the largest grid background\n"
+          "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.");
 }
 
 }  // namespace pcvr::python

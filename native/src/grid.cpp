@@ -82,6 +82,7 @@ const std::string& Grid::source_path() const { return data_->source_path; }
 uint64_t Grid::active_voxel_count() const { return data_->active_voxel_count; }
 std::array<int32_t, 6> Grid::index_bbox() const { return data_->index_bbox; }
 std::pair<float, float> Grid::value_range() const { return data_->value_range; }
+float Grid::background() const { return data_->vdb->background(); }
 
 Grid Grid::with_index_to_world(const Mat4& index_to_world) const {
     detail::check_index_to_world(index_to_world, "grid '" + name_ + "'");

@@ -17,28 +17,31 @@ namespace pcvr {
 
 namespace {
 
-/// Voxel values by index coordinates, through a hash map of the grid's blocks.
+/// Voxel values less the background by index coordinates, through a hash map of the grid's blocks.
 class VoxelLookup {
 public:
-    explicit VoxelLookup(const Grid& grid) {
+    explicit VoxelLookup(const Grid& grid) : background_(grid.background()) {
         for (const VoxelBlock& b : grid.blocks()) blocks_.emplace(key(b.origin[0], b.origin[1], b.origin[2]), &b);
     }
-    /// The value of voxel (i, j, k), 0 when it is inactive or not finite.
-    double value(int64_t i, int64_t j, int64_t k) const {
+    /// The value of voxel (i, j, k) less the background, 0 when it is inactive or not finite.
+    double departure(int64_t i, int64_t j, int64_t k) const {
         const int64_t bi = i & ~int64_t(7), bj = j & ~int64_t(7), bk = k & ~int64_t(7);
         const auto it = blocks_.find(key(bi, bj, bk));
         if (it == blocks_.end()) return 0.0;
         const VoxelBlock& b = *it->second;
         const int offset = int(((i - bi) << 6) | ((j - bj) << 3) | (k - bk));
         const float v = b.value(offset);
-        return b.active(offset) && std::isfinite(v) ? double(v) : 0.0;
+        const double d = double(v) - background_;
+        return b.active(offset) && std::isfinite(d) ? d : 0.0;
     }
+    double background() const { return background_; }
 
 private:
     static uint64_t key(int64_t i, int64_t j, int64_t k) {
         return (uint64_t(i >> 3) & 0x1fffff) << 42 | (uint64_t(j >> 3) & 0x1fffff) << 21 | (uint64_t(k >> 3) & 0x1fffff);
     }
     std::unordered_map<uint64_t, const VoxelBlock*> blocks_;
+    double background_;
 };
 
 /// One grid as the ray caster sees it.
@@ -48,15 +51,18 @@ struct RayGrid {
     VoxelLookup voxels;
     double scale;
     std::array<double, 6> box;  // index bounding box widened by the kernel radius
-    const ClassificationTable* classification;
+    const ClassificationTable* classification;  // null for MIP
+    const Shader* shader;                       // null for MIP
 };
 
 struct DensitySample {
+    bool reached = false;  // some active voxel other than the background is within the kernel's reach
     double density = 0;
     Vec3 gradient;  // world space
 };
 
-/// The reconstructed density at world point x, and its gradient.
+/// The reconstructed density at world point x, and its gradient: the background plus the voxels'
+/// departures from it, as the splats reconstruct.
 DensitySample sample(const RayGrid& g, const Kernel& kernel, const Vec3& x) {
     const Vec3 u = g.world_to_index.transform_point(x);
     const double R = kernel.radius();
@@ -68,12 +74,13 @@ DensitySample sample(const RayGrid& g, const Kernel& kernel, const Vec3& x) {
                 const Vec3 d = u - Vec3{double(i), double(j), double(k)};
                 const double r = length(d);
                 if (r >= R) continue;
-                const double v = g.voxels.value(i, j, k);
+                const double v = g.voxels.departure(i, j, k);
                 if (v == 0.0) continue;
                 out.density += v * kernel.value(r);
                 if (r > 0) gradient_index = gradient_index + d * (v * kernel.derivative(r) / r);
             }
-    out.density *= g.scale;
+    out.reached = out.density != 0.0;
+    out.density = (out.density + (out.reached ? g.voxels.background() : 0.0)) * g.scale;
     // d/dx of f(B x + b) is B^T grad_u f.
     const Mat4& b = g.world_to_index;
     out.gradient = Vec3{b.m[0][0] * gradient_index.x + b.m[1][0] * gradient_index.y + b.m[2][0] * gradient_index.z,
@@ -117,15 +124,18 @@ void for_each_pixel(const Camera& camera, int step, RenderControl& control, Fn&&
 struct Marcher {
     Kernel kernel;
     std::vector<ClassificationTable> tables;
+    std::vector<Shader> shaders;
     std::vector<RayGrid> grids;
     SheetGeometry geometry;
     double near_depth, far_depth, step;
 
-    Marcher(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params, bool classify)
+    /// `lighting` null: MIP.
+    Marcher(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params, const Lighting* lighting)
         : kernel(Kernel::from_name(params.splat_kernel)), geometry(camera) {
         if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
         double spacing = INFINITY;
-        tables.reserve(volumes.size());
+        tables.reserve(volumes.size());  // grids point into both
+        shaders.reserve(volumes.size());
         for (const ShadedVolume& v : volumes) {
             const Grid& grid = *v.grid;
             if (grid.active_voxel_count() == 0) continue;
@@ -135,16 +145,19 @@ struct Marcher {
             const auto b = grid.index_bbox();
             const double R = kernel.radius();
             const ClassificationTable* table = nullptr;
-            if (classify) {
+            const Shader* shader = nullptr;
+            if (lighting) {
                 const TransferFunction& tf = *v.transfer_function;
                 const Mat4& m = grid.index_to_world();
                 const double unit = tf.unit_distance > 0 ? tf.unit_distance
                                                          : std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
+                shaders.emplace_back(v.lit_by(*lighting));
+                shader = &shaders.back();
             }
             grids.push_back({&grid, to_index, VoxelLookup(grid), v.density_scale,
-                             {b[0] - R, b[1] - R, b[2] - R, b[3] + R, b[4] + R, b[5] + R}, table});
+                             {b[0] - R, b[1] - R, b[2] - R, b[3] + R, b[4] + R, b[5] + R}, table, shader});
         }
         step = spacing * params.sheet_spacing;
         const Mat4& w2c = camera.world_to_camera();
@@ -182,8 +195,7 @@ Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
                     const ShadedParams& params, RenderControl& control, float* rgba, float* depth) {
-    const Marcher m(volumes, camera, params, true);
-    const Shader shader(lighting);
+    const Marcher m(volumes, camera, params, &lighting);
     const float cutoff = float(params.opacity_cutoff);
     for_each_pixel(camera, params.pixel_step, control, [&](size_t index, double px, double py) {
         const Vec3 dir = m.geometry.direction(px, py);
@@ -196,10 +208,10 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
             Vec3 emission;
             for (const RayGrid& g : m.grids) {
                 const DensitySample s = sample(g, m.kernel, x);
-                if (s.density == 0.0) continue;
+                if (!s.reached) continue;
                 const ClassificationTable::Sample c = (*g.classification)(float(s.density));
                 if (!(c.extinction > 0)) continue;
-                const Vec3f lit = shader.shade({c.red, c.green, c.blue}, to_float(s.gradient), to_eye, to_float(x));
+                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(s.gradient), to_eye, to_float(x));
                 sigma_sum += c.extinction;
                 emission = emission + Vec3{lit.x, lit.y, lit.z} * double(c.extinction);
             }
@@ -219,17 +231,17 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
 
 void raycast_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                  RenderControl& control, float* out) {
-    const Marcher m(volumes, camera, params, false);
+    const Marcher m(volumes, camera, params, nullptr);
     for_each_pixel(camera, params.pixel_step, control, [&](size_t index, double px, double py) {
-        double maximum = -INFINITY;
+        double maximum = mip_background(volumes);
         m.march(px, py, [&](const Vec3& x, double) {
             for (const RayGrid& g : m.grids) {
-                const double d = sample(g, m.kernel, x).density;
-                if (d != 0.0) maximum = std::max(maximum, d);
+                const DensitySample s = sample(g, m.kernel, x);
+                if (s.reached) maximum = std::max(maximum, s.density);
             }
             return true;
         });
-        out[index] = std::isfinite(maximum) ? float(maximum) : 0.0f;
+        out[index] = float(maximum);
     });
 }
 

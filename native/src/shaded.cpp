@@ -104,12 +104,16 @@ CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool 
     return out;
 }
 
-/// A block whose samples can only take densities the transfer function makes transparent.
-bool transparent(const BlockValueRange& r, double density_scale, const CullingReach& reach, const ClassificationTable& table) {
-    const double lo = std::min(0.0, double(reach.rings == 1 ? r.reach_min : r.wide_min) * density_scale);
-    const double hi = std::max(0.0, double(reach.rings == 1 ? r.reach_max : r.wide_max) * density_scale);
+/// A block whose samples can only take densities the transfer function makes transparent. A sample
+/// is the background plus a weighted sum of values less the background, weights adding up to at most
+/// one: between the background and the values around the block.
+bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
+                 const ClassificationTable& table) {
+    const double lo = std::min(0.0, (double(reach.rings == 1 ? r.reach_min : r.wide_min) - background) * density_scale);
+    const double hi = std::max(0.0, (double(reach.rings == 1 ? r.reach_max : r.wide_max) - background) * density_scale);
     const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
-    return table.transparent(lo - margin, hi + margin);
+    const double offset = background * density_scale;
+    return table.transparent(offset + lo - margin, offset + hi + margin);
 }
 
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
@@ -123,8 +127,6 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     const DepthProfile profile(kernel);
     const bool regular = params.method == ShadedMethod::Regular;
     const bool spread = params.method == ShadedMethod::BilinearSpread;
-    std::unique_ptr<Shader> shader;
-    if (!mip) shader = std::make_unique<Shader>(*lighting);
 
     // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis;
     // planes for orthographic views, spheres around the eye for perspective ones.
@@ -142,17 +144,16 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     if (!std::isfinite(spacing)) return;  // nothing to render
     const auto [near_depth, far_depth] = clip_depths(camera);
     sheets.spacing = spacing * params.sheet_spacing;
+    // From one sheet in front of the near plane (samples between sheets cover the ray from there on,
+    // each counting for its share between the clip planes) to the far plane; along the rays through
+    // the image's corners for spheres.
+    double nearest = near_depth, farthest = far_depth;
     if (sheets.spherical) {
-        // From the near plane's distance on the axis to the far plane's in the image's corners.
-        double farthest = 0;
-        for (double px : {0.0, double(camera.width() - 1)})
-            for (double py : {0.0, double(camera.height() - 1)}) farthest = std::max(farthest, far_depth * length(geometry.direction(px, py)));
-        sheets.first_depth = near_depth * geometry.world_per_depth;
-        sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
-    } else {
-        sheets.first_depth = near_depth;
-        sheets.count = int64_t(std::ceil((far_depth - near_depth) / sheets.spacing));
+        nearest = near_depth * geometry.world_per_depth;
+        farthest = far_depth * geometry.longest_ray;
     }
+    sheets.first_depth = nearest - sheets.spacing;
+    sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
 
     SlabSplatParams splat;
     splat.kernel = &kernel;
@@ -181,20 +182,24 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     SheetWalkSetup setup;
     std::vector<std::unique_ptr<SlabView>> views;
     std::vector<std::unique_ptr<ClassificationTable>> classifications;
+    std::vector<std::unique_ptr<Shader>> shaders;
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
         const Grid& grid = *volume.grid;
         const std::vector<VoxelBlock>& blocks = grid.blocks();
         const BlockPlan& plan = plans[g];
         const ClassificationTable* classification = nullptr;
+        const Shader* shader = nullptr;
         if (!mip) {
             const TransferFunction& tf = *volume.transfer_function;
             classifications.push_back(
                 std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid)));
             classification = classifications.back().get();
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting)));
+            shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : plan.by_stride.begin()->first;
-        setup.grids.push_back({classification, finest});
+        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale)});
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
         const std::vector<BlockValueRange>* ranges = mip || !params.cull_transparent ? nullptr : &grid.block_value_ranges();
@@ -204,6 +209,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         for (const auto& [stride, list] : plan.by_stride) {
             splat.stride = stride;
             splat.density_scale = float(volume.density_scale);
+            splat.background = grid.background();
             views.push_back(std::make_unique<SlabView>(grid, camera, sheets, splat));
             const SlabView& view = *views.back();
             const PostFilter filter(post_shape, stride);
@@ -229,7 +235,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_outside;
                     continue;
                 }
-                if (ranges && culling.rings > 0 && transparent((*ranges)[pb.index], volume.density_scale, culling, *classification)) {
+                if (ranges && culling.rings > 0 && transparent((*ranges)[pb.index], grid.background(), volume.density_scale, culling, *classification)) {
                     ++stats.blocks_transparent;
                     continue;
                 }
@@ -245,13 +251,14 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     setup.tiles = &tiles;
     setup.sheets = sheets;
     setup.geometry = &geometry;
-    setup.shader = shader.get();
+    setup.mip = mip;
     setup.opacity_cutoff = float(params.opacity_cutoff);
     setup.samples_per_sheet = params.samples_per_sheet;
     setup.width = camera.width();
     setup.height = camera.height();
     setup.near_depth = float(near_depth);
     setup.far_depth = float(far_depth);
+    setup.mip_background = float(mip_background(volumes));
     stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
 
     control.begin_phase(tiles.size(), 0.02, 1.0);
@@ -301,6 +308,14 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
                         const ShadedParams& params, RenderControl& control, ShadedStats* stats) {
     validate(volumes, params, true);
     lighting.validate();
+    for (const ShadedVolume& v : volumes) {
+        if (!v.material) continue;
+        try {
+            v.lit_by(lighting).validate();
+        } catch (const InvalidArgument& e) {
+            throw InvalidArgument("grid '" + v.grid->name() + "': " + e.what());
+        }
+    }
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
     return run<RgbaImage>(volumes, camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
@@ -317,12 +332,20 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
     });
 }
 
+double mip_background(const std::vector<ShadedVolume>& volumes) {
+    double most = volumes.empty() ? 0.0 : -INFINITY;
+    for (const ShadedVolume& v : volumes) most = std::max(most, double(v.grid->background()) * v.density_scale);
+    return most;
+}
+
 MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                     RenderControl& control, ShadedStats* stats) {
     validate(volumes, params, false);
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
     return run<MipImage>(volumes, camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
+        // Tiles no voxel reaches are not walked.
+        std::fill(image.pixels.begin(), image.pixels.end(), float(mip_background(volumes)));
         if (params.method == ShadedMethod::Raycast)
             raycast_mip(volumes, camera, params, control, image.pixels.data());
         else

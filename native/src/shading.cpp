@@ -35,6 +35,7 @@ void Lighting::validate() const {
 Shader::Shader(const Lighting& lighting) {
     lighting.validate();
     const Shading& m = lighting.material;
+    lit_ = m.lit;
     ambient_ = to_float(lighting.ambient * m.ambient);
     diffuse_ = float(m.diffuse);
     specular_ = float(m.specular);
@@ -51,6 +52,7 @@ Shader::Shader(const Lighting& lighting) {
 }
 
 Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+    if (!lit_) return colour;
     auto splat = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
     Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
     const float8 g2 = dot(gradient, gradient);

@@ -35,6 +35,10 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
     dir_dx = d1 - dir0;
     dir_dy = d2 - dir0;
     world_per_depth = 1.0 / length(Vec3{w2c.m[2][0], w2c.m[2][1], w2c.m[2][2]});
+    // |direction| is convex in the pixel coordinates: largest in a corner of the image.
+    longest_ray = 0;
+    for (double px : {0.0, double(camera.width() - 1)})
+        for (double py : {0.0, double(camera.height() - 1)}) longest_ray = std::max(longest_ray, length(direction(px, py)));
 }
 
 void WalkStats::add(const WalkStats& o) {
@@ -68,16 +72,17 @@ struct SheetWalker::LayerState {
     }
 };
 
-/// One grid's part of a tile: its post-convolved sheets s - 1, s, s + 1 (its layers add up in them).
+/// One grid's part of a tile: its post-convolved sheets s - 1 to s + 2 (its layers add up in them).
 struct SheetWalker::GridState {
+    static constexpr int kSlots = 4;
     bool used = false;
     int halo = 1;                               // the in-sheet gradient's step (pixels beyond the tile)
     int x0 = 0, y0 = 0, width = 0, height = 0;  // post-convolved region: the tile and its halo
-    std::vector<float> slots[3];                // post-convolved sheet s in slot s mod 3, zero outside its box
-    Box boxes[3];                               // the pixels (slot coordinates) that may be non-zero
+    std::vector<float> slots[kSlots];           // post-convolved sheet s in slot s mod 4, zero outside its box
+    Box boxes[kSlots];                          // the pixels (slot coordinates) that may be non-zero
 
     size_t pitch() const { return size_t(width); }
-    static int slot(int64_t s) { return int(((s % 3) + 3) % 3); }
+    static int slot(int64_t s) { return int(s & (kSlots - 1)); }
     const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
     const Box& box(int64_t s) const { return boxes[slot(s)]; }
     bool has(int64_t s) const { return !box(s).empty(); }
@@ -89,7 +94,7 @@ struct SheetWalker::GridState {
         boxes[k] = Box{};
     }
 
-    /// Adds layer sheet t, post-convolved where splats reached it, into slot t mod 3, and releases it.
+    /// Adds layer sheet t, post-convolved where splats reached it, into slot t mod 4, and releases it.
     void add_layer_sheet(int64_t t, LayerState& layer, const PostFilter& filter, std::vector<float>& scratch) {
         const Box nodes = layer.ring.touched(t);
         if (nodes.empty()) return;
@@ -128,7 +133,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     if (blocks.empty()) return;
     const PixelRect rect = tiles.rect(tile);
     const int tw = rect.width(), th = rect.height();
-    const bool mip = setup.shader == nullptr;
+    const bool mip = setup.mip;
     const SheetLattice& sheets = setup.sheets;
     const float cutoff = setup.opacity_cutoff;
     const bool occlusion_culling = !mip && cutoff < 1.0f;
@@ -158,7 +163,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             g.width = tw + 2 * g.halo;
             g.height = th + 2 * g.halo;
             // Zero, padded: the tile's last vector of eight pixels may read past its row.
-            for (int k = 0; k < 3; ++k) {
+            for (int k = 0; k < GridState::kSlots; ++k) {
                 g.slots[k].assign(size_t(g.width) * g.height + 8, 0.0f);
                 g.boxes[k] = Box{};
             }
@@ -178,9 +183,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         const Box needed{margin, margin, margin + nx1 - nx0, margin + ny1 - ny0};
         nx0 -= margin, ny0 -= margin, nx1 += margin, ny1 += margin;
         l.placement = {nx0, ny0, needed};
-        // Sheets alive: from s (the walk's first) or s + 1 to the last one a voxel splatted for sheet s
-        // reaches, s + 2 + 2 reach / spacing; two more for rounding.
-        const int depth = int(std::ceil(2.0 * wl.view->depth_reach() / sheets.spacing)) + 6;
+        // Sheets alive: from s (the walk's first) or s + 1 to the last one a voxel splatted for sheet
+        // s + 2 reaches, s + 3 + 2 reach / spacing; two more for rounding.
+        const int depth = int(std::ceil(2.0 * wl.view->depth_reach() / sheets.spacing)) + 7;
         ring_depth = std::max(ring_depth, depth);
         l.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
         l.stride = L;
@@ -194,7 +199,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     // Eight more: a run of eight pixels may start anywhere in the last row.
     for (auto* plane : {&red_, &green_, &blue_, &alpha_}) plane->assign(row_pitch_ * th + 8, 0.0f);
     depth_.assign(row_pitch_ * th + 8, INFINITY);
-    if (mip) maximum_.assign(row_pitch_ * th + 8, -INFINITY);
+    if (mip) maximum_.assign(row_pitch_ * th + 8, setup.mip_background);
     size_t opaque = 0, opaque_at_rebuild = 0;
     // The occlusion map is rebuilt (its cost: the tile's pixels) each time this many more became opaque.
     const size_t rebuild_step = std::max<size_t>(256, tile_pixels / 64);
@@ -205,9 +210,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     };
     std::vector<Active> active;
     size_t next_entry = 0;
-    // Blocks are sorted by the depth where their kernels begin: the first one starts the walk, one
-    // sheet early, since samples between that sheet and the one before it see it too.
-    int64_t s = std::max<int64_t>(0, sheets.slab_of(blocks.front().front) - 1);
+    // Blocks are sorted by the depth where their kernels begin: the first one starts the walk two
+    // sheets early, since the cubic between sheets s and s + 1 reaches s + 2.
+    int64_t s = std::max<int64_t>(0, sheets.slab_of(blocks.front().front) - 2);
     int64_t open_sheet = s;  // the first sheet not yet post-convolved: deposits before it are dropped
 
     int64_t sheets_walked = 0;
@@ -215,9 +220,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     while (s < sheets.count) {
         if ((++sheets_walked & 15) == 0) control.throw_if_cancelled();
 
-        // 1. Splat every voxel that reaches sheet s + 1: centre depth - reach < boundary(s + 2).
+        // 1. Splat every voxel that reaches sheet s + 2: centre depth - reach < boundary(s + 3).
         auto t0 = Clock::now();
-        const double splat_front = sheets.boundary(s + 2);
+        const double splat_front = sheets.boundary(s + 3);
         while (next_entry < blocks.size() && blocks[next_entry].front < splat_front) active.push_back({next_entry++, 0});
         // In activation order, so that every node sums its contributions in the same order whichever
         // other blocks the tile lists (culled or not).
@@ -233,7 +238,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
                 stats.voxels_occluded += view.voxels_left(block, active[a].next_rank);
                 continue;
             }
-            // The voxels whose kernels reach sheet s + 1 come first in depth order (planar depth; for
+            // The voxels whose kernels reach sheet s + 2 come first in depth order (planar depth; for
             // spherical sheets a bound, SlabView::limit_scale).
             const float limit = float((splat_front + view.depth_reach()) * tb.limit_scale - view.origin_depth(block));
             const std::vector<float>& depth = view.depth_order().depth;
@@ -250,22 +255,23 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         auto t1 = Clock::now();
         stats.seconds_splat += std::chrono::duration<double>(t1 - t0).count();
 
-        // 2. Post-convolve sheet s + 1 of every layer into its grid's pixel sheet (after a start or a
-        // jump, s too).
-        for (int64_t t = open_sheet; t <= s + 1; ++t) {
+        // 2. Post-convolve sheet s + 2 of every layer into its grid's pixel sheet (after a start or a
+        // jump, s and s + 1 too).
+        for (int64_t t = open_sheet; t <= s + 2; ++t) {
             for (auto& g : grids_)
                 if (g && g->used) g->clear_slot(GridState::slot(t));
             for (size_t li = 0; li < layers_.size(); ++li)
                 if (layers_[li] && layers_[li]->used)
                     grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
         }
-        open_sheet = s + 2;
+        open_sheet = s + 3;
         auto t2 = Clock::now();
         stats.seconds_post_convolution += std::chrono::duration<double>(t2 - t1).count();
 
         // 3. Classify, shade and composite from sheet s towards s + 1 (MIP: take the maximum at s).
         bool any = false;
-        for (const auto& g : grids_) any |= g && g->used && (g->has(s) || (!mip && g->has(s + 1)));
+        const bool between = !mip && setup.samples_per_sheet > 1;
+        for (const auto& g : grids_) any |= g && g->used && (g->has(s) || (between && (g->has(s - 1) || g->has(s + 1) || g->has(s + 2))));
         if (any) {
             ++stats.tile_sheets_composited;
             stats.first_sheet = std::min(stats.first_sheet, s);
@@ -303,19 +309,19 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
 
         // 5. Nothing left in the rings and nothing splatting: jump to the next block's first sheet.
         bool pending = !active.empty();
-        for (const auto& g : grids_) pending |= g && g->used && g->has(s + 1);
+        for (const auto& g : grids_) pending |= g && g->used && (g->has(s) || g->has(s + 1) || g->has(s + 2));
         for (const auto& l : layers_) {
             if (!l || !l->used) continue;
-            for (int k = 2; k < ring_depth && !pending; ++k) pending |= !l->ring.touched(s + k).empty();
+            for (int k = 3; k < ring_depth && !pending; ++k) pending |= !l->ring.touched(s + k).empty();
         }
         if (!pending) {
             if (next_entry == blocks.size()) break;
-            const int64_t next = sheets.slab_of(blocks[next_entry].front) - 1;
+            const int64_t next = sheets.slab_of(blocks[next_entry].front) - 2;
             if (next > s + 1) {
                 stats.tile_sheets_skipped += uint64_t(next - s - 1);
                 for (const auto& g : grids_)
                     if (g && g->used)
-                        for (int k = 0; k < 3; ++k) g->clear_slot(k);
+                        for (int k = 0; k < GridState::kSlots; ++k) g->clear_slot(k);
                 s = open_sheet = next;
                 continue;
             }
@@ -330,7 +336,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         for (int x = 0; x < tw; ++x) {
             const size_t p = size_t(y) * row_pitch_ + x;
             if (mip) {
-                image[row + x] = std::isfinite(maximum_[p]) ? maximum_[p] : 0.0f;
+                image[row + x] = maximum_[p];
             } else {
                 float* out = image + 4 * (row + x);
                 out[0] = red_[p], out[1] = green_[p], out[2] = blue_[p], out[3] = alpha_[p];
@@ -366,6 +372,14 @@ inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8
 
 }  // namespace
 
+bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
+    if (!sheets.spherical) return u - half >= near_depth && u + half <= far_depth;
+    // depth = u / |direction|, |direction| from world_per_depth (on the axis) to longest_ray.
+    return (u - half) / geometry->longest_ray >= near_depth && (u + half) / geometry->world_per_depth <= far_depth;
+}
+
+double SheetWalkSetup::ray_length_per_unit() const { return sheets.spherical ? 1.0 : length(geometry->dir0); }
+
 SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
     const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
     const Vec3x8 origin = lanes3(geo.origin0 + geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
@@ -376,6 +390,7 @@ SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, 
         f.per_pixel_y = lanes3(geo.origin_dy + geo.dir_dy * u);
         f.along = dir;
         f.depth = broadcast8(float(u));
+        f.depth_rate = broadcast8(1.0f);
         return f;
     }
     // On the sphere of radius u around the eye: the point u along the unit direction d = dir / |dir|,
@@ -390,7 +405,8 @@ SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, 
     f.per_pixel_x = turn(geo.dir_dx);
     f.per_pixel_y = turn(geo.dir_dy);
     f.along = d;
-    f.depth = inverse_length * float(u);  // dir advances one unit of depth per |dir| of world length
+    f.depth_rate = inverse_length;  // dir advances one unit of depth per |dir| of world length
+    f.depth = inverse_length * float(u);
     return f;
 }
 
@@ -414,15 +430,33 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 const int8x peak_here = (m >= b) & (m >= a) & (curvature > 0);
                 const float8 slope = a - b;
                 const float8 safe = select8(peak_here, curvature, broadcast8(1.0f));
-                const float8 peak = m + select8(peak_here, slope * slope / (8.0f * safe) + curvature / 24.0f, broadcast8(0.0f));
+                // |slope| <= curvature at a peak: slope / (8 curvature) is at most 1/8, and the product cannot overflow.
+                const float8 peak = m + select8(peak_here, slope * (slope / (8.0f * safe)) + curvature / 24.0f, broadcast8(0.0f));
                 const SampleFrames f = sample_frames(*setup.geometry, setup.sheets.spherical, p.px, p.py, middle);
                 float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
                 // Zero means no voxel reaches: empty, not a density of 0.
                 const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
-                store8(most, select8(counted, max8(load8(most), peak / (spacing * sqrt8(dot(f.along, f.along)))), load8(most)));
+                const float8 density = peak / (spacing * sqrt8(dot(f.along, f.along))) + setup.grids[gi].background;
+                store8(most, select8(counted, max8(load8(most), density), load8(most)));
             }
     }
 }
+
+/// Catmull-Rom along the ray through four consecutive sheets' slab integrals, s - 1 to s + 2, at t
+/// of the way from s to s + 1: their weights for the value and for its derivative in t. Linear
+/// interpolation between two sheets leaves terraces where a sharp surface crosses them; the cubic
+/// follows the surface between the sheets.
+struct AlongRay {
+    float value[4], slope[4];
+    explicit AlongRay(float t) {
+        const float t2 = t * t, t3 = t2 * t;
+        value[0] = 0.5f * (-t + 2 * t2 - t3), value[1] = 0.5f * (2 - 5 * t2 + 3 * t3);
+        value[2] = 0.5f * (t + 4 * t2 - 3 * t3), value[3] = 0.5f * (t3 - t2);
+        slope[0] = 0.5f * (-1 + 4 * t - 3 * t2), slope[1] = 0.5f * (9 * t2 - 10 * t);
+        slope[2] = 0.5f * (1 + 8 * t - 9 * t2), slope[3] = 0.5f * (3 * t2 - 2 * t);
+    }
+    float8 at(const float8 (&v)[4], const float (&w)[4]) const { return w[0] * v[0] + w[1] * v[1] + w[2] * v[2] + w[3] * v[3]; }
+};
 
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
     const SheetGeometry& geo = *setup.geometry;
@@ -435,7 +469,9 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     struct Source {
         const GridState* grid;
         const ClassificationTable* classification;
-        const float *before, *here, *after;
+        const Shader* shader;
+        float background;
+        const float *before, *here, *after, *beyond;  // sheets s - 1 to s + 2
     };
     Source sources[64];
     int source_count = 0;
@@ -443,11 +479,30 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     for (size_t gi = 0; gi < grids_.size() && source_count < 64; ++gi) {
         if (!grids_[gi] || !grids_[gi]->used) continue;
         const GridState& g = *grids_[gi];
-        if (!g.has(s) && !(t > 0 && g.has(s + 1))) continue;
-        sources[source_count++] = {&g, setup.grids[gi].classification, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1)};
+        // Sheet s alone at t = 0; the cubic reaches s - 1 to s + 2 in between.
+        if (!g.has(s) && !(t > 0 && (g.has(s - 1) || g.has(s + 1) || g.has(s + 2)))) continue;
+        const WalkGrid& wg = setup.grids[gi];
+        sources[source_count++] = {&g, wg.classification, wg.shader, wg.background, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1), g.sheet(s + 2)};
         box.include(tile_box(g.box(s), g.halo, rect));
-        if (t > 0) box.include(tile_box(g.box(s + 1), g.halo, rect));
+        if (t > 0)
+            for (int64_t k : {s - 1, s + 1, s + 2}) box.include(tile_box(g.box(k), g.halo, rect));
     }
+
+    // Slabs are as long along every ray (see ray_length_per_unit), and samples away from the clip
+    // planes count in full: the frames are only needed where something is classified.
+    const float slab_length = float(setup.sheets.spacing * setup.ray_length_per_unit());
+    const double half_extent = 0.5 * setup.sheets.spacing / samples;
+    const bool whole = setup.within_clip_everywhere(u, half_extent);
+    const AlongRay along(t);
+    auto sheets_at = [](const Source& src, size_t i, float8 (&v)[4]) {
+        v[0] = load8(src.before + i), v[1] = load8(src.here + i), v[2] = load8(src.after + i), v[3] = load8(src.beyond + i);
+    };
+    auto reaches_something = [&](const Source& src, size_t i, int8x open) {
+        float8 v[4];
+        sheets_at(src, i, v);
+        const float8 raw = along.at(v, along.value);
+        return any8(open & (raw != 0) & src.classification->maybe_opaque(raw / slab_length + src.background));
+    };
 
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
@@ -457,42 +512,48 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
             int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
+            bool any = false;
+            for (int k = 0; k < source_count && !any; ++k) {
+                const GridState& g = *sources[k].grid;
+                any = reaches_something(sources[k], size_t(y + g.halo) * g.pitch() + size_t(x + g.halo), open);
+            }
+            if (!any) continue;
             const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
-            open &= setup.within_clip(f.depth);
+            const float8 share = whole ? broadcast8(1.0f) : setup.clip_share(f.depth, f.depth_rate * float(half_extent));
+            open &= share > 0;
             if (!any8(open)) continue;
-            const float8 along_length = sqrt8(dot(f.along, f.along));
-            const float8 slab_length = spacing * along_length;  // world length of the ray across a slab
             // The rows of the inverse of [per_pixel_x per_pixel_y along], times its determinant: they turn
             // derivatives per pixel and per unit of the sheet parameter into a world gradient.
             const Vec3x8 from_x = cross(f.per_pixel_y, f.along), from_y = cross(f.along, f.per_pixel_x),
                          from_u = cross(f.per_pixel_x, f.per_pixel_y);
-            const Vec3x8 to_eye = f.along * (-1.0f / along_length);
+            const Vec3x8 to_eye = f.along * (-1.0f / sqrt8(dot(f.along, f.along)));
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
             for (int k = 0; k < source_count; ++k) {
                 const Source& src = sources[k];
                 const GridState& g = *src.grid;
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
-                const float8 here = load8(src.here + i), next = load8(src.after + i);
-                const float8 raw = here + t * (next - here);
-                const float8 density = raw / slab_length;
+                float8 v[4];
+                sheets_at(src, i, v);
+                const float8 raw = along.at(v, along.value);
+                const float8 density = raw / slab_length + src.background;
                 int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
                 const ClassificationTable::Samples c = (*src.classification)(density);
                 valid &= c.extinction > 0;
                 if (!any8(valid)) continue;
-                // Density change per pixel right, per pixel down and per unit of the sheet parameter, of
-                // the density interpolated linearly between the sheets (common factors dropped: only the
-                // gradient's direction matters). On a sheet the depth slope is the central difference.
+                // Density change per pixel right, per pixel down (interpolated linearly between the
+                // sheets) and per unit of the sheet parameter (the cubic's slope; on a sheet the central
+                // difference); common factors dropped: only the gradient's direction matters.
                 const int L = g.halo;
                 const size_t pitch = g.pitch();
                 auto across = [&](const float* sheet, size_t step) { return load8(sheet + i + step) - load8(sheet + i - step); };
                 const float8 g1 = (across(src.here, L) + t * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
                 const float8 g2 =
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
-                const float8 g3 = t == 0 ? (next - load8(src.before + i)) * (0.5f / spacing) : (next - here) * (1.0f / spacing);
+                const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
                 const Vec3x8 gradient = from_x * g1 + from_y * g2 + from_u * g3;
-                const Vec3x8 lit = setup.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
+                const Vec3x8 lit = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
                 const float8 extinction = select8(valid, c.extinction, broadcast8(0.0f));
                 sigma_sum += extinction;
                 emission = emission + lit * extinction;
@@ -500,7 +561,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // Overlapping grids mix as media do: extinctions add, emissions weigh by extinction.
             const int8x lit = sigma_sum > 0;
             if (!any8(lit)) continue;
-            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * (1.0f / float(samples)));
+            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * share * (1.0f / float(samples)));
             const float8 weight = select8(lit, (1.0f - alpha) * opacity / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
             store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);

@@ -2,16 +2,16 @@
 /// @brief One tile's front-to-back walk through its sheets: splat, post-convolve, classify, shade,
 /// composite, sheet after sheet, until the tile is done or opaque.
 ///
-/// Before sheet s is composited, every voxel whose kernel reaches sheet s + 1 has been splatted (the
-/// gradient across sheets needs s - 1 and s + 1): voxels are taken from the tile's blocks in depth
-/// order, a block's voxels in the order of SlabView::depth_order, as the splat front moves on. Sheet
-/// s + 1 is then post-convolved to the tile's pixels plus a halo of one subgrid node (for the in-sheet
-/// gradient), and the samples from sheet s towards s + 1 are classified, shaded and composited into
-/// the tile: with samples_per_sheet > 1 the density and gradient are interpolated linearly between
-/// the two sheets, so that a surface crossing the sheets is not cut into terraces. Only three post-convolved
-/// sheets and a ring of node sheets per grid are alive at a time. Runs of sheets that no splat reaches
-/// are jumped over. The occlusion map is rebuilt as pixels become opaque, and splats that can only
-/// reach opaque pixels are skipped; a tile whose every pixel is opaque stops.
+/// Before the samples from sheet s towards s + 1 are composited, every voxel whose kernel reaches sheet
+/// s + 2 has been splatted: voxels are taken from the tile's blocks in depth order, a block's voxels in
+/// the order of SlabView::depth_order, as the splat front moves on. Sheet s + 2 is then post-convolved
+/// to the tile's pixels plus a halo of one subgrid node (for the in-sheet gradient), and the samples
+/// are classified, shaded and composited into the tile: with samples_per_sheet > 1 the density along
+/// the ray is the Catmull-Rom cubic through sheets s - 1 to s + 2, so that a surface crossing the sheets
+/// is not cut into terraces. Only four post-convolved sheets and a ring of node sheets per grid are
+/// alive at a time. Runs of sheets that no splat reaches are jumped over. The occlusion map is rebuilt
+/// as pixels become opaque, and splats that can only reach opaque pixels are skipped; a tile whose
+/// every pixel is opaque stops.
 /// A SheetWalker holds one thread's scratch memory and is reused tile after tile.
 #pragma once
 
@@ -38,6 +38,7 @@ struct SheetGeometry {
     Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0 (the eye, in perspective)
     Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
     double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
+    double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
 
     explicit SheetGeometry(const Camera& camera);
     Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
@@ -48,7 +49,8 @@ struct SheetGeometry {
 /// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
 struct SampleFrames {
     Vec3x8 position, per_pixel_x, per_pixel_y, along;
-    float8 depth;  ///< camera-space depth (the clip planes and the Depth pass use it)
+    float8 depth;       ///< camera-space depth (the clip planes and the Depth pass use it)
+    float8 depth_rate;  ///< camera-space depth per unit of the sheet parameter
 };
 
 /// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
@@ -59,7 +61,9 @@ SampleFrames sample_frames(const SheetGeometry& geometry, bool spherical, float8
 /// layers (the step of its in-sheet gradient).
 struct WalkGrid {
     const ClassificationTable* classification;  ///< null for MIP
+    const Shader* shader;                       ///< null for MIP
     int gradient_step;
+    float background;  ///< added to the sheets' densities (SlabSplatParams::background), scaled
 };
 
 /// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,
@@ -78,13 +82,26 @@ struct SheetWalkSetup {
     const TileSet* tiles = nullptr;
     SheetLattice sheets;
     const SheetGeometry* geometry = nullptr;
-    const Shader* shader = nullptr;  ///< null: maximum intensity projection
+    bool mip = false;  ///< maximum intensity projection: no classification, no shading
     float opacity_cutoff = 0.99f;
     int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
     int width = 0, height = 0;
     float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
+    float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)
 
     int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
+    /// True when every pixel's stretch of ray from u - half to u + half (sheet parameter) lies between
+    /// the clip planes, so that no sample needs its share.
+    bool within_clip_everywhere(double u, double half) const;
+    /// World length of the ray per unit of the sheet parameter: 1 on spheres; planes are orthographic,
+    /// where every ray is the same.
+    double ray_length_per_unit() const;
+    /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
+    /// spherical sheets cross the planes, and a sample half in front of the near plane counts half.
+    float8 clip_share(float8 depth, float8 half_extent) const {
+        const float8 covered = min8(depth + half_extent, broadcast8(far_depth)) - max8(depth - half_extent, broadcast8(near_depth));
+        return max8(broadcast8(0.0f), min8(broadcast8(1.0f), covered / (2.0f * half_extent)));
+    }
 };
 
 struct WalkStats {

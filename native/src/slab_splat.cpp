@@ -36,18 +36,19 @@ constexpr int kMostWindow = 16;
 
 
 /// The values of ranks [first, first + 8) (0 for ranks at or past `last`, inactive or non-finite voxels).
-float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full) {
+/// Voxel values less the background, 0 for ranks beyond `last` and inactive voxels.
+float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full, float background) {
     float8 v;
     if (full && last - first >= kBatch) {
         // Every rank a voxel: gather them (the order's offsets are valid past the block's end too).
         int8x offsets;
         std::memcpy(&offsets, order.offset.data() + first, sizeof offsets);
-        v = block.values ? gather8(block.values, offsets) : broadcast8(block.constant);
+        v = (block.values ? gather8(block.values, offsets) : broadcast8(block.constant)) - background;
     } else {
         for (int l = 0; l < kBatch; ++l) {
             const int rank = first + l;
             const int offset = order.offset[rank];
-            v[l] = rank < last && (full || block.active(offset)) ? block.value(offset) : 0.0f;
+            v[l] = rank < last && (full || block.active(offset)) ? block.value(offset) - background : 0.0f;
         }
     }
     return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
@@ -381,7 +382,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
 
     SlabBatch b;
     for (int batch = first; batch < last; batch += kBatch) {
-        const float8 v = batch_values(block, order_, batch, last, full);
+        const float8 v = batch_values(block, order_, batch, last, full, params_.background);
         b.live = non_zero_lanes(v);
         if (!b.live) continue;
         if (projection_.orthographic()) {

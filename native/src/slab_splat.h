@@ -62,6 +62,10 @@ struct SlabSplatParams {
     int stride = 1;
     SlabMode mode = SlabMode::Footprint;
     float density_scale = 1.0f;
+    /// Splat value - background: sheets then hold the departure from the grid's background, which
+    /// the walk adds back, so that the reconstruction falls towards the background (not towards 0)
+    /// beyond the active voxels, and voxels equal to it cost nothing.
+    float background = 0.0f;
 };
 
 /// Where a ring lies on its grid's subgrid: ring node (0, 0) is subgrid node (node_x0, node_y0), i.e.

@@ -163,6 +163,26 @@ def test_volume_without_shading_shows_its_colours(blob_object):
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
 
 
+def test_each_volume_has_its_own_material(tmp_path, rng):
+    """Two blobs side by side, one unshaded and one shiny: together they look as each does alone."""
+    path = bs.write_vdb(tmp_path / "blob.vdb", bs.blob(rng))
+    flat, shiny = (bs.add_volume(name, path, location=(x, 0, 0)) for name, x in (("Flat", -0.9), ("Shiny", 0.9)))
+    for obj in (flat, shiny):
+        ls.set_ramp(obj)
+    flat.data.pcvr.use_shading = False
+    shiny.data.pcvr.diffuse, shiny.data.pcvr.specular, shiny.data.pcvr.shininess = 0.5, 1.0, 40.0
+    scene = ls.shaded_setup(96, 48)
+    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=4.0)
+    ls.add_light('SUN', rotation=(0.5, -0.3, 0.0), power=3.0)
+    both = ls.combined(bs.render(scene))
+    alone = []
+    for shown, hidden in ((flat, shiny), (shiny, flat)):
+        hidden.hide_render, shown.hide_render = True, False
+        alone.append(ls.combined(bs.render(scene)))
+    assert min(image[..., 3].max() for image in alone) > 0.5
+    np.testing.assert_allclose(both, alone[0] + alone[1], atol=TOLERANCE * both.max())
+
+
 def test_status_and_statistics_of_the_last_render(blob_object):
     scene = ls.shaded_setup(48, 48)
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.5)

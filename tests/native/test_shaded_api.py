@@ -41,6 +41,39 @@ def test_one_transfer_function_serves_every_grid_or_one_each(blobs):
         pn.render_shaded([grid, grid], cam, [bone_tf()], lights=[SUN])
 
 
+def test_each_grid_may_have_its_own_material(two_cubes_apart):
+    """Two cubes side by side, one matte and one shiny: each looks as it does alone with its material."""
+    grids, cam = two_cubes_apart
+    matte, shiny = pn.Shading(specular=0.0), pn.Shading(diffuse=0.3, specular=1.0, shininess=40.0)
+    tf = pn.TransferFunction(density=[0.0, 1.0], rgba=[[1, 1, 1, 0], [0.6, 0.6, 0.6, 1]])
+    both = pn.render_shaded(grids, cam, tf, lights=[SUN], shading=[matte, shiny])
+    alone = [pn.render_shaded([g], cam, tf, lights=[SUN], shading=s) for g, s in zip(grids, (matte, shiny))]
+    assert np.abs(both - alone[0] - alone[1]).max() < 1e-6  # apart: the images add up
+    assert np.abs(alone[0] - pn.render_shaded([grids[0]], cam, tf, lights=[SUN], shading=shiny)).max() > 0.05
+    assert np.array_equal(pn.render_shaded(grids, cam, tf, lights=[SUN], shading=[shiny, shiny]),
+                          pn.render_shaded(grids, cam, tf, lights=[SUN], shading=shiny))
+    with pytest.raises(ValueError, match="one per grid"):
+        pn.render_shaded(grids, cam, tf, lights=[SUN], shading=[matte])
+    with pytest.raises(ValueError, match="grid 'density'.*Shading"):
+        bad = pn.Shading()
+        bad.specular = -1.0
+        pn.render_shaded(grids, cam, tf, lights=[SUN], shading=[matte, bad])
+
+
+@pytest.fixture(scope="module")
+def two_cubes_apart():
+    values = np.zeros((12, 12, 12), np.float32)
+    values[2:10, 2:10, 2:10] = 1.0
+    left, right = np.eye(4), np.eye(4)
+    left[:3, 3] = (-10.0, 0.0, 0.0)
+    right[:3, 3] = (10.0, 0.0, 0.0)
+    grids = [pn.Grid.from_dense(values, left), pn.Grid.from_dense(values, right)]
+    both = np.eye(4)
+    both[:3, 3] = (-10.0, 0.0, 0.0)
+    cam = frame_ortho((np.ones((32, 12, 12), np.float32), both), 3.0, direction=(0.3, 0.4, -1.0)).camera()
+    return grids, cam
+
+
 def test_density_scale_multiplies_values_before_classification(blobs):
     grid, cam = blobs
     scaled = pn.render_shaded(grid, cam, bone_tf(), lights=[SUN], density_scale=2.0, opacity_cutoff=1.0)

@@ -3,8 +3,8 @@
 * Sheets sum to the X-ray. With a transfer function whose extinction is k * density (white, opacity
   1 - exp(-k d u) per slab of thickness u) and no early termination, compositing gives
   1 - alpha = exp(-k * sum over sheets of density * ray length), so -ln(1 - alpha) / k is the sum of the
-  sheets: the slab footprints of every voxel add up to its X-ray footprint, for every sheet spacing and
-  number of samples between sheets. It must equal render_xray of the same method (same stride):
+  sheets: the slab footprints of every voxel add up to its X-ray footprint, for every sheet spacing.
+  With one sample per sheet it must equal render_xray of the same method (same stride):
   - regular, orthographic: 2e-3 of the peak (REGULAR_TOL in conftest: the X-ray takes orthographic
     windows from phase tables, interpolated to 1e-4 of the peak RMS and 7e-4 at worst; the sheets
     look each tap up in the footprint table; measured 1.7e-4);
@@ -12,6 +12,8 @@
     (measured 4e-5: float rounding of the sums and of the opacity table, 1e-5 relative);
   - pcvr at a fixed stride, both projections: as regular (the post-convolution is linear);
   - bilinear_spread, orthographic: 1e-4 (both spread each voxel's whole mass; measured 1.4e-6).
+  With more samples the Catmull-Rom cubic between sheets keeps the sum too, but dips below zero beside
+  sharp edges, where the transfer function clips it: 1.5e-3 (measured 7.4e-4, a faint halo).
 * The image does not depend on the number of threads (tiles are rendered one thread each): bit-equal.
 * The opacity correction: halving the sheet spacing keeps the optical depth of a volume to float
   rounding (it is the same X-ray).
@@ -35,8 +37,12 @@ def ct():
     return ct_volume(24)
 
 
+CUBIC_TOL = 1.5e-3
+
+
 def optical_render(grid, cam, method, **kw):
     kw.setdefault("opacity_cutoff", 1.0)
+    kw.setdefault("samples_per_sheet", 1)
     kw.setdefault("cull_transparent", False)
     return optical_depth(pn.render_shaded(grid, cam, optical_depth_tf(K, 1.2), method=method, **kw), K)
 
@@ -47,7 +53,7 @@ def test_sheets_of_regular_splatting_sum_to_the_xray(ct, projection, spacing, sa
     cam = camera(ct, projection, 3.0)
     sheets = optical_render(ct, cam, "regular", sheet_spacing=spacing, samples_per_sheet=samples)
     xray = pn.render_xray(ct, cam, method="regular").astype(np.float64)
-    tolerance = REGULAR_TOL if projection == "ortho" else 2e-4
+    tolerance = max(REGULAR_TOL if projection == "ortho" else 2e-4, CUBIC_TOL if samples > 1 else 0.0)
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()
 
 
@@ -93,7 +99,7 @@ def test_slabs_of_sheared_kernels_sum_to_the_xray(part, projection):
     grid = pn.Grid.from_dense(values, xf)
     frame = frame_ortho if projection == "ortho" else frame_perspective
     cam = frame((values, xf), 2.5, direction=(0.6, 0.2, -0.5)).camera()
-    sheets = optical_render(grid, cam, "regular", samples_per_sheet=2)
+    sheets = optical_render(grid, cam, "regular")
     xray = pn.render_xray(grid, cam, method="regular").astype(np.float64)
     tolerance = REGULAR_TOL if projection == "ortho" else 2e-4
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()

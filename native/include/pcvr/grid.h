@@ -68,6 +68,9 @@ public:
     std::array<int32_t, 6> index_bbox() const;
     /// Minimum and maximum active value; (0, 0) for an empty grid.
     std::pair<float, float> value_range() const;
+    /// The value of every inactive voxel (OpenVDB's background): air at -1000 in a CT scan in
+    /// Hounsfield units. Shaded rendering reconstructs towards it beyond the active voxels.
+    float background() const;
     /// The active voxels as blocks; built on first use, then cached (thread-safe).
     const std::vector<VoxelBlock>& blocks() const;
     /// One range per block of blocks(); built on first use, then cached (thread-safe).

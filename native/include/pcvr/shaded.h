@@ -66,12 +66,20 @@ struct ShadedParams {
     bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
 };
 
-/// One grid in a shaded render: its transfer function and the factor its values are multiplied by
-/// before classification.
+/// One grid in a shaded render: its transfer function, the factor its values are multiplied by
+/// before classification, and its material (null: the lighting's).
 struct ShadedVolume {
     const Grid* grid;
     const TransferFunction* transfer_function;
     double density_scale = 1.0;
+    const Shading* material = nullptr;
+
+    /// The render's lights with this volume's material.
+    Lighting lit_by(const Lighting& lighting) const {
+        Lighting out = lighting;
+        if (material) out.material = *material;
+        return out;
+    }
 };
 
 struct ShadedStats {
@@ -115,8 +123,13 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
                         const ShadedParams& params, RenderControl& control, ShadedStats* stats = nullptr);
 
 /// The maximum of each grid's reconstructed density (times its scale) along each ray: the largest slab
-/// mean over the sheets, 0 where no voxel reaches. Transfer functions are not used.
+/// mean over the sheets, and never less than mip_background (every ray also crosses the background).
+/// Transfer functions are not used.
 MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                     RenderControl& control, ShadedStats* stats = nullptr);
+
+/// The largest background (times its scale) of the volumes, 0 for none: beyond its active voxels a
+/// grid's density is its background, so this is the maximum along a ray that meets no voxel.
+double mip_background(const std::vector<ShadedVolume>& volumes);
 
 }  // namespace pcvr

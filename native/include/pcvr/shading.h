@@ -34,9 +34,11 @@ struct Light {
     static Light point(const Vec3& position, const Vec3& color, double strength) { return {Kind::Point, position, color, strength}; }
 };
 
-/// The material: Blinn-Phong coefficients (VTK's volume property, Slicer's shading presets).
+/// The material: Blinn-Phong coefficients (VTK's volume property, Slicer's shading presets). Not lit:
+/// samples keep the transfer function's colours (VTK's and Slicer's shading off).
 struct Shading {
     double ambient = 0.1, diffuse = 0.9, specular = 0.2, shininess = 10.0;
+    bool lit = true;
 };
 
 struct Lighting {
@@ -72,6 +74,7 @@ private:
     };
     static constexpr int kPowerSteps = 1024;
     std::vector<PreparedLight> lights_;
+    bool lit_;
     Vec3f ambient_;  // ka * ambient colour
     float diffuse_, specular_;
     std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
