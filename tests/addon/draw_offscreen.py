@@ -8,7 +8,9 @@ available in background mode") until something initialises the GPU: an EEVEE ren
 without a display). The draw then runs from inside a PCVR render, so that the engine whose
 bind_display_space_shader it calls is Blender's own, into an offscreen framebuffer set up in region pixels as
 a viewport's is. OUTPUT.npz gets `image` (what was drawn), `rect`, `background` and `read` (the framebuffer,
-row 0 on top); or `skipped`, the reason no GPU could be had.
+row 0 on top); or `skipped`, the reason no GPU could be had. Without a working EGL (libegl1, libegl-mesa0 and
+libgl1-mesa-dri on Debian) Blender aborts while it initialises the GPU: the line READY on stdout tells that
+apart from a failure of the draw.
 """
 
 import sys
@@ -26,6 +28,7 @@ from pcvr_addon import engine as pcvr_engine  # noqa: E402
 REGION = (40, 30)
 RECT = (8, 4, 24, 18)          # x, y, width, height in region pixels from the bottom left
 BACKGROUND = (0.25, 0.5, 0.75, 1.0)
+READY = "GPU ready"
 
 
 def initialise_gpu(scene):
@@ -82,6 +85,7 @@ def main(output):
     if reason is not None:
         np.savez(output, skipped=reason)
         return
+    print(READY, flush=True)
     rng = np.random.default_rng(7)
     height, width = RECT[3] // 2, RECT[2] // 2           # drawn at twice its size, as a coarse step is
     image = rng.random((height, width, 4), dtype=np.float32)
