@@ -180,21 +180,29 @@ std::vector<VoxelBlock> build_blocks(const vdb::FloatTree& tree, const std::stri
     return blocks;
 }
 
-/// Each block's own value range, then the unions over the 3^3 and 5^3 blocks around it.
+/// Each block's own value range, then the unions over the 3^3 blocks around it, over the voxels
+/// within 12 index units (from the halves of the blocks 2 away that face it) and over the 5^3 blocks.
 std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& blocks) {
     std::vector<BlockValueRange> ranges(blocks.size());
+    // The ranges of each block's eight 4^3 halves, (i >> 2, j >> 2, k >> 2) as bits 2, 1, 0.
+    struct Range {
+        float lo = std::numeric_limits<float>::infinity(), hi = -std::numeric_limits<float>::infinity();
+        void include(float v) { lo = std::min(lo, v), hi = std::max(hi, v); }
+        void include(const Range& r) { lo = std::min(lo, r.lo), hi = std::max(hi, r.hi); }
+    };
+    std::vector<std::array<Range, 8>> halves(blocks.size());
     tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
         const VoxelBlock& block = blocks[b];
-        float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+        Range whole;
         for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
             const float v = block.value(offset);
             if (!block.active(offset) || !std::isfinite(v)) continue;  // the splats skip these too
-            lo = std::min(lo, v);
-            hi = std::max(hi, v);
+            halves[b][((offset >> 8) & 1) << 2 | ((offset >> 5) & 1) << 1 | ((offset >> 2) & 1)].include(v);
+            whole.include(v);
         }
-        if (!(lo <= hi)) lo = hi = 0.0f;
-        ranges[b].min = lo;
-        ranges[b].max = hi;
+        if (!(whole.lo <= whole.hi)) whole.lo = whole.hi = 0.0f;
+        ranges[b].min = whole.lo;
+        ranges[b].max = whole.hi;
     });
     struct OriginHash {
         size_t operator()(const std::array<int32_t, 3>& o) const {
@@ -226,6 +234,25 @@ std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& b
     };
     widen(&BlockValueRange::min, &BlockValueRange::max, &BlockValueRange::reach_min, &BlockValueRange::reach_max);
     widen(&BlockValueRange::reach_min, &BlockValueRange::reach_max, &BlockValueRange::wide_min, &BlockValueRange::wide_max);
+    // Within 12: the 3^3 ring, and of the blocks two away along an axis only the half facing this one.
+    tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+        Range within{ranges[b].reach_min, ranges[b].reach_max};
+        const auto& o = blocks[b].origin;
+        // Which halves of a neighbour d blocks away along an axis lie within 12: bit 0 the lower, 1 the upper.
+        auto facing = [](int d) { return d == -2 ? 2 : (d == 2 ? 1 : 3); };
+        for (int dx = -2; dx <= 2; ++dx)
+            for (int dy = -2; dy <= 2; ++dy)
+                for (int dz = -2; dz <= 2; ++dz) {
+                    if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < 2) continue;  // in the 3^3 ring
+                    const auto it = index.find({o[0] + dx * VoxelBlock::kDim, o[1] + dy * VoxelBlock::kDim, o[2] + dz * VoxelBlock::kDim});
+                    if (it == index.end()) continue;
+                    for (int h = 0; h < 8; ++h)
+                        if ((facing(dx) >> (h >> 2) & 1) && (facing(dy) >> ((h >> 1) & 1) & 1) && (facing(dz) >> (h & 1) & 1))
+                            within.include(halves[it->second][h]);
+                }
+        ranges[b].mid_min = within.lo;
+        ranges[b].mid_max = within.hi;
+    });
     return ranges;
 }
 

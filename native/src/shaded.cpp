@@ -83,23 +83,31 @@ double smallest_voxel_spacing(const Grid& grid) {
 /// How wide a neighbourhood of blocks decides whether a block can be culled as transparent, and how
 /// far the post-filter can push a sample beyond its nodes' range.
 ///
-/// Culling block b removes its voxels' contributions from the sheets: from nodes within the kernel
-/// radius R of its voxels, from pixels up to f more subgrid nodes away (f = 1 for the bilinear post
-/// filter, 2 for the four-tap ones; a node is at most a voxel wide) and from the shading of samples a
-/// gradient stencil g further (one node in the sheet, one sheet spacing across). Every such sample
-/// must stay transparent with and without b: it is made of voxels within R + f of itself, so all
-/// voxels within 2 (R + f) + g of b must be in the range the transfer function is tested on: the
-/// 3^3 blocks around b cover 8 voxels, the 5^3 cover 16.
+/// Culling block b removes its voxels' contributions from the sheets, from nodes within the kernel
+/// radius R of its voxels, and so changes the value or the gradient of samples near it. Every such
+/// sample must stay transparent with and without b, so every voxel its value is made of must be in
+/// the range the transfer function is tested on: voxels within R + (what the sample's gradient
+/// reads) + R + (what its value reads) of b. Across the rays a value reads pixels up to f subgrid
+/// nodes away (f = 1 for the bilinear post filter, 2 for the four-tap ones; a node is at most a voxel
+/// wide), its gradient one node more: 2 f + 1. Along them, in sheet spacings: a sample on sheet s
+/// reads half a spacing, its gradient the sheets either side (1.5); a sample t of the way to s + 1
+/// reads sheets s and s + 1 (the clamped cubic stays in their range: max(0.5 + t, 1.5 - t)) and its
+/// gradient s - 1 to s + 2 (max(1.5 + t, 2.5 - t)), together 4 - 2 / samples_per_sheet at most. BlockValueRange holds
+/// the ranges within 8, 12 and 16 voxels. The post filter's negative lobes let a sample leave the
+/// range of its nodes.
 struct CullingReach {
-    int rings = 0;          // 0: cannot cull
+    int voxels = 0;         // which of BlockValueRange's ranges: within 8, 12 or 16 voxels; 0: cannot cull
     double overshoot = 0;   // of the post filter
 };
 
-CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool post_convolved, double spacing_voxels) {
+CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool post_convolved, double spacing_voxels,
+                           int samples_per_sheet) {
     const double f = post_convolved ? filter.reach_nodes() : 0.0;
-    const double reach = 2.0 * (kernel.radius() + f) + std::max(1.0, spacing_voxels);
+    const double along = (samples_per_sheet > 1 ? 4.0 - 2.0 / samples_per_sheet : 2.0) * spacing_voxels;
+    const double reach = 2.0 * kernel.radius() + std::max(2.0 * f + 1.0, along);
     CullingReach out;
-    out.rings = reach <= VoxelBlock::kDim ? 1 : (reach <= 2 * VoxelBlock::kDim ? 2 : 0);
+    for (int within : {8, 12, 16})
+        if (out.voxels == 0 && reach <= within) out.voxels = within;
     out.overshoot = post_convolved ? filter.overshoot() : 0.0;
     return out;
 }
@@ -109,8 +117,11 @@ CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool 
 /// one: between the background and the values around the block.
 bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
                  const ClassificationTable& table) {
-    const double lo = std::min(0.0, (double(reach.rings == 1 ? r.reach_min : r.wide_min) - background) * density_scale);
-    const double hi = std::max(0.0, (double(reach.rings == 1 ? r.reach_max : r.wide_max) - background) * density_scale);
+    const auto [lowest, highest] = reach.voxels == 8    ? std::pair{r.reach_min, r.reach_max}
+                                   : reach.voxels == 12 ? std::pair{r.mid_min, r.mid_max}
+                                                        : std::pair{r.wide_min, r.wide_max};
+    const double lo = std::min(0.0, (double(lowest) - background) * density_scale);
+    const double hi = std::max(0.0, (double(highest) - background) * density_scale);
     const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
     const double offset = background * density_scale;
     return table.transparent(offset + lo - margin, offset + hi + margin);
@@ -218,7 +229,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
 
             const CullingReach culling =
-                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets.spherical));
+                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets.spherical),
+                              mip ? 1 : params.samples_per_sheet);
             const Vec3& n = view.projection().depth_gradient();
             const double reach = kernel.radius() * length(n);  // in depth, for the clip planes
             const double span = VoxelBlock::kDim - 1;
@@ -235,7 +247,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_outside;
                     continue;
                 }
-                if (ranges && culling.rings > 0 && transparent((*ranges)[pb.index], grid.background(), volume.density_scale, culling, *classification)) {
+                if (ranges && culling.voxels > 0 && transparent((*ranges)[pb.index], grid.background(), volume.density_scale, culling, *classification)) {
                     ++stats.blocks_transparent;
                     continue;
                 }

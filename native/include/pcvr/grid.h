@@ -32,14 +32,16 @@ struct VoxelBlock {
     bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
 };
 
-/// The range of a block's active values, and the ranges over the blocks around it: the 3^3 blocks
-/// centred on it (every voxel within 8 index units) and the 5^3 (within 16). Kernels are non-negative
-/// and sum to about one, so a sample reconstructed from voxels within 8 (16) index units of the block
-/// lies between min(reach_min, 0) and max(reach_max, 0) (wide_min, wide_max), up to the kernels' ripple,
-/// whichever of those voxels are left out of the sum.
+/// The range of a block's active values, and the ranges over the voxels around it: the 3^3 blocks
+/// centred on it (every voxel within 8 index units), those and the nearer halves of the next ring
+/// (within 12), and the 5^3 blocks (within 16). Kernels are non-negative and sum to about one, so a
+/// sample reconstructed from voxels within 8 (12, 16) index units of the block lies between
+/// min(reach_min, 0) and max(reach_max, 0) (mid_, wide_), up to the kernels' ripple, whichever of
+/// those voxels are left out of the sum.
 struct BlockValueRange {
     float min = 0, max = 0;
     float reach_min = 0, reach_max = 0;
+    float mid_min = 0, mid_max = 0;
     float wide_min = 0, wide_max = 0;
 };
 
