@@ -183,8 +183,9 @@ void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompre
     meta.insertMeta(vdb::GridBase::META_GRID_NAME, vdb::StringMetadata(name));
     meta.insertMeta(vdb::GridBase::META_GRID_CLASS, vdb::StringMetadata(vdb::GridBase::gridClassToString(vdb::GRID_FOG_VOLUME)));
     meta.insertMeta(vdb::GridBase::META_GRID_CREATOR, vdb::StringMetadata("pcvr"));
-    const vdb::GridBase::ConstPtr out =
-        data_->vdb->copyReplacingMetadataAndTransform(meta, detail::to_vdb_transform(index_to_world_));
+    const detail::VdbTransform xform = detail::to_vdb_transform(index_to_world_);
+    if (xform.world_scale != 1.0) meta.insertMeta(detail::kWorldScaleMetadata, vdb::DoubleMetadata(xform.world_scale));
+    const vdb::GridBase::ConstPtr out = data_->vdb->copyReplacingMetadataAndTransform(meta, xform.transform);
 
     // Write beside the target and rename: readers see the old file or the new one, never half of one.
     const std::string tmp = temp_path_for(path);

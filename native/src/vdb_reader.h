@@ -22,11 +22,13 @@
 #include <openvdb/openvdb.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <sstream>
 #include <new>
 #include <string>
 #include <vector>
@@ -269,15 +271,51 @@ private:
         return end;
     }
 
+    /// Where the transform (its map's type name) of the grid at the stream position starts; -1 in
+    /// old files, which store it after the tree. Leaves the stream where it was.
+    int64_t transform_position() {
+        const int64_t start = tell();
+        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) read_u32();
+        const int64_t meta_end = check_metamap("grid metadata");
+        is_.seekg(start);
+        return fileVersion() >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING ? meta_end : -1;
+    }
+
     /// Check what precedes a grid's tree (compression flags, metadata, transform type) at the stream
     /// position; leaves the stream where it was.
     void check_grid_header() {
         const int64_t start = tell();
-        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) read_u32();
-        const int64_t meta_end = check_metamap("grid metadata");
-        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {  // else the transform comes later
-            is_.seekg(meta_end);
-            check_strings(1, "grid transform");  // the map's type name
+        const int64_t transform = transform_position();
+        if (transform >= 0) {
+            is_.seekg(transform);
+            check_strings(1, "grid transform");
+        }
+        is_.seekg(start);
+    }
+
+    /// OpenVDB refuses an affine map with a determinant below 3e-15 (voxels under about 1.4e-5 units)
+    /// with a bare "nearly singular matrix"; say what it means instead. (Grids written by pcvr_native
+    /// never hold one: they keep such scales in metadata, see grid_data.h.) Leaves the stream where it was.
+    void check_affine_map(const Entry& e) {
+        const int64_t start = tell();
+        const int64_t transform = transform_position();
+        if (transform >= 0) {
+            is_.seekg(transform);
+            if (read_string("grid transform") == vdb::math::AffineMap::mapType() && remaining() >= 16 * 8) {
+                vdb::Mat4d a;
+                a.read(is_);
+                const double det = std::abs(a.getMat3().det()), limit = 3.0 * vdb::math::Tolerance<double>::value();
+                if (det < limit) {
+                    std::ostringstream msg;
+                    msg << "grid " << quoted(display_name(e)) << " in " << quoted(path_) << " has voxels of about "
+                        << std::cbrt(det) << " world units (transform determinant " << det
+                        << "), smaller than OpenVDB can load (determinant at least " << limit
+                        << ", voxels of about 1.4e-05 units): store it in a finer unit (e.g. micrometres "
+                           "instead of metres) and scale the object instead, or write it with "
+                           "pcvr_native.Grid.write_vdb, which keeps such scales in metadata";
+                    throw GridError(msg.str());
+                }
+            }
         }
         is_.seekg(start);
     }
@@ -287,6 +325,7 @@ private:
     vdb::GridBase::Ptr read_at_current(const Entry& e) {
         const int64_t start = tell();
         check_grid_header();
+        check_affine_map(e);
         const int64_t end = check_layout(e);
         const std::string name = quoted(display_name(e));
         if (end >= 0 && e.gd.getEndPos() > 0 && end != e.gd.getEndPos())

@@ -18,23 +18,30 @@ double Footprint::extent_y(double radius) const { return radius * std::sqrt(qxx 
 double Footprint::area_integral() const { return 1.0 / std::sqrt(qxx * qyy - qxy * qxy); }
 
 ViewProjection::ViewProjection(const Camera& camera, const Mat4& index_to_world) : camera_(camera) {
-    const auto inv = index_to_world.inverse();
-    if (!index_to_world.is_affine() || !inv)
+    if (!index_to_world.is_affine() || !index_to_world.inverse())
         throw GridError("the grid's index-to-world transform is singular or not affine");
-    world_to_index_ = *inv;
-    index_to_clip_ = camera.world_to_clip() * index_to_world;
+    index_to_clip_ = camera.object_to_clip(index_to_world);
+    const double* w = index_to_clip_.m[3];
+    const double w_gradient = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    if (w_gradient > 0) depth_row_ = {w[0] / w_gradient, w[1] / w_gradient, w[2] / w_gradient, w[3] / w_gradient};
+    // Rays go from camera space straight to index space: a grid and a camera far from the world's
+    // origin never meet in world coordinates, where their offsets would cancel imprecisely.
+    const auto camera_to_index = (camera.world_to_camera() * index_to_world).inverse();
+    if (!camera_to_index) throw GridError("the grid's index-to-world transform is singular in camera space");
     const Ray& r0 = camera.ray_at_origin();
     const Ray& rx = camera.ray_per_pixel_x();
     const Ray& ry = camera.ray_per_pixel_y();
-    o0_ = world_to_index_.transform_point(r0.origin);
-    ox_ = world_to_index_.transform_vector(rx.origin);
-    oy_ = world_to_index_.transform_vector(ry.origin);
-    d0_ = world_to_index_.transform_vector(r0.direction);
-    dx_ = world_to_index_.transform_vector(rx.direction);
-    dy_ = world_to_index_.transform_vector(ry.direction);
-    wd0_ = r0.direction;
-    wdx_ = rx.direction;
-    wdy_ = ry.direction;
+    o0_ = camera_to_index->transform_point(r0.origin);
+    ox_ = camera_to_index->transform_vector(rx.origin);
+    oy_ = camera_to_index->transform_vector(ry.origin);
+    d0_ = camera_to_index->transform_vector(r0.direction);
+    dx_ = camera_to_index->transform_vector(rx.direction);
+    dy_ = camera_to_index->transform_vector(ry.direction);
+    eye_ = camera_to_index->transform_point(camera.eye());
+    const Mat4& camera_to_world = camera.camera_to_world();
+    wd0_ = camera_to_world.transform_vector(r0.direction);
+    wdx_ = camera_to_world.transform_vector(rx.direction);
+    wdy_ = camera_to_world.transform_vector(ry.direction);
 }
 
 bool ViewProjection::footprint(const Vec3& c, Footprint& out) const {

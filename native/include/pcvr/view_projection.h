@@ -51,6 +51,18 @@ public:
     static bool inside_clip_range(const Vec4& clip) { return clip.w > 0 && clip.z >= -clip.w && clip.z <= clip.w; }
     Vec4 to_clip(const Vec3& index_pos) const { return index_to_clip_ * Vec4{index_pos.x, index_pos.y, index_pos.z, 1.0}; }
 
+    /// The ray through pixel coordinates (px, py) in index space (from the near to the far plane),
+    /// and the same ray's direction in world space.
+    Ray index_ray(double px, double py) const { return {o0_ + ox_ * px + oy_ * py, d0_ + dx_ * px + dy_ * py}; }
+    Vec3 world_direction(double px, double py) const { return wd0_ + wdx_ * px + wdy_ * py; }
+    /// A perspective camera's eye in index space (meaningless for orthographic views).
+    const Vec3& eye() const { return eye_; }
+    /// Perspective views: how far a point lies in front of the eye, along the view (in index units:
+    /// its distance from the plane through the eye parallel to the image; negative behind it).
+    double depth(const Vec3& index_pos) const {
+        return depth_row_.x * index_pos.x + depth_row_.y * index_pos.y + depth_row_.z * index_pos.z + depth_row_.w;
+    }
+
     /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
     bool footprint(const Vec3& index_pos, Footprint& out) const;
     /// The same, ignoring the near and far planes; false only behind the eye.
@@ -66,10 +78,11 @@ private:
 
     Camera camera_;
     Mat4 index_to_clip_;
-    Mat4 world_to_index_;
     // Pixel rays in index space (affine in pixel coordinates) and their world-space directions.
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
+    Vec3 eye_;
+    Vec4 depth_row_;  // clip w, divided by the length of its gradient in index space
 };
 
 template <class T, class Sqrt>
