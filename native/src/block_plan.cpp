@@ -29,6 +29,19 @@ int clip_side(const Vec4& c) {
     return kInside;
 }
 
+/// Whether any voxel of the block lies less than `distance` deep in a perspective view.
+bool near_the_eye(const VoxelBlock& block, const ViewProjection& view, double distance) {
+    if (view.orthographic() || !(distance > 0)) return false;
+    // Depth is affine: its minimum over the block is at a corner.
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))};
+        if (view.depth(p) < distance) return true;
+    }
+    return false;
+}
+
 /// What the plan decides about one block.
 struct BlockDecision {
     bool culled = false;
@@ -83,7 +96,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.stride = params.fixed_stride;
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
-    if (all_projectable) {
+    const bool near_eye = near_the_eye(block, view, params.near_eye_distance);
+    if (all_projectable && !near_eye) {
         const double margin = double(params.margin_nodes) * d.stride;
         if (x1 + ext_x < -margin || x0 - ext_x > cam.width() - 1 + margin || y1 + ext_y < -margin ||
             y0 - ext_y > cam.height() - 1 + margin) {
@@ -95,8 +109,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.mag_min = mag_min;
         d.mag_max = mag_max;
     }
-    d.planned = {index, sides_or != kInside, -1e30f, -1e30f, 1e30f, 1e30f};
-    if (all_projectable) {
+    d.planned = {index, sides_or != kInside, near_eye, -1e30f, -1e30f, 1e30f, 1e30f};
+    if (all_projectable && !near_eye) {
         d.planned.min_x = float(x0 - ext_x);
         d.planned.min_y = float(y0 - ext_y);
         d.planned.max_x = float(x1 + ext_x);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <utility>
 
 #include "pcvr/block_plan.h"
@@ -40,6 +41,9 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
+    // Bilinear spreading has no footprint to get wrong near the eye: it stays the baseline it is.
+    const double near_eye_distance = params.method == XrayMethod::BilinearSpread ? 0.0 : params.near_eye_radii * kernel.radius();
+    plan_params.near_eye_distance = near_eye_distance;
 
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
@@ -68,6 +72,7 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     splat.table = &table;
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
+    splat.near_eye_distance = near_eye_distance;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {
@@ -97,6 +102,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
     if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
     if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
     if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+    if (!(params.near_eye_radii >= 0) || !std::isfinite(params.near_eye_radii))
+        throw InvalidArgument("near_eye_radii must be a finite number >= 0");
     if (params.pixel_step > 1 && params.method != XrayMethod::Exact)
         throw InvalidArgument("pixel_step is only supported by method 'exact'");
 

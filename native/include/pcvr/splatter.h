@@ -38,7 +38,14 @@ struct SplatParams {
     const Kernel* kernel = nullptr;         ///< required for Footprint (builds phase tables)
     double kernel_radius = 2.0;             ///< index units
     float density_scale = 1.0f;
+    /// Footprint mode, perspective: voxels of blocks the plan marks near_eye that lie nearer the eye
+    /// than this (index units) are splatted exactly (src/near_eye_splat.h).
+    double near_eye_distance = 0;
 };
+
+/// Perspective views splat voxels nearer the eye than this many kernel radii with exact footprints:
+/// there the linearised footprint's error, 0.8 (R / d)^2, exceeds 1% (src/near_eye_splat.h).
+constexpr double kNearEyeRadii = 9.0;
 
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,
 /// inside the clip range). Advances `control` by one unit per block and stops with Cancelled.

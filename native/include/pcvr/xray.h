@@ -20,6 +20,7 @@
 #include "pcvr/exact_xray.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
+#include "pcvr/splatter.h"
 #include "pcvr/zeroed_buffer.h"
 
 namespace pcvr {
@@ -36,6 +37,9 @@ struct XrayParams {
     int stride = 0;      ///< subgrid stride in pixels; 0 = automatic per depth band
     int threads = 0;     ///< 0 = all cores
     int pixel_step = 1;  ///< exact only: evaluate every step-th pixel
+    /// regular and pcvr in perspective: voxels nearer the eye than this many kernel radii get exact
+    /// footprints (0: none; the linearised footprint's error is 0.8 (radii)^-2).
+    double near_eye_radii = kNearEyeRadii;
 };
 
 struct XrayStats {
