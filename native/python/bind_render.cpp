@@ -112,7 +112,7 @@ void run_polled(Work&& work, RenderControl& control, nb::handle progress, nb::ha
 nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::string& method,
                           const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
-                          int pixel_step, double near_eye_radii) {
+                          int pixel_step, double footprint_tolerance) {
     const std::vector<Grid> grids = grids_from_python(grid_arg);
     const std::vector<double> scales = scales_from_python(density_scale, grids.size());
     std::vector<WeightedGrid> weighted;
@@ -125,7 +125,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
     params.stride = stride;
     params.threads = threads;
     params.pixel_step = pixel_step;
-    params.near_eye_radii = near_eye_radii;
+    params.footprint_tolerance = footprint_tolerance;
 
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
@@ -176,7 +176,7 @@ void bind_render(nb::module_& m) {
     m.def("render_xray", &render_xray_py, "grid"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "bilinear", "stride"_a = 0, "threads"_a = 0, nb::kw_only(), "density_scale"_a = 1.0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), "pixel_step"_a = 1,
-          "near_eye_radii"_a = kNearEyeRadii,
+          "footprint_tolerance"_a = kFootprintTolerance,
           "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.");
 
     m.def("kernel_info", [](const std::string& name) {

@@ -8,6 +8,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "near_eye_splat.h"
+
 namespace pcvr {
 
 int automatic_stride(double pixels_per_voxel) {
@@ -29,17 +31,19 @@ int clip_side(const Vec4& c) {
     return kInside;
 }
 
-/// Whether any voxel of the block lies less than `distance` deep in a perspective view.
-bool near_the_eye(const VoxelBlock& block, const ViewProjection& view, double distance) {
-    if (view.orthographic() || !(distance > 0)) return false;
-    // Depth is affine: its minimum over the block is at a corner.
+/// Whether a voxel of the block may have a linearised footprint off by more than `tolerance`.
+/// Depth is affine and the distance from the axis convex, so the corners bound both.
+bool needs_exact_footprints(const VoxelBlock& block, const ViewProjection& view, double radius, double tolerance) {
+    if (view.orthographic() || tolerance == std::numeric_limits<double>::infinity()) return false;
+    double depth = std::numeric_limits<double>::infinity(), lateral = 0;
     for (int corner = 0; corner < 8; ++corner) {
-        const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
-                     double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
-                     double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))};
-        if (view.depth(p) < distance) return true;
+        const ViewProjection::EyeOffset at = view.eye_offset({double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
+                                                              double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
+                                                              double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))});
+        depth = std::min(depth, at.depth);
+        lateral = std::max(lateral, at.lateral);
     }
-    return false;
+    return linearised_footprint_error(radius, depth, lateral) > tolerance;
 }
 
 /// What the plan decides about one block.
@@ -96,8 +100,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.stride = params.fixed_stride;
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
-    const bool near_eye = near_the_eye(block, view, params.near_eye_distance);
-    if (all_projectable && !near_eye) {
+    const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
+    if (all_projectable && !exact) {
         const double margin = double(params.margin_nodes) * d.stride;
         if (x1 + ext_x < -margin || x0 - ext_x > cam.width() - 1 + margin || y1 + ext_y < -margin ||
             y0 - ext_y > cam.height() - 1 + margin) {
@@ -109,8 +113,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.mag_min = mag_min;
         d.mag_max = mag_max;
     }
-    d.planned = {index, sides_or != kInside, near_eye, -1e30f, -1e30f, 1e30f, 1e30f};
-    if (all_projectable && !near_eye) {
+    d.planned = {index, sides_or != kInside, exact, -1e30f, -1e30f, 1e30f, 1e30f};
+    if (all_projectable && !exact) {
         d.planned.min_x = float(x0 - ext_x);
         d.planned.min_y = float(y0 - ext_y);
         d.planned.max_x = float(x1 + ext_x);

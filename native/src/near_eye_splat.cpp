@@ -65,13 +65,56 @@ int positive_spans(double alpha, double beta, double gamma, int columns, Span ou
     return 2;
 }
 
+/// One row of a voxel's exact footprint. At column u the node's ray has squared index-space length
+/// dd(u) = d0 + u (d1 + u d2), squared world length ww(u) = w0 + u (w1 + u w2), and its dot product
+/// with the voxel's offset from the eye is along(u) = a0 + a1 u; the ray passes at rho^2 = |w|^2 -
+/// along^2 / dd from the voxel's centre, and adds amp * sqrt(ww / dd) * P(rho^2).
+struct RowFootprint {
+    double d0, d1, d2, w0, w1, w2, a0, a1;
+    double offset2, radius2, amp;
+
+    double weight(double u, const FootprintTable& table) const {
+        const double inv_dd = 1.0 / (d0 + u * (d1 + u * d2)), along = a0 + a1 * u;
+        const double rho2 = offset2 - along * along * inv_dd;
+        if (!(rho2 < radius2)) return 0.0;
+        return amp * std::sqrt((w0 + u * (w1 + u * w2)) * inv_dd) * table.at_rho2(float(std::max(rho2, 0.0)));
+    }
+
+    /// Adds the weights of columns [lo, hi] to `row`. The vector path writes whole groups of four,
+    /// zero past `hi`: the grid's rows are padded (SplatGrid::kPadding).
+    void add(double* row, int lo, int hi, const FootprintTable& table) const {
+#ifdef PCVR_AVX2
+        const __m256d step = _mm256_setr_pd(0, 1, 2, 3);
+        for (int u = lo; u <= hi; u += 4) {
+            const __m256d x = _mm256_add_pd(_mm256_set1_pd(double(u)), step);
+            const __m256d inv_dd = _mm256_div_pd(
+                _mm256_set1_pd(1.0),
+                _mm256_fmadd_pd(_mm256_fmadd_pd(_mm256_set1_pd(d2), x, _mm256_set1_pd(d1)), x, _mm256_set1_pd(d0)));
+            const __m256d ww = _mm256_fmadd_pd(_mm256_fmadd_pd(_mm256_set1_pd(w2), x, _mm256_set1_pd(w1)), x, _mm256_set1_pd(w0));
+            const __m256d along = _mm256_fmadd_pd(_mm256_set1_pd(a1), x, _mm256_set1_pd(a0));
+            const __m256d rho2 = _mm256_fnmadd_pd(_mm256_mul_pd(along, along), inv_dd, _mm256_set1_pd(offset2));
+            const __m256d inside = _mm256_and_pd(_mm256_cmp_pd(rho2, _mm256_set1_pd(radius2), _CMP_LT_OQ),
+                                                 _mm256_cmp_pd(x, _mm256_set1_pd(double(hi)), _CMP_LE_OQ));
+            const __m128i idx = _mm256_cvttpd_epi32(_mm256_min_pd(
+                _mm256_max_pd(_mm256_mul_pd(rho2, _mm256_set1_pd(table.scale())), _mm256_setzero_pd()),
+                _mm256_set1_pd(table.max_index())));
+            const __m256d p = _mm256_cvtps_pd(_mm_i32gather_ps(table.data(), idx, 4));
+            const __m256d w = _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(amp), _mm256_sqrt_pd(_mm256_mul_pd(ww, inv_dd))), p);
+            _mm256_storeu_pd(row + u, _mm256_add_pd(_mm256_loadu_pd(row + u), _mm256_and_pd(w, inside)));
+        }
+#else
+        for (int u = lo; u <= hi; ++u) row[u] += weight(double(u), table);
+#endif
+    }
+};
+
 /// Adds one voxel's exact footprint (value `amp`, centre `c`) into the grid.
 void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, const NodeRays& rays,
                  const FootprintTable& table, SplatGrid& grid) {
     const Vec3 w = c - eye;
     const double w2 = dot(w, w), r2 = radius * radius, k = w2 - r2;
     // Per row v: E = a + dv v, and f(u) = (w.E + h u)^2 - k |E + du u|^2 = alpha u^2 + 2 beta u + gamma.
-    const double h = dot(w, rays.du), du2 = dot(rays.du, rays.du);
+    const double h = dot(w, rays.du), du2 = dot(rays.du, rays.du), wdu2 = dot(rays.wdu, rays.wdu);
     const double alpha = h * h - k * du2;
     const double g0 = dot(w, rays.a), g1 = dot(w, rays.dv);
     const double e0 = dot(rays.a, rays.du), e1 = dot(rays.dv, rays.du);
@@ -90,25 +133,16 @@ void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, cons
 
     int c_min = grid.columns(), c_max = -1, r_min = grid.rows(), r_max = -1;
     for (int v = v0; v <= v1; ++v) {
-        const Vec3 e = rays.a + rays.dv * double(v), we = rays.wa + rays.wdv * double(v);
-        const double g = g0 + g1 * v;
+        const double g = g0 + g1 * v, e_du = e0 + e1 * v, e2 = n0 + v * (n1 + v * n2);
         Span spans[2];
-        const int n = positive_spans(alpha, g * h - k * (e0 + e1 * v), g * g - k * (n0 + n1 * v + n2 * v * v),
-                                     grid.columns(), spans);
-        double* row = grid.row(v);
+        const int n = positive_spans(alpha, g * h - k * e_du, g * g - k * e2, grid.columns(), spans);
+        const Vec3 we = rays.wa + rays.wdv * double(v);
+        const RowFootprint f{e2, 2.0 * e_du, du2, dot(we, we), 2.0 * dot(we, rays.wdu), wdu2, g, h, w2, r2, amp};
         for (int s = 0; s < n; ++s) {
-            for (int u = spans[s].lo; u <= spans[s].hi; ++u) {
-                const Vec3 d = e + rays.du * double(u);
-                const double dd = dot(d, d), along = dot(w, d);
-                const double rho2 = w2 - along * along / dd;
-                if (!(rho2 < r2)) continue;
-                const Vec3 world = we + rays.wdu * double(u);
-                row[u] += amp * std::sqrt(dot(world, world) / dd) * table.at_rho2(float(std::max(rho2, 0.0)));
-            }
-            if (spans[s].lo <= spans[s].hi) {
-                c_min = std::min(c_min, spans[s].lo), c_max = std::max(c_max, spans[s].hi);
-                r_min = std::min(r_min, v), r_max = std::max(r_max, v);
-            }
+            if (spans[s].lo > spans[s].hi) continue;
+            f.add(grid.row(v), spans[s].lo, spans[s].hi, table);
+            c_min = std::min(c_min, spans[s].lo), c_max = std::max(c_max, spans[s].hi);
+            r_min = std::min(r_min, v), r_max = std::max(r_max, v);
         }
     }
     if (r_min <= r_max) grid.mark(c_min, r_min, c_max, r_max);
@@ -117,7 +151,7 @@ void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, cons
 }  // namespace
 
 uint64_t splat_block_near_eye(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
-                              double near_distance, SplatGrid& grid, SplatScratch& scratch) {
+                              double tolerance, SplatGrid& grid, SplatScratch& scratch) {
     const ViewProjection& view = *params.view;
     const Vec3& eye = view.eye();
     const NodeRays rays(view, grid);
@@ -126,7 +160,8 @@ uint64_t splat_block_near_eye(const VoxelBlock& block, const PlannedBlock& plann
     for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
         if (!block.active(offset)) continue;
         const Vec3 c = voxel_position(block, offset);
-        if (!(view.depth(c) < near_distance)) continue;
+        const ViewProjection::EyeOffset at = view.eye_offset(c);
+        if (!(linearised_footprint_error(params.kernel_radius, at.depth, at.lateral) > tolerance)) continue;
         far.mask[offset >> 6] &= ~(uint64_t(1) << (offset & 63));
         const float value = block.value(offset);
         if (value == 0.0f || !std::isfinite(value) || !ViewProjection::inside_clip_range(view.to_clip(c))) continue;

@@ -76,8 +76,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
             const PlannedBlock& pb = blocks[b];
             const VoxelBlock& block = grid_blocks[pb.index];
             const uint64_t n = phases ? splat_block_phases(block, phases->map, phases->table, pb.needs_clip_test ? &view : nullptr, grid, scratch)
-                               : pb.near_eye ? splat_block_near_eye(block, pb, footprints, params.near_eye_distance, grid, scratch)
-                                             : splat_block_footprints(block, pb, footprints, grid, scratch);
+                               : pb.exact_footprints ? splat_block_near_eye(block, pb, footprints, params.footprint_tolerance, grid, scratch)
+                                                     : splat_block_footprints(block, pb, footprints, grid, scratch);
             if (n == 0) continue;
             count += n;
             // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.

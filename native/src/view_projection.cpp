@@ -21,9 +21,8 @@ ViewProjection::ViewProjection(const Camera& camera, const Mat4& index_to_world)
     if (!index_to_world.is_affine() || !index_to_world.inverse())
         throw GridError("the grid's index-to-world transform is singular or not affine");
     index_to_clip_ = camera.object_to_clip(index_to_world);
-    const double* w = index_to_clip_.m[3];
-    const double w_gradient = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-    if (w_gradient > 0) depth_row_ = {w[0] / w_gradient, w[1] / w_gradient, w[2] / w_gradient, w[3] / w_gradient};
+    const Vec3 w_gradient{index_to_clip_.m[3][0], index_to_clip_.m[3][1], index_to_clip_.m[3][2]};
+    if (length(w_gradient) > 0) depth_axis_ = w_gradient / length(w_gradient);
     // Rays go from camera space straight to index space: a grid and a camera far from the world's
     // origin never meet in world coordinates, where their offsets would cancel imprecisely.
     const auto camera_to_index = (camera.world_to_camera() * index_to_world).inverse();

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "pcvr/block_plan.h"
@@ -41,9 +42,10 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
-    // Bilinear spreading has no footprint to get wrong near the eye: it stays the baseline it is.
-    const double near_eye_distance = params.method == XrayMethod::BilinearSpread ? 0.0 : params.near_eye_radii * kernel.radius();
-    plan_params.near_eye_distance = near_eye_distance;
+    // Bilinear spreading has no footprint shape to get wrong: it stays the baseline it is.
+    const double tolerance = params.method == XrayMethod::BilinearSpread ? std::numeric_limits<double>::infinity()
+                                                                         : params.footprint_tolerance;
+    plan_params.footprint_tolerance = tolerance;
 
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
@@ -72,7 +74,7 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
     splat.table = &table;
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
-    splat.near_eye_distance = near_eye_distance;
+    splat.footprint_tolerance = tolerance;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {
@@ -102,8 +104,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
     if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
     if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
     if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
-    if (!(params.near_eye_radii >= 0) || !std::isfinite(params.near_eye_radii))
-        throw InvalidArgument("near_eye_radii must be a finite number >= 0");
+    if (!(params.footprint_tolerance >= 0))
+        throw InvalidArgument("footprint_tolerance must be a number >= 0 (infinity: linearised footprints only)");
     if (params.pixel_step > 1 && params.method != XrayMethod::Exact)
         throw InvalidArgument("pixel_step is only supported by method 'exact'");
 

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <vector>
 
@@ -21,7 +22,8 @@ namespace pcvr {
 struct PlannedBlock {
     uint32_t index;         ///< into Grid::blocks()
     bool needs_clip_test;   ///< straddles a clip plane: test each voxel's centre
-    bool near_eye;          ///< holds voxels within BlockPlanParams::near_eye_distance of a perspective eye
+    bool exact_footprints;  ///< may hold voxels whose linearised footprint is off by more than
+                            ///< BlockPlanParams::footprint_tolerance (src/near_eye_splat.h)
     /// Pixel bounds of everything the block's footprints can touch (the whole plane when unknown).
     float min_x, min_y, max_x, max_y;
 };
@@ -33,9 +35,10 @@ struct BlockPlanParams {
     /// Bilinear spreading replaces the footprint by a one-node tent, which only reconstructs when the
     /// nodes are about one voxel apart: round the stride to the nearest instead of flooring it.
     bool nearest_stride = false;
-    /// Perspective views: blocks with voxels nearer the eye than this (index units) are marked
-    /// near_eye, and their bounds left open (exact footprints reach further than linearised ones).
-    double near_eye_distance = 0;
+    /// Perspective views: blocks that may hold voxels whose linearised footprint is off by more
+    /// than this (relative to its peak) are marked exact_footprints, and their bounds left open
+    /// (exact footprints reach further than linearised ones). Infinity: none.
+    double footprint_tolerance = std::numeric_limits<double>::infinity();
 };
 
 struct BlockPlan {

@@ -57,10 +57,16 @@ public:
     Vec3 world_direction(double px, double py) const { return wd0_ + wdx_ * px + wdy_ * py; }
     /// A perspective camera's eye in index space (meaningless for orthographic views).
     const Vec3& eye() const { return eye_; }
-    /// Perspective views: how far a point lies in front of the eye, along the view (in index units:
-    /// its distance from the plane through the eye parallel to the image; negative behind it).
-    double depth(const Vec3& index_pos) const {
-        return depth_row_.x * index_pos.x + depth_row_.y * index_pos.y + depth_row_.z * index_pos.z + depth_row_.w;
+    /// Perspective views: where a point lies relative to the eye, in index units. `depth` is its
+    /// distance from the plane through the eye parallel to the image (negative behind it),
+    /// `lateral` its distance from the line through the eye perpendicular to that plane.
+    struct EyeOffset {
+        double depth, lateral;
+    };
+    EyeOffset eye_offset(const Vec3& index_pos) const {
+        const Vec3 w = index_pos - eye_;
+        const double depth = dot(depth_axis_, w);
+        return {depth, std::sqrt(std::max(0.0, dot(w, w) - depth * depth))};
     }
 
     /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
@@ -82,7 +88,7 @@ private:
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
     Vec3 eye_;
-    Vec4 depth_row_;  // clip w, divided by the length of its gradient in index space
+    Vec3 depth_axis_;  // unit gradient of clip w in index space
 };
 
 template <class T, class Sqrt>

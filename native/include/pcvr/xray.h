@@ -37,9 +37,9 @@ struct XrayParams {
     int stride = 0;      ///< subgrid stride in pixels; 0 = automatic per depth band
     int threads = 0;     ///< 0 = all cores
     int pixel_step = 1;  ///< exact only: evaluate every step-th pixel
-    /// regular and pcvr in perspective: voxels nearer the eye than this many kernel radii get exact
-    /// footprints (0: none; the linearised footprint's error is 0.8 (radii)^-2).
-    double near_eye_radii = kNearEyeRadii;
+    /// regular and pcvr in perspective: voxels whose linearised footprint would be off by more
+    /// than this fraction of its peak get exact per-ray footprints (0: all; infinity: none).
+    double footprint_tolerance = kFootprintTolerance;
 };
 
 struct XrayStats {
