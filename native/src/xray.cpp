@@ -2,6 +2,8 @@
 
 #include <tbb/task_arena.h>
 
+#include <string>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,6 +13,7 @@
 #include "pcvr/block_plan.h"
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
+#include "pcvr/memory_budget.h"
 #include "pcvr/post_convolution.h"
 #include "pcvr/splatter.h"
 
@@ -33,9 +36,16 @@ struct PlannedGrid {
     BlockPlan plan;
 };
 
-void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
-                     const Kernel& kernel, PostFilterShape post_shape, ImageAccumulator& image, RenderControl& control,
-                     XrayStats& stats) {
+/// Throws OutOfMemory before anything large is allocated when `budget` does not fit.
+void check_memory(MemoryBudget& budget, const Camera& cam, XrayStats& stats) {
+    stats.memory_bytes = budget.total();
+    budget.check("render_xray of a " + std::to_string(cam.width()) + " x " + std::to_string(cam.height()) + " image");
+}
+
+std::string copies(int workers) { return " x " + std::to_string(workers + 1) + " (one per thread, and their sum)"; }
+
+ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
+                                 const Kernel& kernel, PostFilterShape post_shape, RenderControl& control, XrayStats& stats) {
     const bool regular = params.method == XrayMethod::Regular;
     BlockPlanParams plan_params;
     plan_params.kernel_radius = kernel.radius();
@@ -66,6 +76,17 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
         }
         planned.push_back({&g, std::move(view), std::move(plan)});
     }
+    // The image, and for one band at a time a splat grid per worker plus the one they are added into;
+    // the finest stride's grid is the largest.
+    MemoryBudget budget(params.memory_limit);
+    budget.add("image", uint64_t(cam.width()) * cam.height() * sizeof(float));
+    if (!strides.empty()) {
+        const int workers = tbb::this_task_arena::max_concurrency(), finest = strides.begin()->first;
+        budget.add("splat grid at stride " + std::to_string(finest) + copies(workers),
+                   uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
+    }
+    check_memory(budget, cam, stats);
+    ImageAccumulator image(cam.width(), cam.height());
     control.begin_phase(planned_blocks, 0.0, 0.97);
 
     const FootprintTable table(kernel);
@@ -91,6 +112,7 @@ void render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, 
             post_convolve(target, PostFilter(post_shape, stride), image, control);
         stats.strides.push_back(stride);
     }
+    return image;
 }
 
 }  // namespace
@@ -114,16 +136,23 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
     arena.execute([&] {
         if (params.method == XrayMethod::Exact) {
-            const std::vector<double> px = render_exact_xray(grids, cam, kernel, params.pixel_step, control);
             out.width = (cam.width() + params.pixel_step - 1) / params.pixel_step;
             out.height = (cam.height() + params.pixel_step - 1) / params.pixel_step;
+            // A double image per worker and their sum, every pixel's ray, and the float result.
+            const uint64_t pixels = uint64_t(out.width) * out.height;
+            const int workers = tbb::this_task_arena::max_concurrency();
+            MemoryBudget budget(params.memory_limit);
+            budget.add("image", pixels * sizeof(float));
+            budget.add("double image" + copies(workers), uint64_t(workers + 1) * pixels * sizeof(double));
+            budget.add("pixel rays", pixels * (2 * sizeof(Vec3) + sizeof(double)));
+            check_memory(budget, cam, stats);
+            const std::vector<double> px = render_exact_xray(grids, cam, kernel, params.pixel_step, control);
             out.pixels = ZeroedBuffer<float>(px.size());
             std::copy(px.begin(), px.end(), out.pixels.begin());
             for (const auto& g : grids) stats.voxels_splatted += g.grid->active_voxel_count();
             return;
         }
-        ImageAccumulator image(cam.width(), cam.height());
-        render_splatted(grids, cam, params, kernel, post_shape, image, control, stats);
+        ImageAccumulator image = render_splatted(grids, cam, params, kernel, post_shape, control, stats);
         out.width = image.width;
         out.height = image.height;
         out.pixels = std::move(image.pixels);

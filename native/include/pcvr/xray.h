@@ -40,6 +40,8 @@ struct XrayParams {
     /// regular and pcvr in perspective: voxels whose linearised footprint would be off by more
     /// than this fraction of its peak get exact per-ray footprints (0: all; infinity: none).
     double footprint_tolerance = kFootprintTolerance;
+    /// Bytes the render's buffers may take (pcvr/memory_budget.h); 0: what the machine has available.
+    uint64_t memory_limit = 0;
 };
 
 struct XrayStats {
@@ -49,6 +51,7 @@ struct XrayStats {
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
     std::vector<int> strides;      ///< the subgrid strides used (one per depth band)
+    uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     double seconds = 0;
 };
 
