@@ -35,9 +35,9 @@ namespace {
 const double kMinVdbDeterminant = 2.0 * 3.0 * vdb::math::Tolerance<double>::value();
 
 /// Positions must be resolved to this fraction of a voxel. Measured (tests/stress/test_scale.py):
-/// an image's relative error is 0.2 to 0.7 times the resolution in voxels (offset from the origin
-/// x 2.2e-16 / voxel thickness), so beyond a tenth of a voxel images are off by several percent,
-/// and by all of it at a voxel: a clear refusal serves the user better.
+/// an image's relative error is up to half the resolution in voxels (offset from the origin x
+/// 2.2e-16 / voxel thickness), so beyond a tenth of a voxel images are off by several percent, and
+/// by all of it at a voxel: a clear refusal serves the user better.
 constexpr double kMaxPositionError = 0.1;
 
 double linear_determinant(const Mat4& m) {

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <utility>
 
 #include "pcvr/block_plan.h"
@@ -52,10 +51,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
-    // Bilinear spreading has no footprint shape to get wrong: it stays the baseline it is.
-    const double tolerance = params.method == XrayMethod::BilinearSpread ? std::numeric_limits<double>::infinity()
-                                                                         : params.footprint_tolerance;
-    plan_params.footprint_tolerance = tolerance;
+    plan_params.footprint_tolerance = params.footprint_tolerance;
 
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
@@ -95,7 +91,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.table = &table;
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
-    splat.footprint_tolerance = tolerance;
+    splat.footprint_tolerance = params.footprint_tolerance;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {

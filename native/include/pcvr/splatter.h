@@ -39,7 +39,7 @@ struct SplatParams {
     const Kernel* kernel = nullptr;         ///< required for Footprint (builds phase tables)
     double kernel_radius = 2.0;             ///< index units
     float density_scale = 1.0f;
-    /// Footprint mode, perspective: voxels of blocks the plan marks exact_footprints whose
+    /// Perspective views: voxels of blocks the plan marks exact_footprints whose
     /// linearised footprint would be off by more than this are splatted exactly (src/near_eye_splat.h).
     double footprint_tolerance = std::numeric_limits<double>::infinity();
 };

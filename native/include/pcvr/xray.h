@@ -37,8 +37,9 @@ struct XrayParams {
     int stride = 0;      ///< subgrid stride in pixels; 0 = automatic per depth band
     int threads = 0;     ///< 0 = all cores
     int pixel_step = 1;  ///< exact only: evaluate every step-th pixel
-    /// regular and pcvr in perspective: voxels whose linearised footprint would be off by more
-    /// than this fraction of its peak get exact per-ray footprints (0: all; infinity: none).
+    /// Perspective views: voxels whose linearised footprint would be off by more than this fraction
+    /// of its peak get exact per-ray footprints (0: all; infinity: none). Bilinear spreading, whose
+    /// spread mass is the linearised footprint's integral, takes them too.
     double footprint_tolerance = kFootprintTolerance;
     /// Bytes the render's buffers may take (pcvr/memory_budget.h); 0: what the machine has available.
     uint64_t memory_limit = 0;
