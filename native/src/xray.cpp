@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <sstream>
 #include <cmath>
 #include <utility>
 
@@ -41,7 +42,22 @@ void check_memory(MemoryBudget& budget, const Camera& cam, XrayStats& stats) {
     budget.check("render_xray of a " + std::to_string(cam.width()) + " x " + std::to_string(cam.height()) + " image");
 }
 
-std::string copies(int workers) { return " x " + std::to_string(workers + 1) + " (one per thread, and their sum)"; }
+std::string copies(int workers) { return ", " + std::to_string(workers + 1) + " copies (one per thread, and their sum)"; }
+
+/// A power of two that brings the largest |density x density_scale| of the grids near 1 (within
+/// 2^+-100). The splats' float stages (amplitudes, block tiles) multiply it in and the image divides
+/// it out: densities from denormals to 3e38 then neither underflow to zero nor overflow on the way,
+/// and a power of two rounds nothing else.
+double range_scale(const std::vector<WeightedGrid>& grids) {
+    double largest = 0;
+    for (const WeightedGrid& g : grids) {
+        const auto [lo, hi] = g.grid->value_range();
+        const double magnitude = std::max(std::abs(double(lo)), std::abs(double(hi))) * std::abs(g.density_scale);
+        if (std::isfinite(magnitude)) largest = std::max(largest, magnitude);
+    }
+    if (!(largest > 0)) return 1.0;
+    return std::ldexp(1.0, std::clamp(-std::ilogb(largest), -100, 100));
+}
 
 ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
                                  const Kernel& kernel, PostFilterShape post_shape, RenderControl& control, XrayStats& stats) {
@@ -85,6 +101,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     ImageAccumulator image(cam.width(), cam.height());
     control.begin_phase(planned_blocks, 0.0, 0.97);
 
+    const double range = range_scale(grids);
     const FootprintTable table(kernel);
     SplatParams splat;
     splat.mode = params.method == XrayMethod::BilinearSpread ? SplatMode::BilinearSpread : SplatMode::Footprint;
@@ -99,7 +116,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         for (const PlannedGrid& pg : planned) {
             auto it = pg.plan.by_stride.find(stride);
             if (it == pg.plan.by_stride.end()) continue;
-            splat.density_scale = float(pg.source->density_scale);
+            splat.density_scale = float(pg.source->density_scale * range);
             stats.voxels_splatted += splat_blocks(pg.source->grid->blocks(), it->second, pg.view, splat, target, control);
         }
         if (regular)
@@ -108,7 +125,25 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             post_convolve(target, PostFilter(post_shape, stride), image, control);
         stats.strides.push_back(stride);
     }
+    for (float& pixel : image.pixels) pixel = float(double(pixel) / range);
     return image;
+}
+
+/// The inputs are finite (from_dense refuses others, non-finite voxels of files are skipped, cameras
+/// and density scales are checked), so a non-finite pixel is a line integral beyond float's range.
+void check_finite(const XrayImage& image, const std::vector<WeightedGrid>& grids) {
+    const size_t overflowed = size_t(std::count_if(image.pixels.begin(), image.pixels.end(), [](float p) { return !std::isfinite(p); }));
+    if (overflowed == 0) return;
+    double largest = 0;
+    for (const WeightedGrid& g : grids) {
+        const auto [lo, hi] = g.grid->value_range();
+        largest = std::max(largest, std::max(std::abs(double(lo)), std::abs(double(hi))) * std::abs(g.density_scale));
+    }
+    std::ostringstream msg;
+    msg << "render_xray: the line integral exceeds float32's range (3.4e38) at " << overflowed << " of "
+        << image.pixels.size() << " pixels (densities times density_scale reach " << largest
+        << "): scale the densities down with density_scale";
+    throw InvalidArgument(msg.str());
 }
 
 }  // namespace
@@ -126,6 +161,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
         throw InvalidArgument("footprint_tolerance must be a number >= 0 (infinity: linearised footprints only)");
     if (params.pixel_step > 1 && params.method != XrayMethod::Exact)
         throw InvalidArgument("pixel_step is only supported by method 'exact'");
+    for (const WeightedGrid& g : grids)
+        if (!std::isfinite(g.density_scale)) throw InvalidArgument("density_scale must be finite");
 
     XrayStats stats;
     XrayImage out;
@@ -153,6 +190,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
         out.height = image.height;
         out.pixels = std::move(image.pixels);
     });
+    check_finite(out, grids);
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats_out) *stats_out = stats;
     return out;
