@@ -125,7 +125,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
 
 }  // namespace
 
-BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params) {
+BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params,
+                      const RenderControl* control) {
     std::optional<Footprint> shared;
     if (view.orthographic()) {
         Footprint f;
@@ -134,6 +135,7 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
     // Decided in parallel (a large grid has hundreds of thousands of blocks), gathered in block order.
     std::vector<BlockDecision> decisions(blocks.size());
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(blocks.size()), 1024), [&](const tbb::blocked_range<uint32_t>& r) {
+        if (control) control->throw_if_cancelled();
         for (uint32_t index = r.begin(); index != r.end(); ++index)
             decisions[index] = decide(index, blocks[index], view, params, shared ? &*shared : nullptr);
     });

@@ -74,7 +74,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     uint64_t planned_blocks = 0;
     for (const auto& g : grids) {
         ViewProjection view(cam, g.grid->index_to_world());
-        BlockPlan plan = plan_blocks(g.grid->blocks(), view, plan_params);
+        BlockPlan plan = plan_blocks(g.grid->blocks(), view, plan_params, &control);
         stats.blocks_total += plan.blocks_total;
         stats.blocks_culled += plan.blocks_culled;
         if (plan.max_magnification > 0) {
@@ -125,7 +125,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             post_convolve(target, PostFilter(post_shape, stride), image, control);
         stats.strides.push_back(stride);
     }
-    for (float& pixel : image.pixels) pixel = float(double(pixel) / range);
+    if (range != 1.0)
+        for (float& pixel : image.pixels) pixel = float(double(pixel) / range);
     return image;
 }
 

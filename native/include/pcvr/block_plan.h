@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pcvr/grid.h"
+#include "pcvr/render_control.h"
 #include "pcvr/view_projection.h"
 
 namespace pcvr {
@@ -54,6 +55,9 @@ int automatic_stride(double pixels_per_voxel);
 /// The stride closest to one voxel per node (for bilinear spreading).
 int nearest_stride(double pixels_per_voxel);
 
-BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params);
+/// `control`, when given, is polled between chunks of blocks (a plan of a million blocks takes a
+/// quarter of a second) and stops the plan with Cancelled.
+BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params,
+                      const RenderControl* control = nullptr);
 
 }  // namespace pcvr
