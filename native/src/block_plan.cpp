@@ -14,10 +14,10 @@ namespace pcvr {
 
 int automatic_stride(double pixels_per_voxel) {
     // The small tolerance keeps an exact magnification of 4 (computed as 3.9999999) at stride 4.
-    return std::max(1, int(std::floor(pixels_per_voxel + 1e-6)));
+    return clamp_to_int(std::floor(pixels_per_voxel + 1e-6), 1, kMaxStride);
 }
 
-int nearest_stride(double pixels_per_voxel) { return std::max(1, int(std::lround(pixels_per_voxel))); }
+int nearest_stride(double pixels_per_voxel) { return clamp_to_int(std::round(pixels_per_voxel), 1, kMaxStride); }
 
 namespace {
 
@@ -100,6 +100,9 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.stride = params.fixed_stride;
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
+    // Near a perspective eye magnifications grow without bound. A stride beyond the image's larger
+    // side leaves one node across it whatever its value, and post filters allocate per pixel of it.
+    d.stride = std::min(d.stride, std::max(cam.width(), cam.height()));
     const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
     if (all_projectable && !exact) {
         const double margin = double(params.margin_nodes) * d.stride;

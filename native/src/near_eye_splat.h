@@ -27,6 +27,7 @@
 #include "footprint_splat.h"
 #include "pcvr/block_plan.h"
 #include "pcvr/grid.h"
+#include "pcvr/kernel.h"
 #include "pcvr/splat_grid.h"
 
 namespace pcvr {
@@ -41,8 +42,16 @@ inline double linearised_footprint_error(double radius, double depth, double lat
     return q * (0.4 * lateral / depth + 0.1 * q);
 }
 
-/// Splats the voxels of `block` whose linearised footprint would be off by more than `tolerance`
-/// exactly, and passes the others to splat_block_footprints. Returns the number of voxels splatted.
+/// The bound on linearised_footprint_error that keeps a footprint within `tolerance` of its peak.
+/// The box kernel's footprint has an infinite slope at its rim, where a geometric error e moves
+/// values by up to sqrt(7 e) of the peak (measured, tests/stress/test_near_eye.py): it needs e below
+/// tolerance^2 / 7.
+inline double geometric_tolerance(double tolerance, const Kernel& kernel) {
+    return kernel.smooth_footprint() ? tolerance : tolerance * tolerance / 7.0;
+}
+
+/// Splats the voxels of `block` whose linearised_footprint_error exceeds `tolerance` (a geometric
+/// one) exactly, and passes the others to splat_block_footprints. Returns the number of voxels splatted.
 uint64_t splat_block_near_eye(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
                               double tolerance, SplatGrid& grid, SplatScratch& scratch);
 

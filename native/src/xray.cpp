@@ -2,12 +2,11 @@
 
 #include <tbb/task_arena.h>
 
-#include <string>
-
 #include <algorithm>
 #include <chrono>
-#include <sstream>
 #include <cmath>
+#include <sstream>
+#include <string>
 #include <utility>
 
 #include "pcvr/block_plan.h"
@@ -16,6 +15,8 @@
 #include "pcvr/memory_budget.h"
 #include "pcvr/post_convolution.h"
 #include "pcvr/splatter.h"
+
+#include "near_eye_splat.h"
 
 namespace pcvr {
 
@@ -67,7 +68,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
-    plan_params.footprint_tolerance = params.footprint_tolerance;
+    const double tolerance = geometric_tolerance(params.footprint_tolerance, kernel);
+    plan_params.footprint_tolerance = tolerance;
 
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
@@ -108,7 +110,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.table = &table;
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
-    splat.footprint_tolerance = params.footprint_tolerance;
+    splat.footprint_tolerance = tolerance;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {
@@ -155,7 +157,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
     // Validate every argument up front, whatever the method, so mistakes are caught early.
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
     const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
-    if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
+    if (params.stride < 0 || params.stride > kMaxStride)
+        throw InvalidArgument("stride must be 0 (automatic) or a number of pixels from 1 to " + std::to_string(kMaxStride));
     if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
     if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
     if (!(params.footprint_tolerance >= 0))

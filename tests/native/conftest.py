@@ -23,8 +23,8 @@ def rng():
 
 from pcvr_native.cameras import frustum, look_at, ortho, perspective  # noqa: E402,F401
 from xray_helpers import (  # noqa: E402,F401  (the tests import these from here)
-    LINEAR_PARTS, CameraSpec, frame_ortho, frame_perspective, kernel_variance, min_singular, rel_rmse, render,
-    rotation, volume_parts)
+    LINEAR_PARTS, CameraSpec, frame_ortho, frame_perspective, kernel_variance, min_singular, post_matrix, post_weight,
+    predict_pcvr, rel_rmse, render, rotation, volume_parts)
 
 
 def image_mass(img, cam: CameraSpec) -> float:
@@ -102,24 +102,8 @@ def _footprint_interpolant(kernel: str):
 
 
 # --------------------------------------------------------------------------------------------
-# PCVR's second stage in numpy. The subgrid nodes are the pixels (L i, L j) (column, row from the
-# top); a pixel at offset delta (pixels) from a node gets weight w(delta / L), normalised over the
-# nodes for each output phase: bilinear w(t) = 1 - |t| (|t| < 1), gaussA w(t) = exp(-A t^2) (|t| < 2).
-
-def post_weight(post: str, t: np.ndarray) -> np.ndarray:
-    t = np.abs(np.asarray(t, dtype=np.float64))
-    if post == "bilinear":
-        return np.maximum(1.0 - t, 0.0)
-    a = {"gauss1.4": 1.4, "gauss2.0": 2.0}[post]
-    return np.where(t < 2.0, np.exp(-a * t * t), 0.0)
-
-
-def post_matrix(post: str, stride: int, n_out: int, nodes: np.ndarray) -> np.ndarray:
-    """(n_out, len(nodes)) weights from nodes (integer node numbers; node i sits at pixel stride * i)."""
-    pix = np.arange(n_out, dtype=np.float64)[:, None]
-    w = post_weight(post, (pix - stride * nodes[None, :]) / stride)
-    return w / w.sum(axis=1, keepdims=True)
-
+# More of PCVR's second stage in numpy (post_weight, post_matrix and predict_pcvr are in
+# tests/xray_helpers.py).
 
 def phase_moments(post: str, stride: int):
     """First and second moments (pixels, pixels^2) of the node offsets, per output phase."""
@@ -131,16 +115,6 @@ def phase_moments(post: str, stride: int):
         w /= w.sum()
         m1[phase], m2[phase] = np.sum(w * delta), np.sum(w * delta * delta)
     return m1, m2
-
-
-def predict_pcvr(padded_image: np.ndarray, pad: int, stride: int, post: str, height: int, width: int):
-    """PCVR's output predicted from an image rendered on cam.padded(pad): sample it at the subgrid
-    nodes and post-convolve. `pad` must be at least 2 * stride (the widest filter's reach)."""
-    assert pad >= 2 * stride
-    nodes_x = np.arange(-((pad) // stride), (width - 1 + pad) // stride + 1)
-    nodes_y = np.arange(-((pad) // stride), (height - 1 + pad) // stride + 1)
-    samples = padded_image[np.ix_(stride * nodes_y + pad, stride * nodes_x + pad)]
-    return post_matrix(post, stride, height, nodes_y) @ samples @ post_matrix(post, stride, width, nodes_x).T
 
 
 def project_to_pixels(points_world: np.ndarray, cam: CameraSpec) -> np.ndarray:

@@ -36,8 +36,8 @@ struct BlockPlanParams {
     /// Bilinear spreading replaces the footprint by a one-node tent, which only reconstructs when the
     /// nodes are about one voxel apart: round the stride to the nearest instead of flooring it.
     bool nearest_stride = false;
-    /// Perspective views: blocks that may hold voxels whose linearised footprint is off by more
-    /// than this (relative to its peak) are marked exact_footprints, and their bounds left open
+    /// Perspective views: blocks that may hold voxels whose linearised_footprint_error (src/
+    /// near_eye_splat.h) exceeds this are marked exact_footprints, and their bounds left open
     /// (exact footprints reach further than linearised ones). Infinity: none.
     double footprint_tolerance = std::numeric_limits<double>::infinity();
 };
@@ -49,6 +49,9 @@ struct BlockPlan {
     double min_magnification = 0;  ///< over the kept blocks (pixels per voxel)
     double max_magnification = 0;
 };
+
+/// Strides are at most this (a Camera's largest side; plans also cap them at their image's).
+constexpr int kMaxStride = 1 << 16;
 
 /// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
 int automatic_stride(double pixels_per_voxel);

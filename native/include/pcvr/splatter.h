@@ -40,7 +40,7 @@ struct SplatParams {
     double kernel_radius = 2.0;             ///< index units
     float density_scale = 1.0f;
     /// Perspective views: voxels of blocks the plan marks exact_footprints whose
-    /// linearised footprint would be off by more than this are splatted exactly (src/near_eye_splat.h).
+    /// linearised_footprint_error exceeds this are splatted exactly (src/near_eye_splat.h).
     double footprint_tolerance = std::numeric_limits<double>::infinity();
 };
 
