@@ -7,6 +7,11 @@ if the reader crashes, the test fails and names the damage that did it, and pyte
 import json
 import os
 import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import textwrap
 
 import numpy as np
 import pytest
@@ -104,8 +109,41 @@ def test_missing_file_raises_file_not_found(tmp_path):
 
 
 def test_directory_is_not_a_vdb(tmp_path):
-    with pytest.raises(pn.VDBReadError, match=re.escape(str(tmp_path))):
-        pn.read_vdb(tmp_path)
+    for call in (pn.read_vdb, pn.list_grids):
+        with pytest.raises(pn.VDBReadError, match=re.escape(str(tmp_path)) + ".*is a directory"):
+            call(tmp_path)
+
+
+def test_file_without_read_permission(tmp_path):
+    """As root (who may read anything) the read runs as 'nobody' in a directory it may enter."""
+    directory = tempfile.mkdtemp(prefix="pcvr_unreadable_")
+    try:
+        os.chmod(directory, 0o755)
+        path = os.path.join(directory, "secret.vdb")
+        pn.Grid.from_dense(sparse_volume(shape=(8, 8, 8)), np.eye(4)).write_vdb(path)
+        os.chmod(path, 0)
+        code = f"""
+            import pcvr_native as pn
+            for call in (pn.read_vdb, pn.list_grids):
+                try:
+                    call({path!r})
+                except pn.VDBReadError as e:
+                    print(type(e).__name__, e)
+        """
+        if os.geteuid() == 0:
+            if not shutil.which("setpriv"):
+                pytest.skip("running as root without setpriv to drop privileges")
+            proc = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-c",
+                                   textwrap.dedent(code)], capture_output=True, text=True, timeout=120)
+        else:
+            proc = run_python(code)
+        assert proc.returncode == 0, describe(proc)
+        lines = proc.stdout.splitlines()
+        assert len(lines) == 2, proc.stdout
+        for line in lines:
+            assert line.startswith("VDBReadError cannot open") and "secret.vdb" in line and "Permission denied" in line, line
+    finally:
+        shutil.rmtree(directory)
 
 
 @pytest.mark.parametrize("content", [
