@@ -100,9 +100,6 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.stride = params.fixed_stride;
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
-    // Near a perspective eye magnifications grow without bound. A stride beyond the image's larger
-    // side leaves one node across it whatever its value, and post filters allocate per pixel of it.
-    d.stride = std::min(d.stride, std::max(cam.width(), cam.height()));
     const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
     if (all_projectable && !exact) {
         const double margin = double(params.margin_nodes) * d.stride;

@@ -62,6 +62,7 @@ int positive_spans(double alpha, double beta, double gamma, int columns, Span ou
     }
     out[0] = span(-1e18, lo);
     out[1] = span(hi, 1e18);
+    out[1].lo = std::max(out[1].lo, out[0].hi + 1);  // widened, the two may meet: add no node twice
     return 2;
 }
 

@@ -46,7 +46,8 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
         return PhaseSplat{map, PhaseFootprintTable::bilinear_spread()};
     }
     const double radius = params.kernel_radius;
-    const int half_width = int(std::ceil(std::max(f0.extent_x(radius), f0.extent_y(radius)) * inv_stride - 1e-4));
+    const int half_width = clamp_to_int(std::ceil(std::max(f0.extent_x(radius), f0.extent_y(radius)) * inv_stride - 1e-4), 0,
+                                        PhaseFootprintTable::kMaxHalfWidth + 1);
     // Interpolating between phases blurs footprints much narrower than a node (views minified
     // beyond 4 voxels per pixel lost 0.1-0.4% of exact, a single pixel 1.3%): those go per tap.
     const bool too_narrow = f0.min_pixels_per_voxel() * inv_stride < 0.25;

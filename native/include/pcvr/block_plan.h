@@ -50,7 +50,10 @@ struct BlockPlan {
     double max_magnification = 0;
 };
 
-/// Strides are at most this (a Camera's largest side; plans also cap them at their image's).
+/// Strides are at most this, a Camera's largest side: near a perspective eye magnifications grow
+/// without bound, and post filters allocate per pixel of stride. (Bilinear spreading, which needs
+/// about one node per voxel, is wrong beyond 65536 pixels per voxel: the image then shows less than
+/// a voxel.)
 constexpr int kMaxStride = 1 << 16;
 
 /// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
