@@ -123,5 +123,5 @@ $(SANITIZE)/.stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 sanitize: $(SANITIZE)/.stamp
 	LD_PRELOAD="$$(gcc -print-file-name=libasan.so) $$(gcc -print-file-name=libubsan.so)" \
 	ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-	PYTHONPATH=$(SANITIZE) $(PY) -m pytest -q -p no:cacheprovider tests/native tests/stress \
+	PCVR_SANITIZED=1 PYTHONPATH=$(SANITIZE) $(PY) -m pytest -q -p no:cacheprovider tests/native tests/stress \
 	  --deselect tests/native/test_bpy_coexistence.py

@@ -9,7 +9,7 @@ import numpy as np
 import pcvr_native as pn
 from pcvr_native import cameras
 
-from stress_helpers import max_error, run_isolated
+from stress_helpers import max_error, measures_memory, run_isolated
 
 REGRESSIONS = Path(__file__).resolve().parents[1] / "fuzz_regressions"
 
@@ -53,6 +53,7 @@ def test_footprint_wider_than_an_int_of_pixels():
     assert not pn.render_xray(empty, cam, method="pcvr").any()
 
 
+@measures_memory
 def test_stride_from_a_corner_at_the_eye_stays_bounded():
     """test_properties (test_never_nan_and_the_same_for_any_thread_count): a block's corner 1e-18
     in front of the eye made its magnification 1.4e18 pixels per voxel, bilinear spreading's stride

@@ -14,10 +14,11 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import phantoms
 
-from stress_helpers import LONG, METHODS, run_isolated
+from stress_helpers import LONG, METHODS, measures_memory, run_isolated
 from xray_helpers import CameraSpec, frame_ortho
 
 
+@measures_memory
 @pytest.mark.parametrize("method", METHODS)
 def test_request_beyond_the_limit_fails_before_allocating(method):
     """30000 x 30000 pixels under a 64 MiB limit: MemoryError naming the size, what it needs and the
@@ -61,6 +62,7 @@ def test_bad_memory_limit():
         pn.render_xray(phantoms.dense_volume(8, seed=1).grid(), spec.camera(), memory_limit=0)
 
 
+@measures_memory
 @pytest.mark.parametrize("method,magnification", [("regular", 100.0), ("pcvr", 200.0), ("exact", 100.0)])
 def test_estimate_is_close_to_the_peak(method, magnification):
     """What the budget adds up (stats['memory_bytes']: the image, a splat grid or double image per
@@ -145,6 +147,7 @@ def test_cancel_in_every_stage_returns_promptly(workloads, stage):
     assert returned - requested[0] < 0.15, f"{stage}: returned {returned - requested[0]:.3f} s after the request"
 
 
+@measures_memory
 def test_repeated_cancelled_renders_leak_nothing():
     """Renders of every method cancelled at 40 different moments, in a fresh process: after the
     first round has warmed the allocators up, the resident set stays within 8 MiB (measured 0-2)."""

@@ -13,7 +13,7 @@ import pcvr_native as pn
 from pcvr_native import cameras, phantoms
 
 from _io_helpers import HAVE_BPY, run_blender_openvdb
-from stress_helpers import METHODS, max_error, run_isolated
+from stress_helpers import METHODS, max_error, measures_memory, run_isolated
 from xray_helpers import frame_ortho, frame_perspective
 
 PHANTOM = phantoms.dense_volume(16, seed=4)
@@ -109,6 +109,7 @@ def test_single_voxel_grid(frame):
 SPARSE_CORNERS = [(0, 0, 0), (2 ** 31 - 9, -(2 ** 31) + 8, 1_000_000)]
 
 
+@measures_memory
 @pytest.mark.skipif(not HAVE_BPY, reason="writes a sparse grid with Blender's OpenVDB")
 def test_one_voxel_far_from_the_rest_stays_small_and_quick(tmp_path):
     """Two voxels 4e9 voxels apart (near both ends of OpenVDB's int32 index range): the index
