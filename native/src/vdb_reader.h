@@ -21,6 +21,7 @@
 #include <openvdb/io/io.h>
 #include <openvdb/openvdb.h>
 
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -255,20 +256,52 @@ private:
                 // OpenVDB and this walk would part ways.
                 const vdb::Index32 fixed = vdb::Metadata::createMetadata(type)->size();
                 if (fixed != 0 && fixed != bytes) throw_corrupt(std::string("corrupt ") + what + " (" + type + " of size " + std::to_string(bytes) + ")");
-                if (type == vdb::io::DelayedLoadMetadata::staticTypeName() && bytes >= 4) {
-                    // Holds a per-leaf table whose entry count is resized blindly; each leaf takes
-                    // far more than one byte of the file.
-                    const int64_t here = tell();
-                    const uint32_t entries = read_u32();
-                    if (int64_t(entries) > size_) throw_corrupt(std::string("corrupt ") + what + " (delayed-load table)");
-                    is_.seekg(here);
-                }
+                if (type == vdb::io::DelayedLoadMetadata::staticTypeName() && bytes > 0)
+                    check_delayed_load_table(tell() + bytes, what);
             }
             is_.seekg(bytes, std::ios::cur);
         }
         const int64_t end = tell();
         is_.seekg(start);
         return end;
+    }
+
+    /// DelayedLoadMetadata (ending at `end`) holds a per-leaf mask and a per-leaf size table, each
+    /// stored raw or as one blosc chunk: [leaf count][bytes][mask][bytes][sizes], bytes 0 for raw
+    /// data, and 0xFFFFFFFF for no sizes. OpenVDB resizes the tables to the count blindly and hands
+    /// blosc the chunk's own header, which blosc trusts (fuzzing found a corrupt one that made it
+    /// read past a 56-byte buffer): the count, both sizes and each chunk's header must agree.
+    /// Leaves the stream where it was.
+    void check_delayed_load_table(int64_t end, const char* what) {
+        const int64_t start = tell();
+        const std::string corrupt = std::string("corrupt ") + what + " (delayed-load table)";
+        if (end - start < 8) throw_corrupt(corrupt);
+        const uint32_t leaves = read_u32();
+        if (int64_t(leaves) > size_) throw_corrupt(corrupt);  // each leaf takes far more than a byte of the file
+        auto table = [&](int64_t bytes_per_leaf, bool optional) {
+            if (end - tell() < 4) throw_corrupt(corrupt);
+            const uint32_t stored = read_u32();
+            if (optional && stored == std::numeric_limits<uint32_t>::max()) return;
+            const int64_t raw = int64_t(leaves) * bytes_per_leaf;
+            if ((stored == 0 ? raw : int64_t(stored)) > end - tell()) throw_corrupt(corrupt);
+            if (stored == 0) {
+                is_.seekg(raw, std::ios::cur);
+                return;
+            }
+            std::array<uint8_t, 16> header{};  // blosc: uncompressed size at byte 4, chunk size at 12
+            if (stored < header.size()) throw_corrupt(corrupt);
+            is_.read(reinterpret_cast<char*>(header.data()), std::streamsize(header.size()));
+            auto u32 = [&header](int at) {
+                return uint32_t(header[at]) | uint32_t(header[at + 1]) << 8 | uint32_t(header[at + 2]) << 16 | uint32_t(header[at + 3]) << 24;
+            };
+            // OpenVDB pads tables under 128 bytes to 128 before compressing them.
+            const int64_t uncompressed = u32(4);
+            if (!(uncompressed == raw || (raw < 128 && uncompressed == 128)) || u32(12) != stored) throw_corrupt(corrupt);
+            is_.seekg(int64_t(stored) - int64_t(header.size()), std::ios::cur);
+        };
+        table(sizeof(vdb::io::DelayedLoadMetadata::MaskType), false);
+        table(sizeof(vdb::io::DelayedLoadMetadata::CompressedSizeType), true);
+        is_.seekg(start);
     }
 
     /// Where the transform (its map's type name) of the grid at the stream position starts; -1 in

@@ -5,6 +5,7 @@ make fuzz replays before it fuzzes."""
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import pcvr_native as pn
 from pcvr_native import cameras
@@ -51,6 +52,19 @@ def test_footprint_wider_than_an_int_of_pixels():
         assert max_error(pn.render_xray(grid, cam, method=method), exact) < 2e-3, method
     empty = pn.read_vdb(REGRESSIONS / "read_vdb" / "empty_grid_framed_at_zero_size.vdb")
     assert not pn.render_xray(empty, cam, method="pcvr").any()
+
+
+def test_delayed_load_table_whose_blosc_header_disagrees():
+    """fuzz_read_vdb, after 110,000 runs: grid metadata of type DelayedLoadMetadata holds a per-leaf
+    table as a blosc chunk, which OpenVDB reads into a buffer of the stored size and hands to blosc,
+    which trusts the chunk's own header. A header saying 58 bytes for a chunk stored as 56 read past
+    the buffer (AddressSanitizer: heap-buffer-overflow in LZ4_decompress_safe, via list_grids). The
+    reader now checks both sizes against the header first. Kept input: a pcvr_native file with that
+    one size field changed."""
+    path = REGRESSIONS / "read_vdb" / "delayed_load_blosc_header.vdb"
+    for call in (pn.read_vdb, pn.list_grids):
+        with pytest.raises(pn.VDBReadError, match=r"delayed_load_blosc_header\.vdb.*corrupt grid metadata \(delayed-load table\)"):
+            call(path)
 
 
 @measures_memory
