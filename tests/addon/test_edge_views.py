@@ -1,39 +1,11 @@
 """Edge cases of the view, rendered by Blender's PCVR engine and held to pcvr_native's exact method:
-a render border of one pixel, a camera inside a volume, voxels of a micrometre."""
+a camera inside a volume, voxels of a micrometre. (A render border of one pixel: test_render.py.)"""
 
 import numpy as np
 import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
-
-
-@pytest.fixture
-def blob_object(tmp_path, rng):
-    return bs.add_volume("Blob", bs.write_vdb(tmp_path / "blob.vdb", bs.blob(rng)), rotation=(0.4, 0.2, 0.9))
-
-
-@pytest.mark.parametrize("crop", [True, False], ids=["crop", "no_crop"])
-def test_render_border_of_one_pixel(blob_object, crop):
-    scene = bs.setup(80, 60)
-    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.0)
-    full = bs.exact(bs.world_grid(blob_object))
-    render = scene.render
-    render.use_border, render.use_crop_to_border = True, crop
-    # Pixel (40, 28) from the bottom left, row 31 from the top: borders half a pixel either side,
-    # which Blender truncates to it.
-    render.border_min_x, render.border_max_x = 40.5 / 80, 41.5 / 80
-    render.border_min_y, render.border_max_y = 28.5 / 60, 29.5 / 60
-    image = bs.xray(bs.render(scene))
-    expected = full[31:32, 40:41]
-    assert expected.max() > 0
-    if crop:
-        assert image.shape == (1, 1)
-        bs.assert_matches(image, expected)
-    else:
-        assert image.shape == full.shape
-        bs.assert_matches(image[31:32, 40:41], expected)
-        assert np.count_nonzero(image) == 1
 
 
 def test_camera_inside_a_volume(tmp_path):
