@@ -54,7 +54,9 @@ int positive_spans(double alpha, double beta, double gamma, int columns, Span ou
     }
     const double disc = beta * beta - alpha * gamma;
     if (disc < 0) return alpha > 0 ? (out[0] = whole, 1) : 0;
-    const double r1 = (-beta - std::sqrt(disc)) / alpha, r2 = (-beta + std::sqrt(disc)) / alpha;
+    // The roots without cancellation: q / alpha and gamma / q.
+    const double q = -(beta + std::copysign(std::sqrt(disc), beta));
+    const double r1 = q / alpha, r2 = q != 0.0 ? gamma / q : r1;
     const double lo = std::min(r1, r2), hi = std::max(r1, r2);
     if (alpha < 0) {
         out[0] = span(lo, hi);
