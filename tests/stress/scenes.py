@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 import pcvr_native as pn
 from pcvr_native import phantoms
+from pcvr_native.cameras import look_at, perspective
 
 from xray_helpers import CameraSpec, frame_ortho, frame_perspective, rotation
 
@@ -72,7 +73,6 @@ def eyes_inside(draw, volume):
     point = np.array([draw(st.floats(0.0, n - 1.0)) for n in values.shape])
     eye = xf[:3, :3] @ point + xf[:3, 3]
     voxel = float(np.abs(np.linalg.det(xf[:3, :3]))) ** (1.0 / 3.0)
-    from pcvr_native.cameras import look_at, perspective
     w2c = look_at(eye, eye + draw(directions), draw(directions))
     near = voxel * draw(st.floats(1e-3, 2.0))
     return CameraSpec(w2c, perspective(draw(st.floats(0.3, 2.5)), 1.0, near, 1e4 * voxel), 40, 40)

@@ -6,10 +6,6 @@ larger volumes and more Hypothesis examples.
 from __future__ import annotations
 
 import os
-import resource
-import subprocess
-import sys
-import textwrap
 
 import numpy as np
 import pytest
@@ -58,18 +54,3 @@ def scene_camera(scale: float, offset, perspective: bool, width: int = 48, heigh
         projection = cameras.ortho(-half * scale, half * scale, -half * scale * height / width, half * scale * height / width,
                                    near * scale, far * scale)
     return pn.Camera(w2c, projection, width, height)
-
-
-def run_isolated(code: str, timeout: float = 600) -> subprocess.CompletedProcess:
-    """Run `code` in a fresh interpreter, so a crash or a memory measurement touches nothing else."""
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=timeout)
-
-
-def peak_rss_bytes() -> int:
-    """This process's peak resident set so far (ru_maxrss is in KiB on Linux)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
-def current_rss_bytes() -> int:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")

@@ -10,7 +10,8 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import cameras
 
-from stress_helpers import max_error, measures_memory, run_isolated
+from _io_helpers import run_python
+from stress_helpers import max_error, measures_memory
 
 REGRESSIONS = Path(__file__).resolve().parents[1] / "fuzz_regressions"
 
@@ -74,7 +75,7 @@ def test_stride_from_a_corner_at_the_eye_stays_bounded():
     the int conversion of half that, and its post filter's tables (per pixel of stride) took 24 GB
     before the out-of-memory killer took the process. Strides are clamped to 65536 now; under a
     2 GiB address-space limit the render completes."""
-    proc = run_isolated("""
+    proc = run_python("""
         import resource, numpy as np, pcvr_native as pn
         resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
         values = np.array([[[1.0, 0.6125948], [0.1778497, 0.1314025]],

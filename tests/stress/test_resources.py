@@ -2,10 +2,9 @@
 needs; the estimate it checks is close to what a render really takes; cancelling stops every stage
 promptly, and repeated cancelled renders leak nothing.
 
-Anything that measures a process's memory runs in a fresh interpreter (stress_helpers.run_isolated)."""
+Anything that measures a process's memory runs in a fresh interpreter (_io_helpers.run_python)."""
 
 import json
-import threading
 import time
 
 import numpy as np
@@ -14,7 +13,8 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import phantoms
 
-from stress_helpers import LONG, METHODS, measures_memory, run_isolated
+from _io_helpers import run_python
+from stress_helpers import LONG, METHODS, measures_memory
 from xray_helpers import CameraSpec, frame_ortho
 
 
@@ -23,7 +23,7 @@ from xray_helpers import CameraSpec, frame_ortho
 def test_request_beyond_the_limit_fails_before_allocating(method):
     """30000 x 30000 pixels under a 64 MiB limit: MemoryError naming the size, what it needs and the
     limit, before anything is allocated (the peak resident set grows by less than 16 MiB)."""
-    proc = run_isolated(f"""
+    proc = run_python(f"""
         import resource, numpy as np, pcvr_native as pn
         from pcvr_native import cameras, phantoms
         grid = phantoms.dense_volume(8, seed=1).grid()
@@ -70,7 +70,7 @@ def test_estimate_is_close_to_the_peak(method, magnification):
     render, in a fresh process. Two voxels at opposite corners of a 16^3 box, 1800 to 3600 pixels
     square: large buffers, little splatting. The estimate is an upper bound within a factor of 2.5
     (threads that steal no work never allocate their grid)."""
-    proc = run_isolated(f"""
+    proc = run_python(f"""
         import resource, json, numpy as np, pcvr_native as pn
         import sys; sys.path.insert(0, 'tests')
         from xray_helpers import frame_ortho
@@ -152,7 +152,7 @@ def test_repeated_cancelled_renders_leak_nothing():
     """Renders of every method cancelled at 40 different moments, in a fresh process: after the
     first round has warmed the allocators up, the resident set stays within 8 MiB (measured 0-2)."""
     rounds = 6 if LONG else 3
-    proc = run_isolated(f"""
+    proc = run_python(f"""
         import json, threading, time, pcvr_native as pn
         from pcvr_native import phantoms
         import sys; sys.path.insert(0, 'tests')

@@ -15,8 +15,8 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import phantoms
 
-from stress_helpers import METHODS, max_error, placed, run_isolated, scene_camera
-from _io_helpers import HAVE_BPY, run_blender_openvdb
+from _io_helpers import HAVE_BPY, run_blender_openvdb, run_python
+from stress_helpers import METHODS, max_error, placed, scene_camera
 
 PHANTOM = phantoms.dense_volume(12, seed=3)
 VOXEL = float(np.linalg.norm(PHANTOM.index_to_world[:3, 0]))
@@ -132,7 +132,7 @@ def test_file_with_a_tiny_affine_map_says_why_it_cannot_be_read(tmp_path):
         vdb.write({str(path)!r}, [g])
     """)
     _patched(path, [0.625, 0.125, -0.125, 0.5625], [0.625e-6, 0.125e-6, -0.125e-6, 0.5625e-6])
-    proc = run_isolated(f"""
+    proc = run_python(f"""
         import pcvr_native as pn
         try:
             pn.read_vdb({str(path)!r})

@@ -12,8 +12,8 @@ import pytest
 import pcvr_native as pn
 from pcvr_native import cameras, phantoms
 
-from _io_helpers import HAVE_BPY, run_blender_openvdb
-from stress_helpers import METHODS, max_error, measures_memory, run_isolated
+from _io_helpers import HAVE_BPY, run_blender_openvdb, run_python
+from stress_helpers import METHODS, max_error, measures_memory
 from xray_helpers import frame_ortho, frame_perspective
 
 PHANTOM = phantoms.dense_volume(16, seed=4)
@@ -124,7 +124,7 @@ def test_one_voxel_far_from_the_rest_stays_small_and_quick(tmp_path):
             acc.setValueOn(ijk, 1.0)
         vdb.write({str(path)!r}, [g])
     """)
-    proc = run_isolated(f"""
+    proc = run_python(f"""
         import numpy as np, pcvr_native as pn
         from pcvr_native import cameras
         def rss():
