@@ -41,6 +41,11 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
     map.by = target.node_y(f0.py);
 
     if (params.mode == SplatMode::BilinearSpread) {
+        // Beyond kMaxStride pixels per voxel (an image showing less than a voxel) nodes lie millions
+        // apart within a block, more than the batched splat's floats and ints hold: per voxel then.
+        const double nodes_per_index = std::max({std::abs(map.gx.x), std::abs(map.gx.y), std::abs(map.gx.z),
+                                                 std::abs(map.gy.x), std::abs(map.gy.y), std::abs(map.gy.z)});
+        if (!(nodes_per_index < 1e6)) return std::nullopt;
         // The footprint's whole integral (pixel^2 -> node^2) goes to the 2 x 2 nearest nodes.
         map.amp_per_value *= float(f0.area_integral() / (stride * stride));
         return PhaseSplat{map, PhaseFootprintTable::bilinear_spread()};

@@ -16,6 +16,19 @@ from stress_helpers import max_error, measures_memory
 REGRESSIONS = Path(__file__).resolve().parents[1] / "fuzz_regressions"
 
 
+def framed_at_zero_size(grid):
+    """fuzz_read_vdb's view of a grid (native/fuzz/fuzz_scene.h, render_framed) whose active box
+    has no size: 16 x 16 pixels across 3e-30 units, 1e29 pixels per voxel."""
+    (i, j, k), _ = grid.index_bbox
+    x, y, z = (grid.index_to_world @ [i, j, k, 1.0])[:3]
+    half = 1e-30 * 1.5
+    view = np.eye(4)
+    view[:3, 3] = -x, -y, -(z + half)
+    projection = np.diag([1.0 / half, 1.0 / half, -1.0 / (2.0 * half), 1.0])
+    projection[2, 3] = -1.0
+    return pn.Camera(view, projection, 16, 16)
+
+
 def test_exact_footprint_spans_never_overlap():
     """fuzz_render (tests/fuzz_regressions/render/near_eye_spans_overlap): the eye inside a volume
     of 3e8-unit voxels in a 175-degree view. A voxel whose cone of rays reaches past the horizon
@@ -52,7 +65,8 @@ def test_footprint_wider_than_an_int_of_pixels():
     for method in ("regular", "pcvr"):
         assert max_error(pn.render_xray(grid, cam, method=method), exact) < 2e-3, method
     empty = pn.read_vdb(REGRESSIONS / "read_vdb" / "empty_grid_framed_at_zero_size.vdb")
-    assert not pn.render_xray(empty, cam, method="pcvr").any()
+    for method in ("exact", "regular", "pcvr", "bilinear_spread"):
+        assert not pn.render_xray(empty, framed_at_zero_size(empty), method=method).any(), method
 
 
 def test_delayed_load_table_whose_blosc_header_disagrees():
@@ -66,6 +80,17 @@ def test_delayed_load_table_whose_blosc_header_disagrees():
     for call in (pn.read_vdb, pn.list_grids):
         with pytest.raises(pn.VDBReadError, match=r"delayed_load_blosc_header\.vdb.*corrupt grid metadata \(delayed-load table\)"):
             call(path)
+
+
+def test_bilinear_spreading_a_voxel_wider_than_the_int_range():
+    """fuzz_read_vdb (tests/fuzz_regressions/read_vdb/one_voxel_framed_at_zero_size.vdb, one voxel
+    two index units from its block's origin): at 1e29 pixels per voxel bilinear spreading's stride is
+    clamped to 65536, its nodes lay 1e25 apart within the block, and the batched splat converted the
+    block origin's node to int out of range (undefined). Such views now splat voxel by voxel."""
+    grid = pn.read_vdb(REGRESSIONS / "read_vdb" / "one_voxel_framed_at_zero_size.vdb")
+    cam = framed_at_zero_size(grid)
+    for method in ("exact", "regular", "pcvr", "bilinear_spread"):
+        assert np.isfinite(pn.render_xray(grid, cam, method=method)).all(), method
 
 
 @measures_memory
