@@ -62,8 +62,8 @@ $(PORTABLE)/.stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
 # The add-on tests install the packaged extension, so the zip is built first.
 test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp
 	$(PY) -m pytest
-	@echo "Native tests again, on the build without AVX2:"
-	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native
+	@echo "Native and stress tests again, on the build without AVX2:"
+	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native tests/stress
 
 # The phantom through the native module (timed, checked against exact), then through Blender's
 # PCVR engine by the command line.

@@ -36,14 +36,14 @@ def linear_parts(draw):
 
 
 @st.composite
-def volumes(draw, max_side=8):
+def volumes(draw, max_side=8, single_voxel=False):
     """(values, index_to_world): 2..max_side voxels a side, about half of them zero (inactive), the
-    rest positive; a centred transform with a random linear part, shifted."""
+    rest positive (or one voxel only); a centred transform with a random linear part, shifted."""
     shape = tuple(draw(st.integers(2, max_side)) for _ in range(3))
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
     values = rng.uniform(0.1, 2.0, shape).astype(np.float32)
-    values[rng.random(shape) < draw(st.floats(0.0, 0.8))] = 0.0
-    values.flat[0] = 1.0  # never empty
+    values[rng.random(shape) < (1.0 if single_voxel else draw(st.floats(0.0, 0.8)))] = 0.0
+    values.flat[0 if not single_voxel else int(rng.integers(values.size))] = 1.0  # never empty
     xf = phantoms.centred_transform(shape, 1.0, draw(linear_parts()))
     xf[:3, 3] += [draw(st.floats(-50.0, 50.0)) for _ in range(3)]
     return values, xf
