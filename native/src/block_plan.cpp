@@ -32,7 +32,8 @@ int clip_side(const Vec4& c) {
 }
 
 /// Whether a voxel of the block may have a linearised footprint off by more than `tolerance`.
-/// Depth is affine and the distance from the axis convex, so the corners bound both.
+/// Depth is affine and the distance from the axis convex, so the corners bound both; the line
+/// scale's slope is bounded over all directions.
 bool needs_exact_footprints(const VoxelBlock& block, const ViewProjection& view, double radius, double tolerance) {
     if (view.orthographic() || tolerance == std::numeric_limits<double>::infinity()) return false;
     double depth = std::numeric_limits<double>::infinity(), lateral = 0;
@@ -43,7 +44,7 @@ bool needs_exact_footprints(const VoxelBlock& block, const ViewProjection& view,
         depth = std::min(depth, at.depth);
         lateral = std::max(lateral, at.lateral);
     }
-    return linearised_footprint_error(radius, depth, lateral) > tolerance;
+    return linearised_footprint_error(radius, depth, lateral, view.max_line_scale_slope()) > tolerance;
 }
 
 /// What the plan decides about one block.

@@ -164,7 +164,7 @@ uint64_t splat_block_near_eye(const VoxelBlock& block, const PlannedBlock& plann
         if (!block.active(offset)) continue;
         const Vec3 c = voxel_position(block, offset);
         const ViewProjection::EyeOffset at = view.eye_offset(c);
-        if (!(linearised_footprint_error(params.kernel_radius, at.depth, at.lateral) > tolerance)) continue;
+        if (!(linearised_footprint_error(params.kernel_radius, at.depth, at.lateral, at.line_scale_slope) > tolerance)) continue;
         far.mask[offset >> 6] &= ~(uint64_t(1) << (offset & 63));
         const float value = block.value(offset);
         if (value == 0.0f || !std::isfinite(value) || !ViewProjection::inside_clip_range(view.to_clip(c))) continue;

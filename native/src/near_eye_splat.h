@@ -5,8 +5,9 @@
 /// The splats project each voxel's kernel through the projection linearised at the voxel's centre
 /// (view_projection.h). For kernel radius R at depth d and off-axis tangent t its largest error,
 /// relative to the footprint's peak, measures 0.1 (R/d)^2 on the axis, where the footprint stays
-/// symmetric, and 0.4 (R/d) t off it, where one side is squeezed and the other stretched
-/// (linearised_footprint_error). A kernel that reaches behind the eye has no footprint at all (every
+/// symmetric, and 0.4 (R/d) t off it, where one side is squeezed and the other stretched; with
+/// anisotropic voxels the world length per index length also changes across the footprint, which
+/// takes its value at the centre (linearised_footprint_error). A kernel that reaches behind the eye has no footprint at all (every
 /// ray through the eye crosses one that contains it): with the eye inside a volume the linearised
 /// ellipses returned 3 to 20 times the true integral. Voxels whose error would exceed the
 /// tolerance are therefore integrated along each node's own ray, as the exact reference does: rho
@@ -32,14 +33,16 @@
 
 namespace pcvr {
 
-/// The linearised footprint's largest error relative to its peak, for kernel radius R at `depth`
-/// and `lateral` distance from the axis (index units, ViewProjection::eye_offset). Fitted to
-/// single voxels against exact, and conservative by 1.4x for sheared, anisotropic voxels
-/// (tests/stress/test_near_eye.py); infinite at and behind the eye plane.
-inline double linearised_footprint_error(double radius, double depth, double lateral) {
+/// The linearised footprint's largest error relative to its peak, for kernel radius R at `depth`,
+/// `lateral` distance from the axis and `line_scale_slope` (index units, ViewProjection::eye_offset):
+/// (R/d) (0.4 t + 0.1 R/d + 0.2 s) with t = lateral / depth. Fitted to single voxels against exact:
+/// isotropic ones on and off the axis, and 600 random anisotropic ones (scales 1/4 to 4, any
+/// rotation, up to 50 degrees off the axis), all within the model (tests/stress/test_near_eye.py);
+/// infinite at and behind the eye plane.
+inline double linearised_footprint_error(double radius, double depth, double lateral, double line_scale_slope) {
     if (!(depth > 0)) return std::numeric_limits<double>::infinity();
     const double q = radius / depth;
-    return q * (0.4 * lateral / depth + 0.1 * q);
+    return q * (0.4 * lateral / depth + 0.1 * q + 0.2 * line_scale_slope);
 }
 
 /// The bound on linearised_footprint_error that keeps a footprint within `tolerance` of its peak.

@@ -59,15 +59,16 @@ public:
     const Vec3& eye() const { return eye_; }
     /// Perspective views: where a point lies relative to the eye, in index units. `depth` is its
     /// distance from the plane through the eye parallel to the image (negative behind it),
-    /// `lateral` its distance from the line through the eye perpendicular to that plane.
+    /// `lateral` its distance from the line through the eye perpendicular to that plane, and
+    /// `line_scale_slope` how fast the world length per index length of rays changes with their
+    /// direction there (relative change per radian: 0 for cubic voxels, up to 2.6 for 1 x 1 x 2.5).
     struct EyeOffset {
-        double depth, lateral;
+        double depth, lateral, line_scale_slope;
     };
-    EyeOffset eye_offset(const Vec3& index_pos) const {
-        const Vec3 w = index_pos - eye_;
-        const double depth = dot(depth_axis_, w);
-        return {depth, std::sqrt(std::max(0.0, dot(w, w) - depth * depth))};
-    }
+    EyeOffset eye_offset(const Vec3& index_pos) const;
+    /// The largest line_scale_slope of any direction: (k - 1) / (2 sqrt(k)), k the condition number
+    /// of the index-to-world metric.
+    double max_line_scale_slope() const { return max_line_scale_slope_; }
 
     /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
     bool footprint(const Vec3& index_pos, Footprint& out) const;
@@ -89,6 +90,8 @@ private:
     Vec3 wd0_, wdx_, wdy_;
     Vec3 eye_;
     Vec3 depth_axis_;  // unit gradient of clip w in index space
+    Vec3 metric_[3];   // rows of L^T L, L the linear part of index_to_world: world length^2 per index direction
+    double max_line_scale_slope_ = 0;
 };
 
 template <class T, class Sqrt>
