@@ -69,8 +69,8 @@ $(UNIT_TESTS): $(NATIVE_SOURCES) $(wildcard native/tests/*) | system
 test: $(VENV)/.native-stamp $(EXTENSION_ZIP) $(PORTABLE)/.stamp $(UNIT_TESTS)
 	$(UNIT_TESTS) | tail -1
 	$(PY) -m pytest
-	@echo "Native tests again, on the build without AVX2:"
-	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native
+	@echo "Native and stress tests again, on the build without AVX2:"
+	PYTHONPATH=$(PORTABLE) $(PY) -m pytest -q -p no:cacheprovider tests/native tests/stress
 
 # The phantom through the native module (timed, checked against exact), then through Blender's
 # PCVR engine by the command line: X-ray, and shaded in Hounsfield units with the CT Bone preset.
@@ -142,3 +142,46 @@ test-compat: $(COMPAT_STAMPS) $(EXTENSION_ZIP)
 	@$(call compat_pytest,tests/addon)
 
 test: compat-smoke
+
+# ---- Robustness: make stress, make fuzz, make sanitize (docs/reliability.md) ------------------
+.PHONY: stress fuzz sanitize
+
+# The stress suite with more cases, larger volumes and 400 Hypothesis examples per property.
+stress: $(VENV)/.native-stamp $(EXTENSION_ZIP)
+	PCVR_STRESS=long $(PY) -m pytest -q -p no:cacheprovider tests/stress
+
+# libFuzzer over the core (clang-14 and its runtime from Debian), FUZZ_SECONDS per target (two),
+# after replaying tests/fuzz_regressions; then the source coverage the corpora reach.
+FUZZ_SECONDS ?= 300
+FUZZ_DIR    := build/fuzz
+APT_FUZZ    := clang-14 libclang-rt-14-dev llvm-14
+fuzz: $(VENV)/.native-stamp
+	@missing=""; for p in $(APT_FUZZ); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; fi
+	for kind in "" "-coverage"; do \
+	  CC=clang-14 CXX=clang++-14 cmake -S native -B $(FUZZ_DIR)$$kind -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	    -DPCVR_PYTHON=OFF -DPCVR_FUZZ=ON -DPCVR_COVERAGE=$$([ -n "$$kind" ] && echo ON || echo OFF) > /dev/null && \
+	  ninja -C $(FUZZ_DIR)$$kind fuzz_read_vdb fuzz_render || exit 1; \
+	done
+	$(PY) native/fuzz/make_corpus.py $(FUZZ_DIR)/seeds
+	native/fuzz/run.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
+
+# The native and stress tests against a module built with AddressSanitizer and
+# UndefinedBehaviorSanitizer (gcc; its own build tree). Python itself is not instrumented, so libasan
+# is preloaded, and leak checks are off (the interpreter keeps its allocations to the end).
+SANITIZE := build/sanitize
+$(SANITIZE)/.stamp: $(VENV)/.deps-stamp $(NATIVE_SOURCES)
+	rm -rf $(SANITIZE) && mkdir -p $(SANITIZE)
+	flock native/.build.lock $(PY) -m pip wheel -q --no-build-isolation --no-deps -w $(SANITIZE) ./native \
+	  --config-settings=cmake.define.PCVR_SANITIZE=ON --config-settings=cmake.build-type=RelWithDebInfo \
+	  --config-settings=build-dir=build/sanitize-{wheel_tag}
+	$(PY) -m zipfile -e $(SANITIZE)/pcvr_native-*.whl $(SANITIZE)
+	touch $@
+
+sanitize: $(SANITIZE)/.stamp
+	LD_PRELOAD="$$(gcc -print-file-name=libasan.so) $$(gcc -print-file-name=libubsan.so)" \
+	ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+	PCVR_SANITIZED=1 PYTHONPATH=$(SANITIZE) $(PY) -m pytest -q -p no:cacheprovider tests/native tests/stress \
+	  --deselect tests/native/test_bpy_coexistence.py

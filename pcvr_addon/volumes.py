@@ -46,7 +46,14 @@ def _load_error(volume):
     if len(volume.grids) or not volume.grids.error_message:
         return ""
     filepath = bpy.path.abspath(volume.filepath, library=volume.original.library)
-    return f"cannot load '{filepath}': {volume.grids.error_message}"
+    what = f"frame {volume.grids.frame} of the sequence '{filepath}'" if volume.is_sequence else f"'{filepath}'"
+    # Blender says "not a VDB file" for a directory or a file it may not open: name the real cause.
+    cause = volume.grids.error_message
+    if not volume.is_sequence and os.path.isdir(filepath):
+        cause = "it is a directory"
+    elif not volume.is_sequence and os.path.isfile(filepath) and not os.access(filepath, os.R_OK):
+        cause = "permission denied"
+    return f"cannot load {what}: {cause}"
 
 
 def source_of(obj, matrix_world):

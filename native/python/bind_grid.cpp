@@ -64,7 +64,17 @@ Grid from_dense(nb::handle values, nb::handle index_to_world, double background,
     const Mat4 m = grid_matrix(index_to_world, "index_to_world");
     // numpy does every dtype conversion (ints, float64, bool) and makes a C-order copy only if needed.
     nb::module_ np = nb::module_::import_("numpy");
-    nb::object arr = np.attr("ascontiguousarray")(values, "dtype"_a = "float32");
+    nb::object original = np.attr("asarray")(values);
+    nb::object arr = np.attr("ascontiguousarray")(original, "dtype"_a = "float32");
+    // A finite float64 beyond float32's range arrives as infinity: say what it really is.
+    if (!original.attr("dtype").equal(np.attr("dtype")("float32")) &&
+        nb::cast<bool>(nb::bool_(np.attr("any")(np.attr("isinf")(arr) & np.attr("isfinite")(original))))) {
+        nb::object where = np.attr("argwhere")(np.attr("isinf")(arr) & np.attr("isfinite")(original))[nb::int_(0)].attr("tolist")();
+        nb::object value = original.attr("__getitem__")(nb::module_::import_("builtins").attr("tuple")(where));
+        throw GridError("Grid.from_dense '" + name + "': value " + nb::str(value).c_str() + " at " + nb::str(where).c_str() +
+                        " is beyond float32's range (3.4e38), in which grids hold densities: divide the values "
+                        "and multiply density_scale instead");
+    }
     if (nb::cast<int>(arr.attr("ndim")) != 3)
         throw InvalidArgument("Grid.from_dense: values must be a 3-D array indexed [i, j, k], got shape " +
                               shape_string(arr));

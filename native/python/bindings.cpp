@@ -59,6 +59,8 @@ NB_MODULE(_pcvr, m) {
             PyErr_SetString(PyExc_FileNotFoundError, e.what());
         } catch (const pcvr::InvalidArgument& e) {
             PyErr_SetString(PyExc_ValueError, e.what());
+        } catch (const pcvr::OutOfMemory& e) {
+            PyErr_SetString(PyExc_MemoryError, e.what());
         } catch (const pcvr::Error& e) {
             PyErr_SetString(PyExc_RuntimeError, e.what());
         }

@@ -8,14 +8,16 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "near_eye_splat.h"
+
 namespace pcvr {
 
 int automatic_stride(double pixels_per_voxel) {
     // The small tolerance keeps an exact magnification of 4 (computed as 3.9999999) at stride 4.
-    return std::max(1, int(std::floor(pixels_per_voxel + 1e-6)));
+    return clamp_to_int(std::floor(pixels_per_voxel + 1e-6), 1, kMaxStride);
 }
 
-int nearest_stride(double pixels_per_voxel) { return std::max(1, int(std::lround(pixels_per_voxel))); }
+int nearest_stride(double pixels_per_voxel) { return clamp_to_int(std::round(pixels_per_voxel), 1, kMaxStride); }
 
 namespace {
 
@@ -27,6 +29,22 @@ int clip_side(const Vec4& c) {
     if (c.z + c.w < 0 || c.w <= 0) return kBeforeNear;
     if (c.w - c.z < 0) return kBeyondFar;
     return kInside;
+}
+
+/// Whether a voxel of the block may have a linearised footprint off by more than `tolerance`.
+/// Depth is affine and the distance from the axis convex, so the corners bound both; the line
+/// scale's slope is bounded over all directions.
+bool needs_exact_footprints(const VoxelBlock& block, const ViewProjection& view, double radius, double tolerance) {
+    if (view.orthographic() || tolerance == std::numeric_limits<double>::infinity()) return false;
+    double depth = std::numeric_limits<double>::infinity(), lateral = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+        const ViewProjection::EyeOffset at = view.eye_offset({double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
+                                                              double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
+                                                              double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))});
+        depth = std::min(depth, at.depth);
+        lateral = std::max(lateral, at.lateral);
+    }
+    return linearised_footprint_error(radius, depth, lateral, view.max_line_scale_slope()) > tolerance;
 }
 
 /// What the plan decides about one block.
@@ -83,7 +101,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.stride = params.fixed_stride;
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
-    if (all_projectable) {
+    const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
+    if (all_projectable && !exact) {
         const double margin = double(params.margin_nodes) * d.stride;
         if (x1 + ext_x < -margin || x0 - ext_x > cam.width() - 1 + margin || y1 + ext_y < -margin ||
             y0 - ext_y > cam.height() - 1 + margin) {
@@ -95,8 +114,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.mag_min = mag_min;
         d.mag_max = mag_max;
     }
-    d.planned = {index, sides_or != kInside, -1e30f, -1e30f, 1e30f, 1e30f};
-    if (all_projectable) {
+    d.planned = {index, sides_or != kInside, exact, -1e30f, -1e30f, 1e30f, 1e30f};
+    if (all_projectable && !exact) {
         d.planned.min_x = float(x0 - ext_x);
         d.planned.min_y = float(y0 - ext_y);
         d.planned.max_x = float(x1 + ext_x);
@@ -107,7 +126,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
 
 }  // namespace
 
-BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params) {
+BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params,
+                      const RenderControl* control) {
     std::optional<Footprint> shared;
     if (view.orthographic()) {
         Footprint f;
@@ -116,6 +136,7 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
     // Decided in parallel (a large grid has hundreds of thousands of blocks), gathered in block order.
     std::vector<BlockDecision> decisions(blocks.size());
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(blocks.size()), 1024), [&](const tbb::blocked_range<uint32_t>& r) {
+        if (control) control->throw_if_cancelled();
         for (uint32_t index = r.begin(); index != r.end(); ++index)
             decisions[index] = decide(index, blocks[index], view, params, shared ? &*shared : nullptr);
     });

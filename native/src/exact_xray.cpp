@@ -21,7 +21,9 @@ struct IndexRays {
     std::vector<double> world_per_index;  // world length per index length along the ray
 };
 
-IndexRays rays_in_index_space(const Camera& cam, const Mat4& world_to_index, int step, int cols, int rows) {
+/// Camera space to index space directly (a grid and a camera far from the world's origin never meet
+/// in world coordinates, where their offsets would cancel imprecisely).
+IndexRays rays_in_index_space(const Camera& cam, const Mat4& camera_to_index, int step, int cols, int rows) {
     IndexRays rays;
     const size_t n = size_t(cols) * rows;
     rays.origin.resize(n);
@@ -29,13 +31,13 @@ IndexRays rays_in_index_space(const Camera& cam, const Mat4& world_to_index, int
     rays.world_per_index.resize(n);
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) {
-            const Ray ray = cam.pixel_ray(double(c) * step, double(r) * step);
-            const Vec3 d = world_to_index.transform_vector(ray.direction);
+            const Ray ray = cam.camera_ray(double(c) * step, double(r) * step);
+            const Vec3 d = camera_to_index.transform_vector(ray.direction);
             const double len = length(d);
             const size_t i = size_t(r) * cols + c;
-            rays.origin[i] = world_to_index.transform_point(ray.origin);
+            rays.origin[i] = camera_to_index.transform_point(ray.origin);
             rays.direction[i] = d / len;
-            rays.world_per_index[i] = length(ray.direction) / len;
+            rays.world_per_index[i] = length(cam.camera_to_world().transform_vector(ray.direction)) / len;
         }
     return rays;
 }
@@ -57,10 +59,11 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
     for (const auto& weighted : grids) {
         const Grid& grid = *weighted.grid;
         const Mat4& to_world = grid.index_to_world();
-        const auto to_index = to_world.inverse();
-        if (!to_index || !to_world.is_affine()) throw GridError("grid '" + grid.name() + "': singular index-to-world transform");
-        const IndexRays rays = rays_in_index_space(cam, *to_index, pixel_step, cols, rows);
-        const Mat4 to_clip = cam.world_to_clip() * to_world;
+        const auto camera_to_index = (cam.world_to_camera() * to_world).inverse();
+        if (!camera_to_index || !to_world.is_affine())
+            throw GridError("grid '" + grid.name() + "': singular index-to-world transform");
+        const IndexRays rays = rays_in_index_space(cam, *camera_to_index, pixel_step, cols, rows);
+        const Mat4 to_clip = cam.object_to_clip(to_world);
         const auto& blocks = grid.blocks();
 
         tbb::enumerable_thread_specific<std::vector<double>> locals([&] { return std::vector<double>(image.size(), 0.0); });

@@ -6,6 +6,7 @@
 #include <openvdb/tools/Count.h>
 #include <openvdb/tools/Dense.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -30,34 +31,93 @@ void initialize_openvdb() {
     (void)initialized;
 }
 
+namespace {
+
+/// OpenVDB's own limit on a linear map's determinant (math/Maps.h), with a factor 2 for the
+/// rounding of the map it simplifies ours into.
+const double kMinVdbDeterminant = 2.0 * 3.0 * vdb::math::Tolerance<double>::value();
+
+/// Positions must be resolved to this fraction of a voxel. Measured (tests/stress/test_scale.py):
+/// an image's relative error is up to half the resolution in voxels (offset from the origin x
+/// 2.2e-16 / voxel thickness), so beyond a tenth of a voxel images are off by several percent, and
+/// by all of it at a voxel: a clear refusal serves the user better.
+constexpr double kMaxPositionError = 0.1;
+
+double linear_determinant(const Mat4& m) {
+    return m.m[0][0] * (m.m[1][1] * m.m[2][2] - m.m[1][2] * m.m[2][1]) -
+           m.m[0][1] * (m.m[1][0] * m.m[2][2] - m.m[1][2] * m.m[2][0]) +
+           m.m[0][2] * (m.m[1][0] * m.m[2][1] - m.m[1][1] * m.m[2][0]);
+}
+
+/// The smallest distance between neighbouring lattice planes: how thin a voxel is, for any shear.
+double voxel_thickness(const Mat4& m) {
+    double widest_face = 0;
+    for (int a = 0; a < 3; ++a)
+        widest_face = std::max(widest_face, length(cross(m.column(a), m.column((a + 1) % 3))));
+    return std::abs(linear_determinant(m)) / widest_face;
+}
+
+}  // namespace
+
 void check_index_to_world(const Mat4& m, const std::string& context) {
     if (!m.is_finite()) throw GridError(context + ": index_to_world contains a non-finite value");
     if (!m.is_affine()) throw GridError(context + ": index_to_world is not affine (last row must be 0 0 0 1)");
     if (!m.inverse()) throw GridError(context + ": index_to_world is singular (voxels would have no volume)");
+    // Double precision resolves a position x to about |x| * 2.2e-16: far from the origin, tiny voxels
+    // would land on a coarser lattice than their own.
+    const double offset = std::max({std::abs(m.m[0][3]), std::abs(m.m[1][3]), std::abs(m.m[2][3])});
+    const double resolution = offset * std::numeric_limits<double>::epsilon(), thickness = voxel_thickness(m);
+    if (resolution > kMaxPositionError * thickness) {
+        std::ostringstream msg;
+        msg << context << ": voxels " << thickness << " world units thick lie " << offset
+            << " units from the origin, where double precision resolves positions only to " << resolution
+            << " units (" << resolution / thickness << " voxels); move the volume and the camera nearer the "
+            << "origin, or use a coarser world unit";
+        throw GridError(msg.str());
+    }
 }
 
-vdb::math::Transform::Ptr to_vdb_transform(const Mat4& m) {
-    vdb::Mat4d a;
+VdbTransform to_vdb_transform(const Mat4& m) {
+    VdbTransform out;
+    const double det = std::abs(linear_determinant(m));
+    if (det < kMinVdbDeterminant) out.world_scale = std::pow(10.0, std::round(std::log10(det) / 3.0));
+    vdb::Mat4d a;  // transposed: OpenVDB's row-vector convention
     for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) a(r, c) = m.m[c][r];
-    return std::make_shared<vdb::math::Transform>(std::make_shared<vdb::math::AffineMap>(a));
+        for (int c = 0; c < 4; ++c) a(c, r) = r < 3 ? m.m[r][c] / out.world_scale : m.m[r][c];
+    out.transform = std::make_shared<vdb::math::Transform>(std::make_shared<vdb::math::AffineMap>(a));
+    return out;
 }
 
-Mat4 from_vdb_transform(const vdb::math::Transform& xform, const std::string& context) {
+Mat4 from_vdb_transform(const vdb::GridBase& grid, const std::string& context) {
+    const vdb::math::Transform& xform = grid.transform();
     if (!xform.isLinear())
         throw GridError(context + " has a " + xform.mapType() +
                         " transform; only affine (linear) transforms are supported, not frustums");
-    const vdb::Mat4d a = xform.baseMap()->getAffineMap()->getMat4();
+    // The map's own Jacobian and image of the origin: no AffineMap is built, whose constructor
+    // would refuse the tiny scales a file's ScaleMap can hold.
+    const vdb::math::MapBase& map = *xform.baseMap();
+    double scale = 1.0;
+    if (const auto meta = grid.getMetadata<vdb::DoubleMetadata>(kWorldScaleMetadata)) {
+        scale = meta->value();
+        if (!std::isfinite(scale) || !(scale > 0))
+            throw GridError(context + " has an invalid " + kWorldScaleMetadata + " of " + std::to_string(scale));
+    }
     Mat4 m;
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m.m[r][c] = a(c, r);
+    const vdb::Vec3d origin = map.applyMap(vdb::Vec3d(0.0));
+    for (int c = 0; c < 3; ++c) {
+        vdb::Vec3d unit(0.0);
+        unit[c] = 1.0;
+        const vdb::Vec3d column = map.applyJacobian(unit);
+        for (int r = 0; r < 3; ++r) m.m[r][c] = scale * column[r];
+    }
+    for (int r = 0; r < 3; ++r) m.m[r][3] = scale * origin[r];
     check_index_to_world(m, context);
     return m;
 }
 
 Grid make_grid(vdb::FloatGrid::ConstPtr grid, const std::string& source_path, const std::string& name,
                const std::string& context) {
-    const Mat4 index_to_world = from_vdb_transform(grid->transform(), context);
+    const Mat4 index_to_world = from_vdb_transform(*grid, context);
     return Grid(std::make_shared<Grid::Data>(std::move(grid), source_path), index_to_world, name);
 }
 
@@ -121,8 +181,8 @@ Grid Grid::from_dense(const float* values, std::array<size_t, 3> shape, const Ma
     }
     grid->setName(name);
     grid->setGridClass(vdb::GRID_FOG_VOLUME);
-    // Keep the OpenVDB transform in step with index_to_world, so write_vdb needs no conversion.
-    grid->setTransform(detail::to_vdb_transform(index_to_world));
+    // The OpenVDB grid keeps its identity transform: index_to_world is the Grid's own, in double,
+    // whatever its scale, and write_vdb converts it.
     return Grid(std::make_shared<Data>(std::move(grid), std::string()), index_to_world, name);
 }
 

@@ -49,11 +49,24 @@ void initialize_openvdb();
 /// Throws GridError (prefixed with `context`) unless `m` is finite, affine and invertible.
 void check_index_to_world(const Mat4& m, const std::string& context);
 
+/// Metadata that carries the part of a grid's scale OpenVDB's transform cannot hold: world
+/// coordinates are this value times what the stored transform gives.
+inline const char* const kWorldScaleMetadata = "pcvr_world_scale";
+
+/// An OpenVDB transform for index_to_world, and the world scale it leaves out (1 when none).
+/// OpenVDB refuses linear maps whose 3x3 determinant is below 3e-15 (voxels of about 1.4e-5 units);
+/// such a matrix is stored divided by a power of ten that brings its voxels near one unit.
+struct VdbTransform {
+    openvdb::math::Transform::Ptr transform;
+    double world_scale = 1.0;
+};
+
 /// Mat4 (column vectors: world = M [i j k 1]^T) <-> OpenVDB transform (row vectors: world = [i j k 1] A),
 /// i.e. A = M^T. OpenVDB places voxel centres at integer index coordinates, as we do.
-openvdb::math::Transform::Ptr to_vdb_transform(const Mat4& m);
-/// Throws GridError (prefixed with `context`) for frustum and other non-linear maps.
-Mat4 from_vdb_transform(const openvdb::math::Transform& xform, const std::string& context);
+VdbTransform to_vdb_transform(const Mat4& m);
+/// The grid's index_to_world, its kWorldScaleMetadata applied. Throws GridError (prefixed with
+/// `context`) for frustum and other non-linear maps and for a bad scale.
+Mat4 from_vdb_transform(const openvdb::GridBase& grid, const std::string& context);
 
 /// Wrap a finished float grid: computes statistics; its transform becomes the Grid's index_to_world.
 Grid make_grid(openvdb::FloatGrid::ConstPtr grid, const std::string& source_path, const std::string& name,

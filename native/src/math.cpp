@@ -1,6 +1,7 @@
 #include "pcvr/math.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace pcvr {
 
@@ -52,38 +53,67 @@ bool Mat4::is_affine() const {
     return m[3][0] == 0.0 && m[3][1] == 0.0 && m[3][2] == 0.0 && m[3][3] == 1.0;
 }
 
-std::optional<Mat4> Mat4::inverse() const {
-    // Gauss-Jordan with partial pivoting; "singular" is judged relative to the matrix's own scale
-    // so that a grid with 1e-3 voxels is fine while a flattened (rank-deficient) one is not.
+namespace {
+
+/// Gauss-Jordan with partial pivoting of the n x n matrix `a` (row-major, n <= 4) into `out`.
+/// "Singular" is judged relative to the matrix's own largest entry, so that a grid with 1e-9
+/// voxels is fine while a flattened (rank-deficient) one is not.
+bool invert(const double* a_in, int n, double* out) {
     double a[4][8];
     double scale = 0;
-    for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) {
-            a[i][j] = m[i][j];
-            a[i][j + 4] = (i == j) ? 1.0 : 0.0;
-            scale = std::max(scale, std::abs(m[i][j]));
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            a[i][j] = a_in[i * n + j];
+            a[i][j + n] = (i == j) ? 1.0 : 0.0;
+            scale = std::max(scale, std::abs(a[i][j]));
         }
-    if (!(scale > 0) || !is_finite()) return std::nullopt;
+    if (!(scale > 0) || !std::isfinite(scale)) return false;
     const double eps = 1e-12 * scale;
-    for (int c = 0; c < 4; ++c) {
+    for (int c = 0; c < n; ++c) {
         int pivot = c;
-        for (int r = c + 1; r < 4; ++r)
+        for (int r = c + 1; r < n; ++r)
             if (std::abs(a[r][c]) > std::abs(a[pivot][c])) pivot = r;
-        if (std::abs(a[pivot][c]) <= eps) return std::nullopt;
+        if (std::abs(a[pivot][c]) <= eps) return false;
         if (pivot != c)
-            for (int j = 0; j < 8; ++j) std::swap(a[c][j], a[pivot][j]);
+            for (int j = 0; j < 2 * n; ++j) std::swap(a[c][j], a[pivot][j]);
         const double inv = 1.0 / a[c][c];
-        for (int j = 0; j < 8; ++j) a[c][j] *= inv;
-        for (int r = 0; r < 4; ++r) {
+        for (int j = 0; j < 2 * n; ++j) a[c][j] *= inv;
+        for (int r = 0; r < n; ++r) {
             if (r == c) continue;
             const double f = a[r][c];
             if (f == 0.0) continue;
-            for (int j = 0; j < 8; ++j) a[r][j] -= f * a[c][j];
+            for (int j = 0; j < 2 * n; ++j) a[r][j] -= f * a[c][j];
         }
     }
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) out[i * n + j] = a[i][j + n];
+    return true;
+}
+
+}  // namespace
+
+std::optional<Mat4> Mat4::inverse() const {
+    if (!is_finite()) return std::nullopt;
     Mat4 out;
-    for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) out.m[i][j] = a[i][j + 4];
+    if (is_affine()) {
+        // [L t; 0 1]^-1 = [L^-1, -L^-1 t; 0 1]. Only L decides singularity: a translation of 1e8
+        // must not make 1e-6 voxels look flat next to it.
+        double l[9], inv[9];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) l[i * 3 + j] = m[i][j];
+        if (!invert(l, 3, inv)) return std::nullopt;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) out.m[i][j] = inv[i * 3 + j];
+            out.m[i][3] = -(inv[i * 3] * m[0][3] + inv[i * 3 + 1] * m[1][3] + inv[i * 3 + 2] * m[2][3]);
+        }
+    } else {
+        double flat[16], inv[16];
+        for (int i = 0; i < 4; ++i)
+            for (int j = 0; j < 4; ++j) flat[i * 4 + j] = m[i][j];
+        if (!invert(flat, 4, inv)) return std::nullopt;
+        for (int i = 0; i < 4; ++i)
+            for (int j = 0; j < 4; ++j) out.m[i][j] = inv[i * 4 + j];
+    }
     if (!out.is_finite()) return std::nullopt;
     return out;
 }

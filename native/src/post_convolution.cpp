@@ -110,6 +110,8 @@ void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumul
 
         const int y_lo = std::max(0, (ty * T - sy0) * L), y_hi = std::min(image.height - 1, ((ty + 1) * T - sy0) * L - 1);
         for (int y = y_lo; y <= y_hi; ++y) {
+            // At large strides one tile row spans thousands of pixel rows: stop between them.
+            control.throw_if_cancelled();
             // Vertical pass: the four node rows around this pixel row, for the needed columns.
             const int node = y / L, phase = y - node * L;
             const float* wy = filter.weights(phase);

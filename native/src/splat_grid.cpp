@@ -8,17 +8,25 @@ namespace pcvr {
 
 namespace {
 int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+int nodes_across(int pixels, int stride, int margin) { return floor_div(pixels - 1, stride) + 1 + 2 * margin; }
 }  // namespace
 
 SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(stride) {
     node_x0_ = -margin;
     node_y0_ = -margin;
-    nx_ = floor_div(width - 1, stride) + 1 + 2 * margin;
-    ny_ = floor_div(height - 1, stride) + 1 + 2 * margin;
+    nx_ = nodes_across(width, stride, margin);
+    ny_ = nodes_across(height, stride, margin);
     tiles_x_ = (nx_ + kTile - 1) / kTile;
     tiles_y_ = (ny_ + kTile - 1) / kTile;
     values_ = ZeroedBuffer<double>(size_t(nx_) * ny_ + kPadding);
     touched_.assign(size_t(tiles_x_) * tiles_y_, 0);
+}
+
+uint64_t SplatGrid::bytes(int width, int height, int stride, int margin) {
+    const uint64_t nx = uint64_t(nodes_across(width, stride, margin)), ny = uint64_t(nodes_across(height, stride, margin));
+    const uint64_t tiles = ((nx + kTile - 1) / kTile) * ((ny + kTile - 1) / kTile);
+    return (nx * ny + kPadding) * sizeof(double) + tiles;
 }
 
 SplatGrid SplatGrid::zero_like() const {

@@ -15,7 +15,9 @@
 #include <unistd.h>
 #include <fcntl.h>
 
+#include <atomic>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -37,15 +39,18 @@ namespace {
 
 using namespace vdb_reader;
 
-/// A float copy of any scalar grid: same topology, tiles, transform and metadata.
+/// A float copy of any scalar grid: same topology, tiles, transform and metadata. Throws GridError
+/// (prefixed with `context`) for a finite value beyond float's range, which would become infinity.
 template <typename SrcGridT>
-vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src) {
+vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src, const std::string& context) {
     auto out = vdb::FloatGrid::create(static_cast<float>(src.background()));
     static_cast<vdb::MetaMap&>(*out) = static_cast<const vdb::MetaMap&>(src);
     out->setTransform(src.transform().copy());
+    std::atomic<bool> overflow{false};
     vdb::tools::transformValues(
-        src.cbeginValueOn(), *out, [](const typename SrcGridT::ValueOnCIter& it, auto& acc) {
+        src.cbeginValueOn(), *out, [&overflow](const typename SrcGridT::ValueOnCIter& it, auto& acc) {
             const float value = static_cast<float>(*it);
+            if (std::isinf(value) && std::isfinite(double(*it))) overflow = true;
             if (it.isVoxelValue()) {
                 acc.setValue(it.getCoord(), value);
             } else {
@@ -54,6 +59,8 @@ vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src) {
                 acc.getTree()->fill(box, value, /*active=*/true);
             }
         });
+    if (overflow)
+        throw GridError(context + " holds values beyond float32's range (3.4e38), in which grids hold densities");
     return out;
 }
 
@@ -67,7 +74,7 @@ GridError unsupported_value_type(const std::string& type, const std::string& con
 /// The grid as a float fog volume, or GridError for value types we cannot render.
 vdb::FloatGrid::Ptr to_float_fog(const vdb::GridBase::Ptr& grid, const std::string& context) {
     vdb::FloatGrid::Ptr out = vdb::gridPtrCast<vdb::FloatGrid>(grid);
-    if (!out) grid->apply<ConvertibleGrids>([&out](const auto& g) { out = convert_to_float(g); });
+    if (!out) grid->apply<ConvertibleGrids>([&](const auto& g) { out = convert_to_float(g, context); });
     if (!out) throw unsupported_value_type(grid->valueType(), context);
     if (out->getGridClass() == vdb::GRID_LEVEL_SET) {
         vdb::tools::sdfToFogVolume(*out);  // also sets the class to fog volume
@@ -183,8 +190,9 @@ void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompre
     meta.insertMeta(vdb::GridBase::META_GRID_NAME, vdb::StringMetadata(name));
     meta.insertMeta(vdb::GridBase::META_GRID_CLASS, vdb::StringMetadata(vdb::GridBase::gridClassToString(vdb::GRID_FOG_VOLUME)));
     meta.insertMeta(vdb::GridBase::META_GRID_CREATOR, vdb::StringMetadata("pcvr"));
-    const vdb::GridBase::ConstPtr out =
-        data_->vdb->copyReplacingMetadataAndTransform(meta, detail::to_vdb_transform(index_to_world_));
+    const detail::VdbTransform xform = detail::to_vdb_transform(index_to_world_);
+    if (xform.world_scale != 1.0) meta.insertMeta(detail::kWorldScaleMetadata, vdb::DoubleMetadata(xform.world_scale));
+    const vdb::GridBase::ConstPtr out = data_->vdb->copyReplacingMetadataAndTransform(meta, xform.transform);
 
     // Write beside the target and rename: readers see the old file or the new one, never half of one.
     const std::string tmp = temp_path_for(path);

@@ -21,12 +21,15 @@
 #include <openvdb/io/io.h>
 #include <openvdb/openvdb.h>
 
+#include <array>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <sstream>
 #include <new>
 #include <string>
 #include <vector>
@@ -253,14 +256,8 @@ private:
                 // OpenVDB and this walk would part ways.
                 const vdb::Index32 fixed = vdb::Metadata::createMetadata(type)->size();
                 if (fixed != 0 && fixed != bytes) throw_corrupt(std::string("corrupt ") + what + " (" + type + " of size " + std::to_string(bytes) + ")");
-                if (type == vdb::io::DelayedLoadMetadata::staticTypeName() && bytes >= 4) {
-                    // Holds a per-leaf table whose entry count is resized blindly; each leaf takes
-                    // far more than one byte of the file.
-                    const int64_t here = tell();
-                    const uint32_t entries = read_u32();
-                    if (int64_t(entries) > size_) throw_corrupt(std::string("corrupt ") + what + " (delayed-load table)");
-                    is_.seekg(here);
-                }
+                if (type == vdb::io::DelayedLoadMetadata::staticTypeName() && bytes > 0)
+                    check_delayed_load_table(tell() + bytes, what);
             }
             is_.seekg(bytes, std::ios::cur);
         }
@@ -269,15 +266,89 @@ private:
         return end;
     }
 
+    /// DelayedLoadMetadata (ending at `end`) holds a per-leaf mask and a per-leaf size table, each
+    /// stored raw or as one blosc chunk: [leaf count][bytes][mask][bytes][sizes], bytes 0 for raw
+    /// data, and 0xFFFFFFFF for no sizes. OpenVDB resizes the tables to the count blindly and hands
+    /// blosc the chunk's own header, which blosc trusts (fuzzing found a corrupt one that made it
+    /// read past a 56-byte buffer): the count, both sizes and each chunk's header must agree.
+    /// Leaves the stream where it was.
+    void check_delayed_load_table(int64_t end, const char* what) {
+        const int64_t start = tell();
+        const std::string corrupt = std::string("corrupt ") + what + " (delayed-load table)";
+        if (end - start < 8) throw_corrupt(corrupt);
+        const uint32_t leaves = read_u32();
+        if (int64_t(leaves) > size_) throw_corrupt(corrupt);  // each leaf takes far more than a byte of the file
+        auto table = [&](int64_t bytes_per_leaf, bool optional) {
+            if (end - tell() < 4) throw_corrupt(corrupt);
+            const uint32_t stored = read_u32();
+            if (optional && stored == std::numeric_limits<uint32_t>::max()) return;
+            const int64_t raw = int64_t(leaves) * bytes_per_leaf;
+            if ((stored == 0 ? raw : int64_t(stored)) > end - tell()) throw_corrupt(corrupt);
+            if (stored == 0) {
+                is_.seekg(raw, std::ios::cur);
+                return;
+            }
+            std::array<uint8_t, 16> header{};  // blosc: uncompressed size at byte 4, chunk size at 12
+            if (stored < header.size()) throw_corrupt(corrupt);
+            is_.read(reinterpret_cast<char*>(header.data()), std::streamsize(header.size()));
+            auto u32 = [&header](int at) {
+                return uint32_t(header[at]) | uint32_t(header[at + 1]) << 8 | uint32_t(header[at + 2]) << 16 | uint32_t(header[at + 3]) << 24;
+            };
+            // OpenVDB pads tables under 128 bytes to 128 before compressing them.
+            const int64_t uncompressed = u32(4);
+            if (!(uncompressed == raw || (raw < 128 && uncompressed == 128)) || u32(12) != stored) throw_corrupt(corrupt);
+            is_.seekg(int64_t(stored) - int64_t(header.size()), std::ios::cur);
+        };
+        table(sizeof(vdb::io::DelayedLoadMetadata::MaskType), false);
+        table(sizeof(vdb::io::DelayedLoadMetadata::CompressedSizeType), true);
+        is_.seekg(start);
+    }
+
+    /// Where the transform (its map's type name) of the grid at the stream position starts; -1 in
+    /// old files, which store it after the tree. Leaves the stream where it was.
+    int64_t transform_position() {
+        const int64_t start = tell();
+        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) read_u32();
+        const int64_t meta_end = check_metamap("grid metadata");
+        is_.seekg(start);
+        return fileVersion() >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING ? meta_end : -1;
+    }
+
     /// Check what precedes a grid's tree (compression flags, metadata, transform type) at the stream
     /// position; leaves the stream where it was.
     void check_grid_header() {
         const int64_t start = tell();
-        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) read_u32();
-        const int64_t meta_end = check_metamap("grid metadata");
-        if (fileVersion() >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {  // else the transform comes later
-            is_.seekg(meta_end);
-            check_strings(1, "grid transform");  // the map's type name
+        const int64_t transform = transform_position();
+        if (transform >= 0) {
+            is_.seekg(transform);
+            check_strings(1, "grid transform");
+        }
+        is_.seekg(start);
+    }
+
+    /// OpenVDB refuses an affine map with a determinant below 3e-15 (voxels under about 1.4e-5 units)
+    /// with a bare "nearly singular matrix"; say what it means instead. (Grids written by pcvr_native
+    /// never hold one: they keep such scales in metadata, see grid_data.h.) Leaves the stream where it was.
+    void check_affine_map(const Entry& e) {
+        const int64_t start = tell();
+        const int64_t transform = transform_position();
+        if (transform >= 0) {
+            is_.seekg(transform);
+            if (read_string("grid transform") == vdb::math::AffineMap::mapType() && remaining() >= 16 * 8) {
+                vdb::Mat4d a;
+                a.read(is_);
+                const double det = std::abs(a.getMat3().det()), limit = 3.0 * vdb::math::Tolerance<double>::value();
+                if (det < limit) {
+                    std::ostringstream msg;
+                    msg << "grid " << quoted(display_name(e)) << " in " << quoted(path_) << " has voxels of about "
+                        << std::cbrt(det) << " world units (transform determinant " << det
+                        << "), smaller than OpenVDB can load (determinant at least " << limit
+                        << ", voxels of about 1.4e-05 units): store it in a finer unit (e.g. micrometres "
+                           "instead of metres) and scale the object instead, or write it with "
+                           "pcvr_native.Grid.write_vdb, which keeps such scales in metadata";
+                    throw GridError(msg.str());
+                }
+            }
         }
         is_.seekg(start);
     }
@@ -287,6 +358,7 @@ private:
     vdb::GridBase::Ptr read_at_current(const Entry& e) {
         const int64_t start = tell();
         check_grid_header();
+        check_affine_map(e);
         const int64_t end = check_layout(e);
         const std::string name = quoted(display_name(e));
         if (end >= 0 && e.gd.getEndPos() > 0 && end != e.gd.getEndPos())

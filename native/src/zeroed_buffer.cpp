@@ -5,6 +5,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstring>
 #include <new>
@@ -24,6 +25,8 @@ void populate(char* data, size_t bytes) {
         char* begin = data + c * kHugePage;
         const size_t size = std::min(kHugePage, bytes - c * kHugePage);
         if (madvise(begin, size, MADV_POPULATE_WRITE) != 0) {
+            // Out of memory: fail here rather than touch the pages and wake the out-of-memory killer.
+            if (errno != EINVAL) throw std::bad_alloc();
             // Kernels before 5.14: touch one byte per page instead.
             const size_t page = size_t(sysconf(_SC_PAGESIZE));
             for (size_t off = 0; off < size; off += page) std::memset(begin + off, 0, 1);
@@ -47,7 +50,12 @@ void* map_zero_pages(size_t bytes) {
         start = aligned;
         madvise(reinterpret_cast<void*>(start), bytes, MADV_HUGEPAGE);  // a hint: kernels without THP ignore it
     }
-    populate(reinterpret_cast<char*>(start), bytes);
+    try {
+        populate(reinterpret_cast<char*>(start), bytes);
+    } catch (...) {
+        munmap(reinterpret_cast<void*>(start), bytes);
+        throw;
+    }
     return reinterpret_cast<void*>(start);
 }
 

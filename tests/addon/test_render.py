@@ -50,19 +50,21 @@ def test_pixel_aspect_and_resolution_percentage(blob_object):
 
 
 @pytest.mark.parametrize("crop", [True, False], ids=["crop", "no_crop"])
-def test_render_border(blob_object, crop):
+@pytest.mark.parametrize("border", [(24, 64, 6, 33), (40, 41, 28, 29)], ids=["40x27", "one_pixel"])
+def test_render_border(blob_object, crop, border):
     scene = bs.setup(80, 60)
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.0)
     full = bs.exact(bs.world_grid(blob_object))
 
+    # The border in pixels from the bottom left, set half a pixel inside what Blender truncates it
+    # to; rows of images run top down.
+    x0, x1, y0, y1 = border
     render = scene.render
     render.use_border, render.use_crop_to_border = True, crop
-    render.border_min_x, render.border_max_x = 0.3, 0.8
-    render.border_min_y, render.border_max_y = 0.1, 0.55
+    render.border_min_x, render.border_max_x = (x0 + 0.5) / 80, (x1 + 0.5) / 80
+    render.border_min_y, render.border_max_y = (y0 + 0.5) / 60, (y1 + 0.5) / 60
     image = bs.xray(bs.render(scene))
 
-    # The border in pixels from the bottom left, as Blender truncates it; rows of images run top down.
-    x0, x1, y0, y1 = 24, 64, 6, 33
     rows, columns = slice(60 - y1, 60 - y0), slice(x0, x1)
     if crop:
         bs.assert_matches(image, full[rows, columns])

@@ -101,6 +101,8 @@ def test_slabs_of_sheared_kernels_sum_to_the_xray(part, projection):
     frame = frame_ortho if projection == "ortho" else frame_perspective
     cam = frame((values, xf), 2.5, direction=(0.6, 0.2, -0.5)).camera()
     sheets = optical_render(grid, cam, "regular")
-    xray = pn.render_xray(grid, cam, method="regular").astype(np.float64)
+    # The sheets splat linearised footprints everywhere; the X-ray switches to exact ones where the
+    # linearisation is off (1.8% here, close to stretched voxels), so it is held to the linearised ones.
+    xray = pn.render_xray(grid, cam, method="regular", footprint_tolerance=np.inf).astype(np.float64)
     tolerance = REGULAR_TOL if projection == "ortho" else 2e-4
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()

@@ -10,10 +10,12 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <vector>
 
 #include "pcvr/grid.h"
+#include "pcvr/render_control.h"
 #include "pcvr/view_projection.h"
 
 namespace pcvr {
@@ -21,6 +23,8 @@ namespace pcvr {
 struct PlannedBlock {
     uint32_t index;         ///< into Grid::blocks()
     bool needs_clip_test;   ///< straddles a clip plane: test each voxel's centre
+    bool exact_footprints;  ///< may hold voxels whose linearised footprint is off by more than
+                            ///< BlockPlanParams::footprint_tolerance (src/near_eye_splat.h)
     /// Pixel bounds of everything the block's footprints can touch (the whole plane when unknown).
     float min_x, min_y, max_x, max_y;
 };
@@ -35,6 +39,10 @@ struct BlockPlanParams {
     /// Cull blocks whose voxel centres all lie before the near or beyond the far plane (X-ray clips
     /// per voxel). The shaded renderer clips per sample instead and culls by depth itself.
     bool clip_planes = true;
+    /// Perspective views: blocks that may hold voxels whose linearised_footprint_error (src/
+    /// near_eye_splat.h) exceeds this are marked exact_footprints, and their bounds left open
+    /// (exact footprints reach further than linearised ones). Infinity: none.
+    double footprint_tolerance = std::numeric_limits<double>::infinity();
 };
 
 struct BlockPlan {
@@ -45,11 +53,20 @@ struct BlockPlan {
     double max_magnification = 0;
 };
 
+/// Strides are at most this, a Camera's largest side: near a perspective eye magnifications grow
+/// without bound, and post filters allocate per pixel of stride. (Bilinear spreading, which needs
+/// about one node per voxel, is wrong beyond 65536 pixels per voxel: the image then shows less than
+/// a voxel.)
+constexpr int kMaxStride = 1 << 16;
+
 /// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
 int automatic_stride(double pixels_per_voxel);
 /// The stride closest to one voxel per node (for bilinear spreading).
 int nearest_stride(double pixels_per_voxel);
 
-BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params);
+/// `control`, when given, is polled between chunks of blocks (a plan of a million blocks takes a
+/// quarter of a second) and stops the plan with Cancelled.
+BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params,
+                      const RenderControl* control = nullptr);
 
 }  // namespace pcvr

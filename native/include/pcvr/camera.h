@@ -32,6 +32,10 @@ public:
     const Mat4& projection() const { return projection_; }
     const Mat4& world_to_clip() const { return world_to_clip_; }
     const Mat4& clip_to_world() const { return clip_to_world_; }
+    /// projection * world_to_camera * object_to_world, composed from the right: a volume and a camera
+    /// both far from the origin (1e8 units) meet in camera space, where their offsets cancel before
+    /// the projection scales them.
+    Mat4 object_to_clip(const Mat4& object_to_world) const { return projection_ * (world_to_camera_ * object_to_world); }
 
     /// T: double, or a vector of doubles (several points at once).
     template <class T>
@@ -41,16 +45,25 @@ public:
     double ndc_x(double px) const { return (px + 0.5) / width_ * 2.0 - 1.0; }
     double ndc_y(double py) const { return 1.0 - (py + 0.5) / height_ * 2.0; }
 
-    /// The world-space ray through pixel coordinates (px, py), from the near to the far plane.
+    /// The ray through pixel coordinates (px, py), from the near to the far plane, in camera space.
+    Ray camera_ray(double px, double py) const;
+    /// The same ray in world space.
     Ray pixel_ray(double px, double py) const;
+    const Mat4& camera_to_world() const { return camera_to_world_; }
+    /// Where every ray of a perspective camera passes, in camera space (the origin for Blender's
+    /// cameras, shifted or not); meaningless for orthographic ones.
+    const Vec3& eye() const { return eye_; }
 
-    /// Rays are affine in pixel coordinates: ray(px, py) = ray(0, 0) + px * d/dpx + py * d/dpy.
+    /// Rays are affine in pixel coordinates: ray(px, py) = ray(0, 0) + px * d/dpx + py * d/dpy
+    /// (camera space; an object's own space is one affine map away, see ViewProjection).
     const Ray& ray_at_origin() const { return ray0_; }
     const Ray& ray_per_pixel_x() const { return ray_dx_; }
     const Ray& ray_per_pixel_y() const { return ray_dy_; }
 
 private:
     Mat4 world_to_camera_, projection_, world_to_clip_, clip_to_world_;
+    Mat4 camera_to_world_, clip_to_camera_;
+    Vec3 eye_;
     int width_, height_;
     bool orthographic_;
     Ray ray0_, ray_dx_, ray_dy_;

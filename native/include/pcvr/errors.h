@@ -33,6 +33,10 @@ struct CameraError : Error {
 struct InvalidArgument : Error {
     using Error::Error;
 };
+/// A render that would need more memory than it may use (Python: MemoryError).
+struct OutOfMemory : Error {
+    using Error::Error;
+};
 /// The caller asked to stop (Python: pcvr_native.RenderCancelled).
 struct Cancelled : Error {
     using Error::Error;

@@ -52,7 +52,8 @@ struct Mat4 {
 
     bool is_finite() const;
     bool is_affine() const;  ///< last row is (0, 0, 0, 1)
-    /// Inverse, or nothing when the matrix is singular relative to its own scale.
+    /// Inverse, or nothing when the matrix is singular relative to its own scale (for an affine
+    /// matrix, the scale of its 3x3 part: the translation does not count).
     std::optional<Mat4> inverse() const;
 };
 

@@ -27,6 +27,8 @@ public:
     SplatGrid() = default;
     /// The grid of stride `stride` covering a width x height image with `margin` extra nodes per side.
     SplatGrid(int width, int height, int stride, int margin);
+    /// What such a grid allocates (for MemoryBudget).
+    static uint64_t bytes(int width, int height, int stride, int margin);
 
     int stride() const { return stride_; }
     int first_node_x() const { return node_x0_; }  ///< node index of column 0 (negative: margin)

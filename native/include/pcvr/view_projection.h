@@ -67,6 +67,25 @@ public:
     double depth(const Vec3& index_pos) const { return dot(depth_gradient_, index_pos) + depth_offset_; }
     const Vec3& depth_gradient() const { return depth_gradient_; }
 
+    /// The ray through pixel coordinates (px, py) in index space (from the near to the far plane),
+    /// and the same ray's direction in world space.
+    Ray index_ray(double px, double py) const { return {o0_ + ox_ * px + oy_ * py, d0_ + dx_ * px + dy_ * py}; }
+    Vec3 world_direction(double px, double py) const { return wd0_ + wdx_ * px + wdy_ * py; }
+    /// A perspective camera's eye in index space (meaningless for orthographic views).
+    const Vec3& eye() const { return eye_; }
+    /// Perspective views: where a point lies relative to the eye, in index units. `depth` is its
+    /// distance from the plane through the eye parallel to the image (negative behind it),
+    /// `lateral` its distance from the line through the eye perpendicular to that plane, and
+    /// `line_scale_slope` how fast the world length per index length of rays changes with their
+    /// direction there (relative change per radian: 0 for cubic voxels, up to 2.6 for 1 x 1 x 2.5).
+    struct EyeOffset {
+        double depth, lateral, line_scale_slope;
+    };
+    EyeOffset eye_offset(const Vec3& index_pos) const;
+    /// The largest line_scale_slope of any direction: (k - 1) / (2 sqrt(k)), k the condition number
+    /// of the index-to-world metric.
+    double max_line_scale_slope() const { return max_line_scale_slope_; }
+
     /// The footprint of the voxel at `index_pos`; false when it is outside the clip range.
     bool footprint(const Vec3& index_pos, Footprint& out) const;
     /// The same, ignoring the near and far planes; false only behind the eye.
@@ -82,13 +101,17 @@ private:
 
     Camera camera_;
     Mat4 index_to_clip_;
-    Mat4 world_to_index_;
     // Pixel rays in index space (affine in pixel coordinates) and their world-space directions.
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;
     Vec3 wd0_, wdx_, wdy_;
     Vec3 gd0_, gdx_, gdy_;  // the index-space metric times d: (W d) . (W u) = (W^T W d) . u
     Vec3 depth_gradient_;
     double depth_offset_ = 0;
+
+    Vec3 eye_;
+    Vec3 depth_axis_;  // unit gradient of clip w in index space
+    Vec3 metric_[3];   // rows of L^T L, L the linear part of index_to_world: world length^2 per index direction
+    double max_line_scale_slope_ = 0;
 };
 
 template <class T, class Sqrt>

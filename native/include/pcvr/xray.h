@@ -20,6 +20,7 @@
 #include "pcvr/exact_xray.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
+#include "pcvr/splatter.h"
 #include "pcvr/zeroed_buffer.h"
 
 namespace pcvr {
@@ -36,6 +37,12 @@ struct XrayParams {
     int stride = 0;      ///< subgrid stride in pixels; 0 = automatic per depth band
     int threads = 0;     ///< 0 = all cores
     int pixel_step = 1;  ///< exact only: evaluate every step-th pixel
+    /// Perspective views: voxels whose linearised footprint would be off by more than this fraction
+    /// of its peak get exact per-ray footprints (0: all; infinity: none). Bilinear spreading, whose
+    /// spread mass is the linearised footprint's integral, takes them too.
+    double footprint_tolerance = kFootprintTolerance;
+    /// Bytes the render's buffers may take (pcvr/memory_budget.h); 0: what the machine has available.
+    uint64_t memory_limit = 0;
 };
 
 struct XrayStats {
@@ -45,6 +52,7 @@ struct XrayStats {
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
     std::vector<int> strides;      ///< the subgrid strides used (one per depth band)
+    uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     double seconds = 0;
 };
 

@@ -4,7 +4,10 @@ Anything that could crash the interpreter (reading corrupt files, importing bpy 
 runs in a subprocess, so a crash fails one test instead of killing pytest.
 """
 
+import functools
 import importlib.util
+import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -65,3 +68,20 @@ def affine_matrix(seed=2):
     m[:3, :3] = linear
     m[:3, 3] = [1.5, -2.0, 0.25]
     return m
+
+
+@functools.lru_cache(maxsize=None)
+def unprivileged_prefix():
+    """(command prefix, None) that runs a command as the user 'nobody' when this process is root
+    (who may read anything, so permission tests need another user), ([], None) when it is not root,
+    or (None, why) when that cannot work here: no setpriv, or a checkout that 'nobody' cannot read
+    (mktemp -d makes private directories)."""
+    if os.geteuid() != 0:
+        return [], None
+    if not shutil.which("setpriv"):
+        return None, "running as root without setpriv to drop privileges"
+    prefix = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    probe = subprocess.run(prefix + [sys.executable, "-c", "import pcvr_native"], capture_output=True, text=True)
+    if probe.returncode != 0:
+        return None, "the user 'nobody' cannot read this checkout's Python environment"
+    return prefix, None

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# make fuzz: replay the kept regression inputs, fuzz each target for FUZZ_SECONDS, then measure the
+# source coverage the corpus reaches with an instrumented replay. Usage: run.sh BUILD_DIR SECONDS
+# (BUILD_DIR holds the fuzz build, BUILD_DIR-coverage the coverage build). Fails when a target
+# crashes, leaks, hangs or aborts on a differential check; the input is left in BUILD_DIR/artifacts.
+set -euo pipefail
+build=$1 seconds=$2
+root=$(cd "$(dirname "$0")/../.." && pwd)
+mkdir -p "$build/artifacts"
+for target in read_vdb render; do
+    binary=$build/fuzz/fuzz_$target corpus=$build/corpus/$target
+    mkdir -p "$corpus"
+    echo "== fuzz_$target: the kept regressions"
+    "$binary" -runs=1 "$root"/tests/fuzz_regressions/$target/* 2>&1 | tail -1
+    echo "== fuzz_$target: $seconds s"
+    # -timeout: a render that has not returned in 20 s hangs; -rss_limit_mb: memory is bounded.
+    "$binary" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 -max_len=200000 -print_final_stats=1 \
+        -artifact_prefix="$build/artifacts/$target-" "$corpus" "$build/seeds/$target" > "$build/$target.log" 2>&1 ||
+        { tail -40 "$build/$target.log"; exit 1; }
+    grep -E "^#[0-9]+ +DONE|stat::number_of_executed_units|stat::peak_rss_mb" "$build/$target.log" | tail -3
+done
+
+echo "== coverage of the corpora (line coverage of the core, from an instrumented replay)"
+profiles=$build-coverage/profiles
+rm -rf "$profiles" && mkdir -p "$profiles"
+for target in read_vdb render; do
+    LLVM_PROFILE_FILE="$profiles/$target-%p.profraw" "$build-coverage/fuzz/fuzz_$target" -runs=0 \
+        "$build/corpus/$target" "$build/seeds/$target" > /dev/null 2>&1
+done
+llvm-profdata-14 merge -sparse "$profiles"/*.profraw -o "$profiles/merged.profdata"
+llvm-cov-14 report "$build-coverage/fuzz/fuzz_read_vdb" -object "$build-coverage/fuzz/fuzz_render" \
+    -instr-profile="$profiles/merged.profdata" "$root"/native/src "$root"/native/include | tee "$build/coverage.txt"

@@ -1,0 +1,123 @@
+"""What fuzzing and the property tests found (make fuzz, make stress; docs/reliability.md), each
+kept as a test. The fuzzer inputs that found them are in tests/fuzz_regressions/<target>/, which
+make fuzz replays before it fuzzes."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pcvr_native as pn
+from pcvr_native import cameras
+
+from _io_helpers import run_python
+from stress_helpers import max_error, measures_memory
+
+REGRESSIONS = Path(__file__).resolve().parents[1] / "fuzz_regressions"
+
+
+def framed_at_zero_size(grid):
+    """fuzz_read_vdb's view of a grid (native/fuzz/fuzz_scene.h, render_framed) whose active box
+    has no size: 16 x 16 pixels across 3e-30 units, 1e29 pixels per voxel."""
+    (i, j, k), _ = grid.index_bbox
+    x, y, z = (grid.index_to_world @ [i, j, k, 1.0])[:3]
+    half = 1e-30 * 1.5
+    view = np.eye(4)
+    view[:3, 3] = -x, -y, -(z + half)
+    projection = np.diag([1.0 / half, 1.0 / half, -1.0 / (2.0 * half), 1.0])
+    projection[2, 3] = -1.0
+    return pn.Camera(view, projection, 16, 16)
+
+
+def test_exact_footprint_spans_never_overlap():
+    """fuzz_render (tests/fuzz_regressions/render/near_eye_spans_overlap): the eye inside a volume
+    of 3e8-unit voxels in a 175-degree view. A voxel whose cone of rays reaches past the horizon
+    covers a row outside two roots; each span was widened by a node for safety, and where the roots
+    lay within two nodes the spans met and those nodes were added twice (16% of the peak)."""
+    values = np.array([-1.15625004e26, 0, 0, 0, -5.62500026e25] + [-3.12500008e24] * 20, np.float32).reshape(5, 1, 5)
+    index_to_world = np.array([
+        [89857048.787927911, 276552267.61449307, 133793123.29077759, -453918766.47681725],
+        [-133049720.59810719, -89499708.446124583, 276552267.61449307, -301666131.81618357],
+        [-276793602.57095122, 133793123.29077759, -89499708.446124583, 822564819.75156343], [0, 0, 0, 1]])
+    world_to_camera = np.array([
+        [-0.0064647503831789877, -0.83403192299883544, -0.55167831063161055, 72346050.465472534],
+        [0.99740100441770663, 0.03421186209632144, -0.063409659188899792, 13596595.714867121],
+        [0.071759622274879115, -0.55065442875797066, 0.83164310656687335, -130154396.62438598], [0, 0, 0, 1]])
+    projection = np.array([[0.039251659782720362, 0, 0, 0], [0, 0.028212130468830261, 0, 0],
+                           [0, 0, -1.0000000004079967, -33888290.471791863], [0, 0, -1, 0]])
+    grid = pn.Grid.from_dense(values, index_to_world)
+    cam = pn.Camera(world_to_camera, projection, 23, 32)
+    exact = pn.render_xray(grid, cam, method="exact", splat_kernel="gauss2.0")
+    for tolerance in (0.04, 0.0):
+        regular = pn.render_xray(grid, cam, method="regular", splat_kernel="gauss2.0", footprint_tolerance=tolerance)
+        assert max_error(regular, exact) < 2e-3  # measured 5.2e-4: the footprint table
+
+
+def test_footprint_wider_than_an_int_of_pixels():
+    """fuzz_read_vdb (tests/fuzz_regressions/read_vdb/empty_grid_framed_at_zero_size.vdb): a grid
+    framed at zero size put 1e30 pixels on a voxel, and the phase window's half width, converted to
+    int unclamped, overflowed (undefined behaviour, caught by the sanitizer build). At 2.5e9 pixels
+    per voxel every method still agrees with exact."""
+    values = np.ones((1, 1, 1), np.float32)
+    grid = pn.Grid.from_dense(values, np.eye(4))
+    cam = pn.Camera(cameras.look_at((0, 0, 10), (0, 0, 0), (0, 1, 0)), cameras.ortho(-1e-9, 1e-9, -1e-9, 1e-9, 1, 100), 4, 4)
+    exact = pn.render_xray(grid, cam, method="exact")
+    for method in ("regular", "pcvr"):
+        assert max_error(pn.render_xray(grid, cam, method=method), exact) < 2e-3, method
+    empty = pn.read_vdb(REGRESSIONS / "read_vdb" / "empty_grid_framed_at_zero_size.vdb")
+    for method in ("exact", "regular", "pcvr", "bilinear_spread"):
+        assert not pn.render_xray(empty, framed_at_zero_size(empty), method=method).any(), method
+
+
+def test_delayed_load_table_whose_blosc_header_disagrees():
+    """fuzz_read_vdb, after 110,000 runs: grid metadata of type DelayedLoadMetadata holds a per-leaf
+    table as a blosc chunk, which OpenVDB reads into a buffer of the stored size and hands to blosc,
+    which trusts the chunk's own header. A header saying 58 bytes for a chunk stored as 56 read past
+    the buffer (AddressSanitizer: heap-buffer-overflow in LZ4_decompress_safe, via list_grids). The
+    reader now checks both sizes against the header first. Kept input: a pcvr_native file with that
+    one size field changed."""
+    path = REGRESSIONS / "read_vdb" / "delayed_load_blosc_header.vdb"
+    for call in (pn.read_vdb, pn.list_grids):
+        with pytest.raises(pn.VDBReadError, match=r"delayed_load_blosc_header\.vdb.*corrupt grid metadata \(delayed-load table\)"):
+            call(path)
+
+
+def test_bilinear_spreading_a_voxel_wider_than_the_int_range():
+    """fuzz_read_vdb (tests/fuzz_regressions/read_vdb/one_voxel_framed_at_zero_size.vdb, one voxel
+    two index units from its block's origin): at 1e29 pixels per voxel bilinear spreading's stride is
+    clamped to 65536, its nodes lay 1e25 apart within the block, and the batched splat converted the
+    block origin's node to int out of range (undefined). Such views now splat voxel by voxel."""
+    grid = pn.read_vdb(REGRESSIONS / "read_vdb" / "one_voxel_framed_at_zero_size.vdb")
+    cam = framed_at_zero_size(grid)
+    for method in ("exact", "regular", "pcvr", "bilinear_spread"):
+        assert np.isfinite(pn.render_xray(grid, cam, method=method)).all(), method
+
+
+@measures_memory
+def test_stride_from_a_corner_at_the_eye_stays_bounded():
+    """test_properties (test_never_nan_and_the_same_for_any_thread_count): a block's corner 1e-18
+    in front of the eye made its magnification 1.4e18 pixels per voxel, bilinear spreading's stride
+    the int conversion of half that, and its post filter's tables (per pixel of stride) took 24 GB
+    before the out-of-memory killer took the process. Strides are clamped to 65536 now; under a
+    2 GiB address-space limit the render completes."""
+    proc = run_python("""
+        import resource, numpy as np, pcvr_native as pn
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+        values = np.array([[[1.0, 0.6125948], [0.1778497, 0.1314025]],
+                           [[1.6452135, 1.8342355], [1.252608, 1.4860435]]], np.float32)
+        index_to_world = np.array([[1.0, 0, 0, -0.5], [0, 1.0, 0, -0.5], [0, 0, 1.5625, -0.78125], [0, 0, 0, 1.0]])
+        world_to_camera = np.array([[-1.0, 0, 0, -0.5],
+                                    [0, 0.99999999999998745, -1.5894571941954538e-07, 0.49999987582365041],
+                                    [0, -1.5894571941954538e-07, -0.99999999999998745, -0.78125007947284997],
+                                    [0, 0, 0, 1.0]])
+        projection = np.array([[1.830487721712452, 0, 0, 0], [0, 1.830487721712452, 0, 0],
+                               [0, 0, -1.0002000200020003, -2.3210265194583353], [0, 0, -1.0, 0]])
+        grid = pn.Grid.from_dense(values, index_to_world)
+        for method in ('exact', 'regular', 'pcvr', 'bilinear_spread'):
+            stats = {}
+            image = pn.render_xray(grid, pn.Camera(world_to_camera, projection, 40, 40), method=method, stats=stats)
+            assert np.isfinite(image).all()
+            print(method, max(stats.get('strides') or [0]))
+    """)
+    assert proc.returncode == 0, proc.stderr
+    assert all(int(line.split()[1]) <= 65536 for line in proc.stdout.splitlines()), proc.stdout
