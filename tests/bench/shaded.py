@@ -191,6 +191,7 @@ def run_peers(scene_spec: dict, vdb: Path, view_set: dict, table, views_for: dic
             reference = np.load(view["reference"]["image_path"])
             view["methods"][key] = {
                 "times": rec["seconds"], "runs": len(rec["seconds"]), "median_s": statistics.median(rec["seconds"]),
+                "cpu_s": statistics.median(rec["cpu_seconds"]),
                 "vs_reference": errors(np.load(rec["image"]), reference, step), "image_path": rec["image"],
                 **{k: rec[k] for k in ("warmup_s", "camera_error", "software") if k in rec}}
 

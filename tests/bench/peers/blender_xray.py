@@ -174,9 +174,13 @@ def eevee_settings(scene, config, view):
     return e
 
 
-def render_seconds():
-    t0 = time.perf_counter()
+def render_seconds(cpu=None):
+    """Wall seconds of one render; its CPU seconds (the process's, render threads included) are
+    appended to `cpu` when given."""
+    c0, t0 = time.process_time(), time.perf_counter()
     bpy.ops.render.render(write_still=False)
+    if cpu is not None:
+        cpu.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
@@ -211,12 +215,13 @@ def render_views(job, scene, configure, read, log, warm_key=lambda config: confi
             record["warmup_s"] = render_seconds()
             log(f"{config['key']} {view_key}: warm-up {record['warmup_s']:.1f} s")
             warmed.add(warm_key(config))
-        seconds, _ = budget.repeat(lambda: (render_seconds(), None))
+        cpu = []
+        seconds, _ = budget.repeat(lambda: (render_seconds(cpu), None))
         budget.record(config["key"], view, min(seconds))
         image, extra = read(scene, config)
         path = out_dir / f"{config['key']}_{view_key}.npy"
         np.save(path, np.asarray(image, dtype=np.float32))
-        record.update(seconds=seconds, image=str(path), software=software(config["engine"]), **extra)
+        record.update(seconds=seconds, cpu_seconds=cpu, image=str(path), software=software(config["engine"]), **extra)
         log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, "
             f"camera error {record['camera_error']:.1e}")
         Path(job["result"]).write_text(json.dumps(results))
