@@ -213,7 +213,7 @@ def plot_methods_m4(sh: dict, path: Path) -> list[str] | None:
 
 
 def plot_side_by_side(sh: dict, path: Path) -> list[str] | None:
-    """Every renderer's image of the smallest perspective view, whole and a window on the terminator."""
+    """Every renderer's image of the smallest perspective view, whole and a window on its shadowed side."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -231,17 +231,20 @@ def plot_side_by_side(sh: dict, path: Path) -> list[str] | None:
         if "image_path" in m and Path(m["image_path"]).exists():
             panels.append((table[key]["label"], np.load(m["image_path"]), m))
     h, w = v["height"], v["width"]
-    window = (slice(int(0.30 * h), int(0.55 * h)), slice(int(0.25 * w), int(0.50 * w)))
-    fig, axes = plt.subplots(2, len(panels), figsize=(2.6 * len(panels), 5.6), squeeze=False)
-    for col, (label, image, m) in enumerate(panels):
+    window = (slice(int(0.50 * h), int(0.75 * h)), slice(int(0.25 * w), int(0.50 * w)))
+    cols = math.ceil(len(panels) / 2)
+    # Two bands of panels, each a row of whole images over a row of their windows.
+    fig, axes = plt.subplots(4, cols, figsize=(2.6 * cols, 11.0), squeeze=False)
+    for i, (label, image, m) in enumerate(panels):
+        row, col = 2 * (i // cols), i % cols
         title = label if m is None else f"{label}\n{fmt_s(m['median_s'])}"
         if label.startswith("ray caster"):
             title += f"\nevery {v['reference']['step']} px"
-        axes[0, col].imshow(display(image), interpolation="nearest")
-        axes[0, col].set_title(title, fontsize=7.5)
-        axes[1, col].imshow(display(image[window]), interpolation="nearest")
+        axes[row, col].imshow(display(image), interpolation="nearest")
+        axes[row, col].set_title(title, fontsize=7.5)
+        axes[row + 1, col].imshow(display(image[window]), interpolation="nearest")
     save_image_grid(fig, axes, path, f"Shaded CT phantom, perspective {w}×{h}: the same transfer function, sun and "
-                    "camera; bottom: a window on the lit side and the terminator", fontsize=9, dpi=80)
+                    "camera; below each image a window on its shadowed side", fontsize=9, dpi=80)
     return [p[0] for p in panels]
 
 
