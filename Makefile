@@ -86,7 +86,7 @@ $(EXTENSION_ZIP): $(VENV)/.native-stamp blender_manifest.toml tools/build_extens
 
 # The benchmark's own packages: the peers (VTK's wheel renders offscreen through EGL; EEVEE needs an
 # OpenGL context, which Mesa's EGL gives without a display) and the analysis (scipy, matplotlib).
-# QUICK=1: small volumes and budgets, about 2 minutes.
+# QUICK=1: small volumes and budgets, about 3 minutes.
 BENCH_PIP := "vtk>=9.4" scipy matplotlib
 BENCH_APT := libegl1 libegl-mesa0 libgl1-mesa-dri
 bench: $(VENV)/.native-stamp

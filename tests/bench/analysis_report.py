@@ -1,5 +1,5 @@
-"""docs/benchmarks.md's sections on the paper's analysis (figures.py), the kernel search
-(kernel_search.py) and what the shaded rows still need. Reads the results dict only."""
+"""docs/benchmarks.md's sections on the paper's analysis (figures.py) and the kernel search
+(kernel_search.py). Reads the results dict only."""
 
 from __future__ import annotations
 
@@ -185,17 +185,3 @@ def four_tap_verdict(dss, keys, best_bil, err) -> str:
     if not beaten:
         return "no pair with a 4-tap post filter beats it on any data set, so it is the whole front."
     return "pairs with a 4-tap post filter beat it on " + ", ".join(beaten) + " (see the table)."
-
-
-def shaded_section() -> list[str]:
-    return ["## Shaded mode: what is left", "",
-            "The shaded and MIP rows wait for `pcvr_native.render_shaded` and `render_mip`. The benchmark is "
-            "table-driven (`tests/bench/methods.py`: one list of methods and peers per mode), so they need: a "
-            "`SHADED` list (PCVR methods with a transfer function and a sun; Cycles and EEVEE with a Principled "
-            "Volume, the same transfer function as a colour ramp and a sun lamp; VTK's volume mapper with the same "
-            "transfer function, shading on and the light's ambient colour set, as VTK's default black ambient drops "
-            "the ambient term); a `render_shaded` branch in evidence.render_native and in each peer child "
-            "(peers/blender_xray.py, peers/vtk_xray.py: material and light set-up, RGBA read-back instead of "
-            "transmittance); the reference (PCVR's `raycast` method) in evidence.bench_dataset; and error only "
-            "where the models agree (VTK with the same transfer function is the closest). Plots, tables and the "
-            "headline already iterate over whatever the table holds.", ""]

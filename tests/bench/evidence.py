@@ -60,9 +60,11 @@ def render_native(grid, cam, params: dict):
     return img, time.perf_counter() - t0, stats
 
 
-def time_native(grid, cam, table, quick: bool):
-    """Each native method: first image, its stats and run times (orders rotated per repetition)."""
-    out = {m.key: {"times": []} for m in table}
+def time_native(grid, cam, table, quick: bool, render=render_native, budget_s: float = NATIVE_BUDGET_S):
+    """Each native method: first image, the stats of every run and run times (orders rotated per
+    repetition; as many runs as fit `budget_s` seconds per method, within REPS and MIN_REPS).
+    `render(grid, cam, params)` returns (image, seconds, stats)."""
+    out = {m.key: {"times": [], "stats": []} for m in table}
     keys = [m.key for m in table]
     reps = None
     rep = 0
@@ -72,8 +74,9 @@ def time_native(grid, cam, table, quick: bool):
             entry = out[key]
             if reps is not None and len(entry["times"]) >= reps[key]:
                 continue
-            img, t, stats = render_native(grid, cam, next(m for m in table if m.key == key).params)
+            img, t, stats = render(grid, cam, next(m for m in table if m.key == key).params)
             entry["times"].append(t)
+            entry["stats"].append(stats)
             if rep == 0:
                 entry["image"], entry["stride"] = img, stats.get("stride")
             ran = True
@@ -81,7 +84,7 @@ def time_native(grid, cam, table, quick: bool):
             break
         if rep == 0:
             hi, lo = (3, 1) if quick else (REPS, MIN_REPS)
-            reps = {k: max(lo, min(hi, int(NATIVE_BUDGET_S / max(v["times"][0], 1e-9)))) for k, v in out.items()}
+            reps = {k: max(lo, min(hi, int(budget_s / max(v["times"][0], 1e-9)))) for k, v in out.items()}
         rep += 1
     return out
 

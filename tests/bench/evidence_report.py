@@ -254,14 +254,20 @@ def plot_side_by_side(xr: dict, path: Path) -> list[str] | None:
                                fontsize=8)
         axes[1, col].imshow(0.5 + 10.0 * (images[k] - ref)[window] / peak, cmap="gray", vmin=0, vmax=1,
                             interpolation="nearest")
+    save_image_grid(fig, axes, path, f"{ds['label']}, {view_label(vk, view)}: a window on the skull's rim; bottom: "
+                    "minus regular splatting, ×10")
+    return [table[k]["label"] for k in keys]
+
+
+def save_image_grid(fig, axes, path: Path, title: str, fontsize: float = 10, dpi: int = 90) -> None:
+    """Axes off, the title on top, written to `path` and closed: the end of every figure of images."""
+    import matplotlib.pyplot as plt
     for ax in axes.flat:
         ax.axis("off")
-    fig.suptitle(f"{ds['label']}, {view_label(vk, view)}: a window on the skull's rim; bottom: minus regular "
-                 "splatting, ×10", fontsize=10)
+    fig.suptitle(title, fontsize=fontsize)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
-    return [table[k]["label"] for k in keys]
 
 
 def section(results: dict, doc_dir: Path, fig_dir: Path) -> list[str]:

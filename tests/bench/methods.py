@@ -1,9 +1,8 @@
 """What the benchmark compares: one table of methods and peers per rendering mode.
 
 Each entry names a runner (``native``: pcvr_native in this process; ``blender`` and ``vtk``: a child
-process per volume, see peers/) and the parameters that runner takes. Adding the shaded rows is
-adding a ``"shaded"`` list here plus a ``render_shaded`` branch in each runner; evidence.py,
-the plots and the report iterate over whatever the table holds.
+process per volume, see peers/) and the parameters that runner takes. evidence.py (X-ray) and
+shaded.py, their plots and reports iterate over whatever the tables hold.
 
 Peer configurations form a ladder from cheap and rough to slow and accurate, so the time-versus-
 error plot shows each peer's whole curve. A peer render whose predicted time (its time on the
@@ -54,9 +53,35 @@ XRAY = [
              {"mapper": "fixed_point", "step": st}) for st in (1.0, 0.25)],
 ]
 
-# Shaded and MIP rows join when pcvr_native.render_shaded / render_mip land (see the report's
-# "Shaded mode" section for what each runner needs).
-SHADED: list[Method] = []
+# Shaded (shaded.py): the paper's Fig 10a methods, then the peers with the same transfer function, sun
+# and camera. "post_filter" of regular splatting is unused (stride 1).
+SHADED = [
+    Method("pcvr", "PCVR (Catmull-Rom post)", "pcvr", "native",
+           {"method": "pcvr", "post_filter": "catmull_rom"}, default=True),
+    Method("pcvr_gpost", "PCVR (gauss1.4 post)", "pcvr", "native", {"method": "pcvr", "post_filter": "gauss1.4"}),
+    Method("pcvr_bpost", "PCVR (bilinear post)", "pcvr", "native", {"method": "pcvr", "post_filter": "bilinear"}),
+    Method("regular", "regular splatting", "splatting", "native", {"method": "regular", "post_filter": "bilinear"}),
+    # Variants of PCVR, at m=4 only (shaded.VARIANT_VIEW): what it takes to meet the shaded targets.
+    Method("pcvr_l2", "PCVR (Catmull-Rom post), stride 2", "pcvr", "native",
+           {"method": "pcvr", "post_filter": "catmull_rom", "stride": 2, "variant": True}),
+    Method("pcvr_bpost_l2", "PCVR (bilinear post), stride 2", "pcvr", "native",
+           {"method": "pcvr", "post_filter": "bilinear", "stride": 2, "variant": True}),
+    # VTK's fixed-point ray caster with its frame-rate adaptation off (see peers/vtk_shaded.py): sample
+    # distance in voxels.
+    *[Method(f"vtk_fixed_{st:g}", f"VTK fixed-point, step {st:g}", "vtk", "vtk", {"mapper": "fixed_point", "step": st})
+      for st in (1.0, 0.5)],
+    # ... and as it comes (AutoAdjustSampleDistances on, its own sample distance): what it trades for speed.
+    Method("vtk_fixed_defaults", "VTK fixed-point, its defaults", "vtk", "vtk", {"mapper": "fixed_point", "defaults": True}),
+    # Cycles with its denoiser, as a user renders: ray marching (as the X-ray rows) and Blender's default
+    # volume mode, null scattering. "slow": seconds even on the quick run's small volume, so it skips them.
+    *[Method(f"cycles_s{s}{'_rm' if rm else ''}", f"Cycles {s} spp, {'ray marching' if rm else 'null scattering'}, denoised",
+             "cycles", "blender", {"engine": "CYCLES", "samples": s, "denoise": True, "ray_marching": rm, "slow": not rm})
+      for s, rm in ((4, True), (16, True), (16, False))],
+    # EEVEE: Blender's defaults (8 px tiles, 64 slices) and a finer froxel grid; volumetric shadows on.
+    *[Method(f"eevee_t{t}_z{z}", f"EEVEE {t}px tiles, {z} slices", "eevee", "blender",
+             {"engine": "EEVEE", "samples": 1, "tile_size": str(t), "slices": z, "slow": t < 8})
+      for t, z in ((8, 64), (2, 128))],
+]
 
 MODES = {"xray": XRAY, "shaded": SHADED}
 

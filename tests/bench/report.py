@@ -13,6 +13,7 @@ from pathlib import Path
 
 import analysis_report
 import evidence_report
+import shaded_report
 import speed_of_light as sol
 import viewport_bench
 
@@ -542,7 +543,7 @@ def write(results: dict, output: Path) -> None:
     lines += evidence_report.section(results, output.parent, fig_dir)
     lines += analysis_report.figures_section(results.get("figures"), output.parent, fig_dir)
     lines += analysis_report.kernel_section(results.get("kernel_search"))
-    lines += analysis_report.shaded_section()
+    lines += shaded_report.section(results, output.parent, fig_dir)
     lines += viewport_bench.section(results.get("viewport"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))

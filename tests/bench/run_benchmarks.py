@@ -8,6 +8,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | part        | module           | what                                                                    |
 |-------------|------------------|-------------------------------------------------------------------------|
 | comparison  | evidence.py      | methods and peers of methods.py on datasets.py through views.py          |
+| shaded      | shaded.py        | the paper's Fig 10a, the perspective targets, VTK, Cycles and EEVEE     |
 | figures     | figures.py       | the paper's Figs 4-7, 11, 12 and the aliasing measurement (docs/figures) |
 | search      | kernel_search.py | splat kernel / post filter pairs, numpy prototype                       |
 | throughput  | this file        | PCVR's own speed, memory and limits on large volumes (below)             |
@@ -429,6 +430,8 @@ def parse_args(argv=None):
                    "sparse; --quick: blobs ct; none given: skip it)")
     p.add_argument("--skip-peers", nargs="*", default=[], help="method keys (methods.py) not to run")
     p.add_argument("--peer-timeout", type=float, default=900.0, help="seconds one peer child may run")
+    p.add_argument("--no-shaded", dest="shaded", action="store_false",
+                   help="skip the shaded comparison (Fig 10a, perspective targets, shaded peers)")
     p.add_argument("--no-figures", dest="figures", action="store_false", help="skip the paper's figures")
     p.add_argument("--no-search", dest="search", action="store_false", help="skip the kernel search")
     p.add_argument("--no-throughput", dest="throughput", action="store_false",
@@ -452,7 +455,8 @@ def parse_args(argv=None):
 
 
 def run_evidence(args, results: dict, results_path: Path, output: Path) -> None:
-    """The comparison, the figures and the kernel search (the parts a reader judges PCVR by)."""
+    """The comparisons (X-ray, shaded), the figures and the kernel search (the parts a reader judges
+    PCVR by)."""
     import evidence
     import figures
     import kernel_search
@@ -461,6 +465,11 @@ def run_evidence(args, results: dict, results_path: Path, output: Path) -> None:
     if args.datasets:
         log("X-ray comparison: " + ", ".join(args.datasets))
         results["xray"] = evidence.run(args, workdir / "evidence", log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
+    if args.shaded:
+        import shaded
+        log("shaded: the paper's Fig 10a, the perspective targets, VTK, Cycles and EEVEE")
+        results["shaded"] = shaded.run(args, workdir / "shaded", log)
         results_path.write_text(json.dumps(results, indent=1, default=float))
     if args.figures:
         results["figures"] = figures.run(fig_dir, args.quick, log)

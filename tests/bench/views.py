@@ -64,19 +64,24 @@ def oblique(shape, index_to_world, magnification: float, direction=VIEW_DIRECTIO
             "magnification": float(magnification), "depth_range": _depth_range(world, w2c)}
 
 
-def perspective(shape, index_to_world, magnification: float = PERSPECTIVE_MAGNIFICATION) -> dict:
+def perspective(shape, index_to_world, magnification: float = PERSPECTIVE_MAGNIFICATION, square: int | None = None) -> dict:
     """Pinhole view along VIEW_DIRECTION, PERSPECTIVE_DISTANCE diagonals from the centre, with
-    `magnification` pixels per voxel there, framing the whole volume."""
+    `magnification` pixels per voxel there, framing the whole volume; or, with `square`, a square image
+    of that many pixels a side that the volume fills (the magnification then follows from it)."""
     xf = np.asarray(index_to_world, dtype=np.float64)
     world, centre, diag, d = _framing(shape, xf)
     distance = PERSPECTIVE_DISTANCE * diag
     w2c = look_at(centre - d * distance, centre, VIEW_UP)
     voxel = float(np.linalg.svd(w2c[:2, :3] @ xf[:3, :3], compute_uv=False).min())
-    focal = magnification * distance / voxel  # pixels per unit of x / depth
     cam = world @ w2c[:3, :3].T + w2c[:3, 3]
-    half = (np.abs(cam[:, :2]) / -cam[:, 2:3]).max(axis=0) * focal
-    width = int(math.ceil(2.0 * half[0])) + 2 * MARGIN_PIXELS
-    height = int(math.ceil(2.0 * half[1])) + 2 * MARGIN_PIXELS
+    extent = (np.abs(cam[:, :2]) / -cam[:, 2:3]).max(axis=0)  # half the image per unit of focal length
+    if square is not None:
+        focal = (square - 2 * MARGIN_PIXELS) / (2.0 * float(extent.max()))
+        magnification = focal * voxel / distance
+        width = height = int(square)
+    else:
+        focal = magnification * distance / voxel  # pixels per unit of x / depth
+        width, height = (int(math.ceil(2.0 * h * focal)) + 2 * MARGIN_PIXELS for h in extent)
     return {"type": "PERSP", "matrix_world": np.linalg.inv(w2c).tolist(),
             "lens": focal * SENSOR_WIDTH / max(width, height), "sensor_width": SENSOR_WIDTH,
             "clip_start": distance - 0.75 * diag, "clip_end": distance + 0.75 * diag,

@@ -1,10 +1,11 @@
 """Peer renderers (Cycles, EEVEE, VTK) run in child processes, one per volume and runner.
 
-A child gets a job file (the volume's .vdb, the views, the configurations, the budget) and writes a
-result file with one record per configuration and view: render times, the path of its X-ray image
-(.npy), the camera's distance from the view's matrices, or the reason it was skipped. A peer that
-cannot run at all (package missing, no offscreen context, a crash) comes back as one reason for all
-its records, so the report lists it as skipped instead of dropping it.
+A child gets a job file (the volume's .vdb, the views, the configurations, the budget; for shaded
+renders the scene) and writes a result file with one record per configuration and view: render
+times, the path of its image (.npy: the X-ray integral, or premultiplied RGBA), the camera's distance
+from the view's matrices, or the reason it was skipped. A peer that cannot run at all (package
+missing, no offscreen context, a crash) comes back as one reason for all its records, so the report
+lists it as skipped instead of dropping it.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[2]
-SCRIPTS = {"blender": HERE / "blender_xray.py", "vtk": HERE / "vtk_xray.py"}
+# (runner, mode) -> the child script; the job's "mode" picks it ("xray" when absent).
+SCRIPTS = {(runner, mode): HERE / f"{runner}_{mode}.py" for runner in ("blender", "vtk") for mode in ("xray", "shaded")}
 # EEVEE needs an OpenGL context: without a display, Mesa's EGL on its surfaceless platform (llvmpipe)
 # gives it one. VTK picks its EGL render window the same way.
 CHILD_ENV = {"EGL_PLATFORM": "surfaceless", "VTK_DEFAULT_OPENGL_WINDOW": "vtkEGLRenderWindow"}
@@ -44,7 +46,8 @@ def run(runner: str, job: dict, workdir: Path, timeout_s: float, log) -> dict:
     if reason is None:
         env = dict(os.environ, **CHILD_ENV)
         try:
-            proc = subprocess.run([sys.executable, str(SCRIPTS[runner]), str(job_path)], env=env,
+            script = SCRIPTS[runner, job.get("mode", "xray")]
+            proc = subprocess.run([sys.executable, str(script), str(job_path)], env=env,
                                   capture_output=True, text=True, timeout=timeout_s)
             (workdir / "child.log").write_text(proc.stdout + proc.stderr)
             for line in proc.stderr.splitlines():

@@ -43,41 +43,50 @@ def log(msg):
     print(f"[blender {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
 
-def absorption_material(k):
-    mat = bpy.data.materials.new("xray")
+def volume_material(name, shader):
+    """A material whose Volume output is a new `shader` node: (material, that node, the grid's density
+    as a socket to feed it)."""
+    mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     out = nodes.new("ShaderNodeOutputMaterial")
-    absorb = nodes.new("ShaderNodeVolumeAbsorption")
-    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node = nodes.new(shader)
+    links.new(node.outputs["Volume"], out.inputs["Volume"])
     attr = nodes.new("ShaderNodeAttribute")
     attr.attribute_type = 'GEOMETRY'
     attr.attribute_name = "density"
-    scale = nodes.new("ShaderNodeMath")
+    return mat, node, attr.outputs["Fac"]
+
+
+def absorption_material(k):
+    mat, absorb, density = volume_material("xray", "ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    scale = mat.node_tree.nodes.new("ShaderNodeMath")
     scale.name = "k"
     scale.operation = 'MULTIPLY'
     scale.inputs[1].default_value = k
-    links.new(attr.outputs["Fac"], scale.inputs[0])
-    links.new(scale.outputs["Value"], absorb.inputs["Density"])
-    links.new(absorb.outputs["Volume"], out.inputs["Volume"])
+    mat.node_tree.links.new(density, scale.inputs[0])
+    mat.node_tree.links.new(scale.outputs["Value"], absorb.inputs["Density"])
     return mat
 
 
-def build_scene(vdb_path, k):
+def build_scene(vdb_path, material, world_colour, transparent):
+    """A fresh scene: the .vdb file on a Volume object with `material()`, a uniform world of
+    `world_colour`, a camera, and the settings that would change pixel values pinned (see above)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("white")
+    world = bpy.data.worlds.new("world")
     world.use_nodes = True
     bg = world.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Color"].default_value = (*world_colour, 1.0)
     bg.inputs["Strength"].default_value = 1.0
     scene.world = world
     volume = bpy.data.volumes.new("volume")
     volume.filepath = vdb_path
     obj = bpy.data.objects.new("volume", volume)
     scene.collection.objects.link(obj)
-    volume.materials.append(absorption_material(k))
+    volume.materials.append(material())
     cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
@@ -85,7 +94,7 @@ def build_scene(vdb_path, k):
     scene.view_settings.look = 'None'
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
-    scene.render.film_transparent = False
+    scene.render.film_transparent = transparent
     scene.render.resolution_percentage = 100
     scene.render.use_compositing = False
     scene.render.use_sequencer = False
@@ -124,13 +133,8 @@ def blender_matrices(scene, view):
 
 def configure(scene, config, view, k):
     bpy.data.materials["xray"].node_tree.nodes["k"].inputs[1].default_value = k
-    engine = config["engine"]
-    if engine == "CYCLES":
-        scene.render.engine = 'CYCLES'
-        c = scene.cycles
-        c.device = 'CPU'
-        c.samples = config["samples"]
-        c.use_adaptive_sampling = False
+    if config["engine"] == "CYCLES":
+        c = cycles_settings(scene, config)
         c.use_denoising = False
         c.volume_biased = True
         c.volume_step_rate = config["step_rate"]
@@ -138,26 +142,45 @@ def configure(scene, config, view, k):
         c.max_bounces = 0
         c.volume_bounces = 0
         c.transparent_max_bounces = 0
-        c.seed = 0
         for mat in bpy.data.materials:
             mat.cycles.volume_step_rate = 1.0
     else:
-        scene.render.engine = 'BLENDER_EEVEE'
-        e = scene.eevee
-        e.taa_render_samples = config["samples"]
-        e.volumetric_tile_size = config["tile_size"]
-        e.volumetric_samples = config["slices"]
-        e.volumetric_sample_distribution = 0.0  # slices evenly spaced in depth, as along a ray
-        e.use_volumetric_shadows = False
-        if hasattr(e, "use_volume_custom_range"):
-            e.use_volume_custom_range = True
-        # The froxel grid spans the clip range; fit it to the volume's depth range.
-        e.volumetric_start, e.volumetric_end = view["depth_range"]
+        eevee_settings(scene, config, view).use_volumetric_shadows = False
 
 
-def render_seconds():
-    t0 = time.perf_counter()
+def cycles_settings(scene, config):
+    """Cycles on the CPU at the configuration's samples, every pixel sampled alike, a fixed seed."""
+    scene.render.engine = 'CYCLES'
+    c = scene.cycles
+    c.device = 'CPU'
+    c.samples = config["samples"]
+    c.use_adaptive_sampling = False
+    c.seed = 0
+    return c
+
+
+def eevee_settings(scene, config, view):
+    """EEVEE's render samples and froxel grid (tile size, slices) fitted to the volume's depth range."""
+    scene.render.engine = 'BLENDER_EEVEE'
+    e = scene.eevee
+    e.taa_render_samples = config["samples"]
+    e.volumetric_tile_size = config["tile_size"]
+    e.volumetric_samples = config["slices"]
+    e.volumetric_sample_distribution = 0.0  # slices evenly spaced in depth, as along a ray
+    if hasattr(e, "use_volume_custom_range"):
+        e.use_volume_custom_range = True
+    # The froxel grid spans the clip range; fit it to the volume's depth range.
+    e.volumetric_start, e.volumetric_end = view["depth_range"]
+    return e
+
+
+def render_seconds(cpu=None):
+    """Wall seconds of one render; its CPU seconds (the process's, render threads included) are
+    appended to `cpu` when given."""
+    c0, t0 = time.process_time(), time.perf_counter()
     bpy.ops.render.render(write_still=False)
+    if cpu is not None:
+        cpu.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
@@ -170,49 +193,65 @@ def software(engine):
     return text
 
 
-def transmittance(scene):
-    """Mean of R, G and B of the last render's Combined pass, float, row 0 on top."""
-    from pcvr_addon import image_io
-    passes = image_io.render_result_passes(scene)
-    combined = passes.get("ViewLayer.Combined")
-    if combined is None:
-        raise RuntimeError(f"render result has no Combined pass (passes: {sorted(passes)})")
-    return combined[:, :, :3].mean(axis=2).astype(np.float64)
-
-
-def main(job_path):
-    job = json.loads(Path(job_path).read_text())
-    sys.path.insert(0, job["repo"])
+def render_views(job, scene, configure, read, log, warm_key=lambda config: config["key"]):
+    """Each configuration on each view that fits the budget: `configure(config, view)` sets the engine
+    up, a warm-up render per `warm_key(config)` (kernels, shaders and the volume's upload, once, as in
+    an interactive session), then timed renders; `read(scene, config)` gives the image to save and a
+    dict of extra record fields."""
     out_dir = Path(job["out_dir"])
     out_dir.mkdir(parents=True, exist_ok=True)
-    scene = build_scene(job["vdb"], 1.0)
     budget = Budget(job["budget_s"])
     results = []
     warmed = set()
     for config, view_key, view, record in budget.renders(job, results, log):
-        # Optical depth of the densest pixel: the engine's own choice (see OPTICAL_DEPTH).
-        k = OPTICAL_DEPTH[config["engine"]] / job["integral_max"]
         set_view(scene, view)
-        configure(scene, config, view, k)
+        configure(config, view)
         w2c, proj = blender_matrices(scene, view)
         record["camera_error"] = max(
             float(np.abs(w2c - np.linalg.inv(np.asarray(view["matrix_world"]))).max()),
             float(np.abs(proj - np.asarray(job["projections"][view_key])).max()
                   / np.abs(job["projections"][view_key]).max()))
-        if config["key"] not in warmed:  # kernels, shaders and the volume's upload, once per configuration
-            log(f"{config['key']} {view_key}: warm-up {render_seconds():.1f} s")
-            warmed.add(config["key"])
-        seconds, _ = budget.repeat(lambda: (render_seconds(), None))
+        if warm_key(config) not in warmed:
+            record["warmup_s"] = render_seconds()
+            log(f"{config['key']} {view_key}: warm-up {record['warmup_s']:.1f} s")
+            warmed.add(warm_key(config))
+        cpu = []
+        seconds, _ = budget.repeat(lambda: (render_seconds(cpu), None))
         budget.record(config["key"], view, min(seconds))
-        t = transmittance(scene)
-        record["min_transmittance"] = float(t.min())
+        image, extra = read(scene, config)
         path = out_dir / f"{config['key']}_{view_key}.npy"
-        np.save(path, (-np.log(np.clip(t, 1e-30, None)) / k).astype(np.float32))
-        record.update(seconds=seconds, image=str(path), software=software(config["engine"]))
-        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, min T {t.min():.3g}, "
+        np.save(path, np.asarray(image, dtype=np.float32))
+        record.update(seconds=seconds, cpu_seconds=cpu, image=str(path), software=software(config["engine"]), **extra)
+        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s x{len(seconds)}, "
             f"camera error {record['camera_error']:.1e}")
         Path(job["result"]).write_text(json.dumps(results))
     Path(job["result"]).write_text(json.dumps(results))
+
+
+def combined_pass(scene):
+    """The last render's Combined pass, float RGBA, row 0 on top."""
+    from pcvr_addon import image_io
+    passes = image_io.render_result_passes(scene)
+    combined = passes.get("ViewLayer.Combined")
+    if combined is None:
+        raise RuntimeError(f"render result has no Combined pass (passes: {sorted(passes)})")
+    return combined
+
+
+def main(job_path):
+    job = json.loads(Path(job_path).read_text())
+    sys.path.insert(0, job["repo"])
+    scene = build_scene(job["vdb"], lambda: absorption_material(1.0), (1.0, 1.0, 1.0), transparent=False)
+
+    def k_of(config):
+        # Optical depth of the densest pixel: the engine's own choice (see OPTICAL_DEPTH).
+        return OPTICAL_DEPTH[config["engine"]] / job["integral_max"]
+
+    def read(scene, config):
+        t = combined_pass(scene)[:, :, :3].mean(axis=2).astype(np.float64)  # transmittance
+        return -np.log(np.clip(t, 1e-30, None)) / k_of(config), {"min_transmittance": float(t.min())}
+
+    render_views(job, scene, lambda config, view: configure(scene, config, view, k_of(config)), read, log)
     return 0
 
 

@@ -13,9 +13,11 @@ What a scientific user would pick, offscreen (EGL, Mesa's llvmpipe on this CPU-o
 |                                      | 1 - exp(-k v u) (256-point table): I = 1 - exp(-k * integral)   |                       |
 
 Times are wall-clock seconds of ``Render()`` plus the read-back that waits for it, after one
-warm-up render per view; repeated up to 3 times when cheap (median). Both read back the 8-bit framebuffer (VTK's render windows are RGBA8): that quantisation is part
-of what a VTK user gets and shows in the error. The gain (and k) map the largest exact integral to
-0.95 (optical depth 1.0), as a user would set the transfer function's range to the data.
+warm-up render per view; repeated up to 3 times when cheap (median). The fixed-point mapper runs at
+full quality (fixed_point_mapper: VTK's frame-rate adaptation off). Both read back the 8-bit
+framebuffer (VTK's render windows are RGBA8): that quantisation is part of what a VTK user gets and
+shows in the error. The gain (and k) map the largest exact integral to 0.95 (optical depth 1.0), as a
+user would set the transfer function's range to the data.
 
 The volume is the benchmark's .vdb file read by pcvr_native (VTK has no OpenVDB reader in its
 wheel) into vtkImageData with the grid's origin and spacing. The camera is the view's: position,
@@ -106,12 +108,8 @@ def make_mapper(config, img, vmax, integral_max, voxel):
         opacity.AddPoint(vmax, c)
         decode = lambda i: np.asarray(i, dtype=np.float64) * unit * vmax / c  # noqa: E731
     else:
-        mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+        mapper = fixed_point_mapper(step)
         mapper.SetBlendModeToComposite()
-        mapper.SetImageSampleDistance(1.0)
-        mapper.SetMinimumImageSampleDistance(1.0)
-        mapper.SetMaximumImageSampleDistance(1.0)
-        mapper.LockSampleDistanceToInputSpacingOff()
         k = OPTICAL_DEPTH / integral_max
         for v in np.linspace(0.0, vmax, TABLE_POINTS):
             opacity.AddPoint(float(v), float(1.0 - math.exp(-k * v * unit)))
@@ -126,69 +124,112 @@ def make_mapper(config, img, vmax, integral_max, voxel):
     return volume, decode
 
 
-def read_pixels(window, width, height):
+def fixed_point_mapper(step):
+    """vtkFixedPointVolumeRayCastMapper at full quality: one ray per pixel and `step` (world units)
+    between samples. Its defaults adapt both to a desired frame rate (AutoAdjustSampleDistances: a
+    coarser image and sample distance while the frame rate is not met)."""
+    mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+    mapper.AutoAdjustSampleDistancesOff()
+    mapper.SetImageSampleDistance(1.0)
+    mapper.SetMinimumImageSampleDistance(1.0)
+    mapper.SetMaximumImageSampleDistance(1.0)
+    mapper.LockSampleDistanceToInputSpacingOff()
+    mapper.SetSampleDistance(step)
+    return mapper
+
+
+def read_pixels(window, width, height, rgba=False):
+    """The framebuffer as floats in [0, 1], (height, width, 3 or 4), row 0 on top."""
     grab = vtk.vtkWindowToImageFilter()
     grab.SetInput(window)
-    grab.SetInputBufferTypeToRGB()
+    if rgba:
+        grab.SetInputBufferTypeToRGBA()
+    else:
+        grab.SetInputBufferTypeToRGB()
     grab.ReadFrontBufferOff()
     grab.Update()
-    rgb = numpy_support.vtk_to_numpy(grab.GetOutput().GetPointData().GetScalars()).reshape(height, width, 3)
-    return rgb[::-1].astype(np.float64).mean(axis=2) / 255.0  # VTK's rows start at the bottom
+    pixels = numpy_support.vtk_to_numpy(grab.GetOutput().GetPointData().GetScalars())
+    return pixels.reshape(height, width, 4 if rgba else 3)[::-1].astype(np.float64) / 255.0  # VTK's rows start at the bottom
 
 
-def main(job_path):
+def read_volume(vdb_path):
+    """The .vdb file's grid (read by pcvr_native: VTK's wheel has no OpenVDB reader) as vtkImageData
+    with the grid's origin and spacing, its voxel size and its values."""
     import pcvr_native as pn
-    job = json.loads(Path(job_path).read_text())
-    out_dir = Path(job["out_dir"])
-    out_dir.mkdir(parents=True, exist_ok=True)
-    grid = pn.read_vdb(job["vdb"])
+    grid = pn.read_vdb(vdb_path)
     (i0, j0, k0), _ = grid.index_bbox
     values = np.asarray(grid.to_dense())
     xf = np.asarray(grid.index_to_world, dtype=np.float64).copy()
     xf[:3, 3] = xf[:3, :3] @ [i0, j0, k0] + xf[:3, 3]  # the dense array starts at the bbox corner
-    img = image_data(values, xf)
-    voxel = float(abs(np.linalg.det(xf[:3, :3])) ** (1.0 / 3.0))
-    vmax = float(values.max())
-    if values.min() > 1e-3 * vmax:  # the additive decode takes the data's minimum as 0 (see make_mapper)
-        raise ValueError(f"VTK peer: the volume's minimum {values.min():g} is not near 0 (max {vmax:g})")
+    return image_data(values, xf), float(abs(np.linalg.det(xf[:3, :3])) ** (1.0 / 3.0)), values
+
+
+def render_views(job, setup, log):
+    """Each configuration on each view that fits the budget: `setup(config, renderer)` adds the volume
+    (and lights) to a fresh renderer and returns (read, decode): read(window, width, height) takes the
+    framebuffer back (timed: it waits for the render), decode(pixels) gives the image to save and a dict
+    of extra record fields. A warm-up render per view pays the context, shaders and the volume's
+    upload (and VTK's gradients) first; its time is recorded as warmup_s."""
+    out_dir = Path(job["out_dir"])
+    out_dir.mkdir(parents=True, exist_ok=True)
     budget = Budget(job["budget_s"])
     results = []
     for config, view_key, view, record in budget.renders(job, results, log):
         w2c = np.linalg.inv(np.asarray(view["matrix_world"], dtype=np.float64))
         proj = np.asarray(job["projections"][view_key], dtype=np.float64)
-        volume, decode = make_mapper(config, img, vmax, job["integral_max"], voxel)
         renderer = vtk.vtkRenderer()
-        renderer.SetBackground(0.0, 0.0, 0.0)
-        renderer.AddVolume(volume)
+        read, decode = setup(config, renderer)
         window = vtk.vtkRenderWindow()
         window.SetOffScreenRendering(1)
         window.SetMultiSamples(0)
+        window.SetAlphaBitPlanes(1)
         window.AddRenderer(renderer)
         window.SetSize(view["width"], view["height"])
         cam_err = set_camera(renderer, view, w2c, proj)
-        window.Render()  # warm-up: context, shaders, volume upload
+
+        cpu = []  # the process's CPU seconds per timed render (VTK's threads and llvmpipe's are in it)
 
         def timed():
             # Rendering is asynchronous under OpenGL: reading the pixels back waits for it.
             renderer.GetActiveCamera().Modified()
-            t0 = time.perf_counter()
+            c0, t0 = time.process_time(), time.perf_counter()
             window.Render()
-            pixels = read_pixels(window, view["width"], view["height"])
+            pixels = read(window, view["width"], view["height"])
+            cpu.append(time.process_time() - c0)
             return time.perf_counter() - t0, pixels
 
+        warmup_s, _ = timed()
+        del cpu[:]
         seconds, pixels = budget.repeat(timed)
         budget.record(config["key"], view, min(seconds))
         path = out_dir / f"{config['key']}_{view_key}.npy"
-        np.save(path, decode(pixels).astype(np.float32))
+        image, extra = decode(pixels)
+        np.save(path, np.asarray(image, dtype=np.float32))
         renderer_line = next((ln.split(":", 1)[1].strip() for ln in window.ReportCapabilities().splitlines()
                               if ln.startswith("OpenGL renderer string")), "?")
-        record.update(seconds=seconds, image=str(path), camera_error=cam_err,
-                      saturated=float((pixels >= 254.5 / 255).mean()),
+        record.update(seconds=seconds, cpu_seconds=cpu, warmup_s=warmup_s, image=str(path), camera_error=cam_err, **extra,
                       software=f"VTK {vtk.vtkVersion.GetVTKVersion()}, {window.GetClassName()} on {renderer_line}")
-        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s, camera error {cam_err:.1e}")
+        log(f"{config['key']} {view_key}: {np.median(seconds):.2f} s (warm-up {warmup_s:.2f} s), "
+            f"camera error {cam_err:.1e}")
         window.Finalize()
         Path(job["result"]).write_text(json.dumps(results))
     Path(job["result"]).write_text(json.dumps(results))
+
+
+def main(job_path):
+    job = json.loads(Path(job_path).read_text())
+    img, voxel, values = read_volume(job["vdb"])
+    vmax = float(values.max())
+    if values.min() > 1e-3 * vmax:  # the additive decode takes the data's minimum as 0 (see make_mapper)
+        raise ValueError(f"VTK peer: the volume's minimum {values.min():g} is not near 0 (max {vmax:g})")
+
+    def setup(config, renderer):
+        volume, decode = make_mapper(config, img, vmax, job["integral_max"], voxel)
+        renderer.SetBackground(0.0, 0.0, 0.0)
+        renderer.AddVolume(volume)
+        return read_pixels, lambda rgb: (decode(rgb.mean(axis=2)), {"saturated": float((rgb >= 254.5 / 255).mean())})
+
+    render_views(job, setup, log)
     return 0
 
 
