@@ -153,7 +153,7 @@ struct Marcher {
                                                          : std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
-                shaders.emplace_back(v.lit_by(*lighting));
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0);
                 shader = &shaders.back();
             }
             grids.push_back({&grid, to_index, VoxelLookup(grid), v.density_scale,
@@ -191,6 +191,12 @@ struct Marcher {
 
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 
+/// The direction of v in a length float holds (gradients of densities near 1e30 exceed it).
+Vec3 scale_free(const Vec3& v) {
+    const double largest = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    return largest > 0 ? v / largest : v;
+}
+
 }  // namespace
 
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
@@ -211,7 +217,8 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                 if (!s.reached) continue;
                 const ClassificationTable::Sample c = (*g.classification)(float(s.density));
                 if (!(c.extinction > 0)) continue;
-                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(s.gradient), to_eye, to_float(x));
+                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(scale_free(s.gradient)), to_eye,
+                                                  to_float(x - m.geometry.origin0));
                 sigma_sum += c.extinction;
                 emission = emission + Vec3{lit.x, lit.y, lit.z} * double(c.extinction);
             }

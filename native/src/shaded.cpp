@@ -206,7 +206,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             classifications.push_back(
                 std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid)));
             classification = classifications.back().get();
-            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting)));
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0));
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : plan.by_stride.begin()->first;

@@ -32,7 +32,7 @@ void Lighting::validate() const {
     }
 }
 
-Shader::Shader(const Lighting& lighting) {
+Shader::Shader(const Lighting& lighting, const Vec3& origin) {
     lighting.validate();
     const Shading& m = lighting.material;
     lit_ = m.lit;
@@ -46,7 +46,7 @@ Shader::Shader(const Lighting& lighting) {
     for (const Light& l : lighting.lights) {
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
-        const Vec3 vector = point ? l.vector : -l.vector / length(l.vector);
+        const Vec3 vector = point ? l.vector - origin : -l.vector / length(l.vector);
         lights_.push_back({point, to_float(vector), to_float(l.color * l.strength)});
     }
 }
@@ -55,12 +55,15 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
     if (!lit_) return colour;
     auto splat = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
     Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
-    const float8 g2 = dot(gradient, gradient);
-    const int8x has_normal = g2 > 0;
+    // Divided by its largest component before it is squared: the gradients of densities near 1e30
+    // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
+    const float8 largest = max8(max8(abs8(gradient.x), abs8(gradient.y)), abs8(gradient.z));
+    const int8x has_normal = (largest > 0) & (largest < INFINITY);
+    const Vec3x8 g = gradient * select8(has_normal, 1.0f / largest, broadcast8(0.0f));
     if (any8(has_normal) && !lights_.empty()) {
         // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
-        const float8 facing = select8(dot(gradient, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
-        const Vec3x8 n = gradient * select8(has_normal, facing / sqrt8(g2), broadcast8(0.0f));
+        const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
+        const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
         for (const PreparedLight& light : lights_) {
             Vec3x8 l = splat(light.vector), energy = splat(light.energy);
             if (light.point) {

@@ -382,7 +382,8 @@ double SheetWalkSetup::ray_length_per_unit() const { return sheets.spherical ? 1
 
 SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
     const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
-    const Vec3x8 origin = lanes3(geo.origin0 + geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
+    // Relative to origin0 (the eye in perspective): float resolves positions near the camera.
+    const Vec3x8 origin = lanes3(geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
     SampleFrames f;
     if (!spherical) {
         f.position = origin + dir * float(u);
@@ -529,9 +530,12 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             if (!any8(open)) continue;
             // The rows of the inverse of [per_pixel_x per_pixel_y along], times its determinant: they turn
             // derivatives per pixel and per unit of the sheet parameter into a world gradient.
-            const Vec3x8 from_x = cross(f.per_pixel_y, f.along), from_y = cross(f.along, f.per_pixel_x),
-                         from_u = cross(f.per_pixel_x, f.per_pixel_y);
-            const Vec3x8 to_eye = f.along * (-1.0f / sqrt8(dot(f.along, f.along)));
+            // The frame is divided by |along| first: products of three world lengths leave float's
+            // range for voxels 1e-12 or 1e9 units wide, and a common factor leaves the direction alone.
+            const float8 per_length = 1.0f / sqrt8(dot(f.along, f.along));
+            const Vec3x8 ahead = f.along * per_length, ppx = f.per_pixel_x * per_length, ppy = f.per_pixel_y * per_length;
+            const Vec3x8 from_x = cross(ppy, ahead), from_y = cross(ahead, ppx), from_u = cross(ppx, ppy);
+            const Vec3x8 to_eye = ahead * -1.0f;
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
             for (int k = 0; k < source_count; ++k) {

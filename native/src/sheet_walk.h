@@ -45,7 +45,7 @@ struct SheetGeometry {
     Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
 };
 
-/// Eight pixels' samples on one sheet: world position, the world displacement per pixel right and
+/// Eight pixels' samples on one sheet: world position relative to SheetGeometry::origin0, the world displacement per pixel right and
 /// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
 struct SampleFrames {
     Vec3x8 position, per_pixel_x, per_pixel_y, along;

@@ -31,6 +31,11 @@ def max_error(image, reference) -> float:
     return float(np.abs(image - reference).max() / np.abs(reference).max())
 
 
+def resolution_in_voxels(offset, voxel: float) -> float:
+    """How finely double precision resolves positions `offset` world units out, in voxels `voxel` wide."""
+    return float(np.abs(offset).max()) * np.finfo(float).eps / voxel
+
+
 def placed(scale: float, offset) -> np.ndarray:
     """World transform that scales about the origin by `scale`, then moves by `offset`."""
     m = np.diag([scale, scale, scale, 1.0])

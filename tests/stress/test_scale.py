@@ -16,15 +16,11 @@ import pcvr_native as pn
 from pcvr_native import phantoms
 
 from _io_helpers import HAVE_BPY, run_blender_openvdb, run_python
-from stress_helpers import METHODS, max_error, placed, scene_camera
+from stress_helpers import METHODS, max_error, placed, resolution_in_voxels, scene_camera
 
 PHANTOM = phantoms.dense_volume(12, seed=3)
 VOXEL = float(np.linalg.norm(PHANTOM.index_to_world[:3, 0]))
 FLOAT32_ROUNDING = 4e-7  # twice the largest error measured at the origin
-
-
-def resolution_in_voxels(scale, offset):
-    return float(np.abs(offset).max()) * np.finfo(float).eps / (scale * VOXEL)
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +39,7 @@ def test_scaled_scene_renders_the_unit_image(unit_images, scale, offset, persp):
     where = np.array([1.0, -0.5, 0.25]) * offset
     grid = PHANTOM.grid().with_index_to_world(placed(scale, where) @ PHANTOM.index_to_world)
     cam = scene_camera(scale, where, persp)
-    tolerance = FLOAT32_ROUNDING + resolution_in_voxels(scale, where)
+    tolerance = FLOAT32_ROUNDING + resolution_in_voxels(where, scale * VOXEL)
     for method in METHODS:
         image = pn.render_xray(grid, cam, method=method)
         assert np.isfinite(image).all()

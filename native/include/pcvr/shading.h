@@ -58,10 +58,13 @@ struct Vec3f {
 /// table of x^shininess. Immutable and safe to use from many threads.
 class Shader {
 public:
-    explicit Shader(const Lighting& lighting);
+    /// Positions passed to shade() are relative to `origin` (world): renderers pass them relative to
+    /// the camera, so that float keeps its precision in scenes far from the world's origin.
+    explicit Shader(const Lighting& lighting, const Vec3& origin = {});
 
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
-    /// (world space, any length), `to_eye` (unit, from the sample towards the eye), `position` (world).
+    /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
+    /// `position` (world, relative to the shader's origin).
     Vec3x8 shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const;
     /// The same for one sample.
     Vec3f shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const;
