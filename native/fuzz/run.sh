@@ -7,6 +7,7 @@ set -euo pipefail
 build=$1 seconds=$2
 root=$(cd "$(dirname "$0")/../.." && pwd)
 mkdir -p "$build/artifacts"
+export LSAN_OPTIONS=suppressions=$root/native/fuzz/leak_suppressions.txt
 for target in read_vdb render shaded; do
     binary=$build/fuzz/fuzz_$target corpus=$build/corpus/$target
     mkdir -p "$corpus"
