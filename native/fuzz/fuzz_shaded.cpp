@@ -14,6 +14,7 @@
 /// Only pcvr errors may come out. The shaded image must be finite, its alpha in [0, 1] and its
 /// premultiplied colour >= 0; the depth pass a depth or infinity; MIP finite. A violation aborts, and
 /// libFuzzer keeps the input. PCVR_FUZZ_SCENE=1 prints the scene and the options as Python.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -27,8 +28,9 @@ namespace {
 
 using namespace pcvr;
 
-/// Renders of more pixels than this take too long for a fuzzing iteration; the ray caster samples
-/// every voxel within the kernel's reach per step, so it gets fewer pixels and coarser steps.
+/// Renders of more pixels than this (fewer where samples are denser than 1 per voxel) take too long for
+/// a fuzzing iteration; the ray caster samples every voxel within the kernel's reach per step, so it
+/// gets fewer pixels and coarser steps.
 constexpr uint64_t kMaxPixels = 1 << 16;
 constexpr uint64_t kMaxRaycastPixels = 4096;
 constexpr double kFinestRaycastSpacing = 0.1;
@@ -177,8 +179,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     for (int l = in.ConsumeIntegralInRange<int>(0, 3); l > 0; --l) lighting.lights.push_back(consume_light(in, scene));
     ShadedParams params = consume_params(in);
 
-    // Bounded time: fewer pixels (the aspect ratio changes; any is valid), and the ray caster coarser.
-    if (uint64_t(scene.width) * scene.height > kMaxPixels) scene.height = std::max<int>(1, int(kMaxPixels / scene.width));
+    // Bounded time: fewer pixels where the samples along the rays are dense (the aspect ratio changes;
+    // any is valid; a 60000 x 1 image at 5 samples per 0.1 voxels took 35 s), and the ray caster coarser.
+    const double samples_per_voxel = std::max(1, params.samples_per_sheet) / std::clamp(params.sheet_spacing, 0.02, 1.0);
+    const int most_pixels = int(std::max(64.0, double(kMaxPixels) / samples_per_voxel));
+    if (uint64_t(scene.width) * scene.height > uint64_t(most_pixels)) {
+        scene.width = std::min(scene.width, most_pixels);
+        scene.height = std::max(1, most_pixels / scene.width);
+    }
     if (params.method == ShadedMethod::Raycast &&
         (uint64_t(scene.width) * scene.height > kMaxRaycastPixels || !(params.sheet_spacing >= kFinestRaycastSpacing)))
         params.method = ShadedMethod::Pcvr;
