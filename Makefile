@@ -150,9 +150,10 @@ test: compat-smoke
 stress: $(VENV)/.native-stamp $(EXTENSION_ZIP)
 	PCVR_STRESS=long $(PY) -m pytest -q -p no:cacheprovider tests/stress
 
-# libFuzzer over the core (clang-14 and its runtime from Debian), FUZZ_SECONDS per target (two),
-# after replaying tests/fuzz_regressions; then the source coverage the corpora reach.
-FUZZ_SECONDS ?= 300
+# libFuzzer over the core (clang-14 and its runtime from Debian), FUZZ_SECONDS per target (three:
+# 10 minutes in all by default), after replaying tests/fuzz_regressions; then the source coverage the
+# corpora reach.
+FUZZ_SECONDS ?= 200
 FUZZ_DIR    := build/fuzz
 APT_FUZZ    := clang-14 libclang-rt-14-dev llvm-14
 fuzz: $(VENV)/.native-stamp
@@ -163,7 +164,7 @@ fuzz: $(VENV)/.native-stamp
 	for kind in "" "-coverage"; do \
 	  CC=clang-14 CXX=clang++-14 cmake -S native -B $(FUZZ_DIR)$$kind -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
 	    -DPCVR_PYTHON=OFF -DPCVR_FUZZ=ON -DPCVR_COVERAGE=$$([ -n "$$kind" ] && echo ON || echo OFF) > /dev/null && \
-	  ninja -C $(FUZZ_DIR)$$kind fuzz_read_vdb fuzz_render || exit 1; \
+	  ninja -C $(FUZZ_DIR)$$kind fuzz_read_vdb fuzz_render fuzz_shaded || exit 1; \
 	done
 	$(PY) native/fuzz/make_corpus.py $(FUZZ_DIR)/seeds
 	native/fuzz/run.sh $(FUZZ_DIR) $(FUZZ_SECONDS)

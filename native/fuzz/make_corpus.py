@@ -1,6 +1,7 @@
 """Seed corpora for the fuzz targets (make fuzz): small .vdb files of every kind pcvr reads or
 refuses, written by pcvr_native and by Blender's OpenVDB, and random parameter blocks for the
-render target. Usage: make_corpus.py OUTPUT_DIR (creates OUTPUT_DIR/read_vdb and OUTPUT_DIR/render)."""
+render targets. Usage: make_corpus.py OUTPUT_DIR (creates OUTPUT_DIR/read_vdb, OUTPUT_DIR/render and
+OUTPUT_DIR/shaded)."""
 
 import os
 import subprocess
@@ -69,15 +70,21 @@ def blender_files(out: Path):
         print("Blender's OpenVDB files skipped:", proc.stderr[-500:], file=sys.stderr)
 
 
-def render_seeds(out: Path):
-    rng = np.random.default_rng(3)
-    for n, size in enumerate((64, 160, 400, 1000)):
+def random_blocks(out: Path, seed: int, sizes):
+    """Random parameter blocks. FuzzedDataProvider takes every number from the block's end and
+    gives zeros once it runs out: short blocks choose the scene and leave the options at their
+    first values, long ones choose everything."""
+    rng = np.random.default_rng(seed)
+    for n, size in enumerate(sizes):
         (out / f"random_{n}.bin").write_bytes(rng.integers(0, 256, size, dtype=np.uint8).tobytes())
 
 
 def main():
     root = Path(sys.argv[1])
-    for name, make in (("read_vdb", lambda d: (pcvr_files(d), blender_files(d))), ("render", render_seeds)):
+    targets = (("read_vdb", lambda d: (pcvr_files(d), blender_files(d))),
+               ("render", lambda d: random_blocks(d, 3, (64, 160, 400, 1000))),
+               ("shaded", lambda d: random_blocks(d, 4, (96, 200, 300, 500, 1000, 2000))))
+    for name, make in targets:
         directory = root / name
         directory.mkdir(parents=True, exist_ok=True)
         make(directory)

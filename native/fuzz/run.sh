@@ -7,11 +7,15 @@ set -euo pipefail
 build=$1 seconds=$2
 root=$(cd "$(dirname "$0")/../.." && pwd)
 mkdir -p "$build/artifacts"
-for target in read_vdb render; do
+export LSAN_OPTIONS=suppressions=$root/native/fuzz/leak_suppressions.txt
+for target in read_vdb render shaded; do
     binary=$build/fuzz/fuzz_$target corpus=$build/corpus/$target
     mkdir -p "$corpus"
-    echo "== fuzz_$target: the kept regressions"
-    "$binary" -runs=1 "$root"/tests/fuzz_regressions/$target/* 2>&1 | tail -1
+    regressions=("$root"/tests/fuzz_regressions/$target/*)
+    if [ -e "${regressions[0]}" ]; then
+        echo "== fuzz_$target: the kept regressions"
+        "$binary" -runs=1 "${regressions[@]}" 2>&1 | tail -1
+    fi
     echo "== fuzz_$target: $seconds s"
     # -timeout: a render that has not returned in 20 s hangs; -rss_limit_mb: memory is bounded.
     "$binary" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 -max_len=200000 -print_final_stats=1 \
@@ -23,10 +27,17 @@ done
 echo "== coverage of the corpora (line coverage of the core, from an instrumented replay)"
 profiles=$build-coverage/profiles
 rm -rf "$profiles" && mkdir -p "$profiles"
-for target in read_vdb render; do
+for target in read_vdb render shaded; do
     LLVM_PROFILE_FILE="$profiles/$target-%p.profraw" "$build-coverage/fuzz/fuzz_$target" -runs=0 \
         "$build/corpus/$target" "$build/seeds/$target" > /dev/null 2>&1
 done
 llvm-profdata-14 merge -sparse "$profiles"/*.profraw -o "$profiles/merged.profdata"
 llvm-cov-14 report "$build-coverage/fuzz/fuzz_read_vdb" -object "$build-coverage/fuzz/fuzz_render" \
-    -instr-profile="$profiles/merged.profdata" "$root"/native/src "$root"/native/include | tee "$build/coverage.txt"
+    -object "$build-coverage/fuzz/fuzz_shaded" -instr-profile="$profiles/merged.profdata" \
+    "$root"/native/src "$root"/native/include | tee "$build/coverage.txt"
+# The shaded renderer's sources as fuzz_shaded's corpus alone reaches them.
+llvm-profdata-14 merge -sparse "$profiles"/shaded-*.profraw -o "$profiles/shaded.profdata"
+llvm-cov-14 report "$build-coverage/fuzz/fuzz_shaded" -instr-profile="$profiles/shaded.profdata" \
+    "$root"/native/src/{shaded,sheet_walk,slab_splat,slab_footprint,transfer_function,shading,raycast_reference,tile_set}.cpp \
+    "$root"/native/src/{sheet_buffer,occlusion_map,sheet_walk,slab_splat,tile_set}.h \
+    "$root"/native/include/pcvr/{shaded,transfer_function,shading,slab_footprint,compositing}.h | tee "$build/coverage-shaded.txt"

@@ -179,8 +179,8 @@ struct Marcher {
             if (ray_box_depths(g, origin, dir, a, b)) z0 = std::min(z0, a), z1 = std::max(z1, b);
         }
         if (!(z0 <= z1)) return;
-        const int64_t k0 = std::max<int64_t>(0, int64_t(std::floor((z0 - near_depth) / step - 0.5)));
-        const int64_t k1 = int64_t(std::ceil((z1 - near_depth) / step - 0.5));
+        const int64_t k0 = std::max<int64_t>(0, sheet_floor((z0 - near_depth) / step - 0.5));
+        const int64_t k1 = -sheet_floor(-((z1 - near_depth) / step - 0.5));  // the ceiling
         for (int64_t k = k0; k <= k1; ++k) {
             const double z = near_depth + (double(k) + 0.5) * step;
             if (z > far_depth) break;

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <sstream>
 
 #include "pcvr/block_plan.h"
 #include "pcvr/errors.h"
@@ -41,9 +42,49 @@ constexpr double kRippleMargin = 0.01;
 /// enough of them that threads share the work (a 1024 x 1024 image has 16 to 64).
 int automatic_tile_size(int smallest_stride) { return std::clamp(64 * smallest_stride, 128, 256); }
 
+/// The largest stride splatted: 256, the tile size and the image's smaller side. A sheet's gradient
+/// reads one node (a stride of pixels) beyond its tile, so each tile post-convolves its sheets a stride
+/// wider on every side: near an eye automatic strides reach 65536 and took 8 GB per tile, and a stride
+/// of 256 cost a 1-pixel tile or a 1-pixel-high image 500 times its pixels per sheet (both found by
+/// fuzz_shaded). Where magnification is that high, few voxels fill the image: a finer subgrid costs
+/// little, and it is at least as accurate.
+int most_stride(const Camera& camera, const ShadedParams& params) {
+    const int tile = params.tile_size > 0 ? params.tile_size : 256;
+    return std::max(1, std::min({256, tile, camera.width(), camera.height()}));
+}
+
+/// Moves the blocks of strides above `most` to it (their pixel bounds, from the larger stride's
+/// margin, still hold).
+void cap_strides(BlockPlan& plan, int most) {
+    for (auto beyond = plan.by_stride.upper_bound(most); beyond != plan.by_stride.end(); beyond = plan.by_stride.erase(beyond)) {
+        std::vector<PlannedBlock>& capped = plan.by_stride[most];
+        capped.insert(capped.end(), beyond->second.begin(), beyond->second.end());
+    }
+}
+
+/// Sheets hold densities times world lengths (a slab's) in float32, where voxels' contributions add
+/// up: beyond this they could leave its range (3.4e38) and turn into infinities and NaN.
+constexpr double kMostSheetValue = 1e36;
+
+/// Throws InvalidArgument where a grid's densities times its scale, or their integral over a slab,
+/// exceed kMostSheetValue.
+void check_density_range(const ShadedVolume& v, const ShadedParams& params) {
+    const Grid& grid = *v.grid;
+    const auto [lo, hi] = grid.value_range();
+    const double largest = std::max({std::abs(double(lo)), std::abs(double(hi)), std::abs(double(grid.background()))}) * v.density_scale;
+    const double slab = largest_singular_value(grid.index_to_world()) * params.sheet_spacing;  // world units, at most
+    if (largest <= kMostSheetValue && largest * std::max(1.0, slab) <= kMostSheetValue) return;
+    std::ostringstream msg;
+    msg << "grid '" << grid.name() << "': densities times density_scale reach " << largest << ", over slabs up to " << slab
+        << " world units thick, beyond " << kMostSheetValue << " (the sheets hold them in float32, whose range ends at "
+        << "3.4e38): scale the densities down with density_scale, and the transfer function's with them";
+    throw InvalidArgument(msg.str());
+}
+
 void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& params, bool need_transfer_functions) {
-    if (!(params.sheet_spacing > 0) || !std::isfinite(params.sheet_spacing))
-        throw InvalidArgument("sheet_spacing must be a positive number of voxels");
+    // Sheets (or steps) 1e-300 voxels apart, or 1e300 (their world spacing infinite), cannot work.
+    if (!(params.sheet_spacing >= 1e-6 && params.sheet_spacing <= 1e6))
+        throw InvalidArgument("sheet_spacing must be a number of voxels from 1e-6 to 1e6");
     if (!(params.opacity_cutoff > 0 && params.opacity_cutoff <= 1))
         throw InvalidArgument("opacity_cutoff must lie in (0, 1]");
     if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
@@ -58,6 +99,7 @@ void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& para
         if (!volumes[i].grid) throw InvalidArgument("volume " + std::to_string(i) + " has no grid");
         if (!(volumes[i].density_scale >= 0) || !std::isfinite(volumes[i].density_scale))
             throw InvalidArgument("density_scale must be finite and >= 0");
+        check_density_range(volumes[i], params);
         if (need_transfer_functions) {
             if (!volumes[i].transfer_function)
                 throw InvalidArgument("grid '" + volumes[i].grid->name() + "' has no transfer function");
@@ -164,7 +206,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         farthest = far_depth * geometry.longest_ray;
     }
     sheets.first_depth = nearest - sheets.spacing;
-    sheets.count = int64_t(std::ceil((farthest - sheets.first_depth) / sheets.spacing));
+    sheets.count = -sheet_floor(-(farthest - sheets.first_depth) / sheets.spacing);  // the ceiling
 
     SlabSplatParams splat;
     splat.kernel = &kernel;
@@ -175,16 +217,18 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     // Each grid's blocks in view, with the stride of each: per block from its least magnified corner
     // (perspective views make depth bands), or the one asked for.
     std::vector<BlockPlan> plans;
+    const int largest_stride = most_stride(camera, params);
     int smallest_stride = INT32_MAX;
     for (size_t g = 0; g < volumes.size(); ++g) {
         BlockPlanParams plan_params;
         plan_params.kernel_radius = kernel.radius();
-        plan_params.fixed_stride = regular ? 1 : params.stride;
+        plan_params.fixed_stride = regular ? 1 : std::min(params.stride, largest_stride);
         plan_params.nearest_stride = spread;
         plan_params.clip_planes = false;
         // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
         plan_params.margin_nodes = regular ? 1 : 3;
         plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
+        cap_strides(plans.back(), largest_stride);
         for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, stride);
     }
     if (smallest_stride == INT32_MAX) smallest_stride = 1;

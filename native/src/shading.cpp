@@ -9,7 +9,19 @@ namespace pcvr {
 
 namespace {
 
+/// Lighting's float stages stay below this: every operand finite, a product may overflow to infinity
+/// but never meets a zero as one (infinity times zero, NaN), and each sum is capped again before it is
+/// multiplied. A point light at a sample (irradiance 1e30 times its energy) or energies, materials and
+/// colours up to double's range then give bright but finite colours.
+constexpr float kMostRadiance = 1e30f;
+
+float bounded(double v) { return float(std::min(v, double(kMostRadiance))); }
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
+Vec3f bounded(const Vec3& v) { return {bounded(v.x), bounded(v.y), bounded(v.z)}; }
+Vec3x8 bounded(const Vec3x8& v) {
+    const float8 most = broadcast8(kMostRadiance);
+    return {min8(v.x, most), min8(v.y, most), min8(v.z, most)};  // min8 also maps NaN to the bound
+}
 
 bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 bool non_negative(const Vec3& v) { return v.x >= 0 && v.y >= 0 && v.z >= 0; }
@@ -36,9 +48,9 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin) {
     lighting.validate();
     const Shading& m = lighting.material;
     lit_ = m.lit;
-    ambient_ = to_float(lighting.ambient * m.ambient);
-    diffuse_ = float(m.diffuse);
-    specular_ = float(m.specular);
+    ambient_ = bounded(lighting.ambient * m.ambient);
+    diffuse_ = bounded(m.diffuse);
+    specular_ = bounded(m.specular);
     // Specular highlights through a table (linear interpolation: 1e-5 off at shininess 10).
     power_.resize(kPowerSteps + 2);
     for (int k = 0; k <= kPowerSteps; ++k) power_[k] = float(std::pow(double(k) / kPowerSteps, m.shininess));
@@ -47,12 +59,12 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin) {
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
         const Vec3 vector = point ? l.vector - origin : -l.vector / length(l.vector);
-        lights_.push_back({point, to_float(vector), to_float(l.color * l.strength)});
+        lights_.push_back({point, to_float(vector), bounded(l.color * l.strength)});
     }
 }
 
 Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
-    if (!lit_) return colour;
+    if (!lit_) return bounded(colour);
     auto splat = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
     Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
     // Divided by its largest component before it is squared: the gradients of densities near 1e30
@@ -70,7 +82,7 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
                 l = l - position;
                 const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
                 l = l * (1.0f / sqrt8(d2));
-                energy = energy * (1.0f / d2);
+                energy = bounded(energy * (1.0f / d2));
             }
             const float8 n_dot_l = dot(n, l);
             const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
@@ -87,7 +99,10 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
             }
         }
     }
-    return {colour.x * diffuse.x + specular.x, colour.y * diffuse.y + specular.y, colour.z * diffuse.z + specular.z};
+    diffuse = bounded(diffuse);
+    specular = bounded(specular);
+    const Vec3x8 c = bounded(colour);
+    return bounded(Vec3x8{c.x * diffuse.x + specular.x, c.y * diffuse.y + specular.y, c.z * diffuse.z + specular.z});
 }
 
 Vec3f Shader::shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {

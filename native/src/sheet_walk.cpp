@@ -537,7 +537,9 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const Vec3x8 from_x = cross(ppy, ahead), from_y = cross(ahead, ppx), from_u = cross(ppx, ppy);
             const Vec3x8 to_eye = ahead * -1.0f;
             float8 sigma_sum = broadcast8(0.0f);
-            Vec3x8 emission{sigma_sum, sigma_sum, sigma_sum};
+            Vec3x8 lit_colours[64];
+            float8 extinctions[64];
+            int lit_count = 0;
             for (int k = 0; k < source_count; ++k) {
                 const Source& src = sources[k];
                 const GridState& g = *src.grid;
@@ -562,20 +564,23 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
                 const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
                 const Vec3x8 gradient = from_x * g1 + from_y * g2 + from_u * g3;
-                const Vec3x8 lit = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
-                const float8 extinction = select8(valid, c.extinction, broadcast8(0.0f));
-                sigma_sum += extinction;
-                emission = emission + lit * extinction;
+                lit_colours[lit_count] = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
+                extinctions[lit_count] = select8(valid, c.extinction, broadcast8(0.0f));
+                sigma_sum += extinctions[lit_count++];
             }
-            // Overlapping grids mix as media do: extinctions add, emissions weigh by extinction.
+            // Overlapping grids mix as media do: extinctions add, colours weigh by their share of the
+            // extinction (shares of at most one: colour times extinction could leave float's range).
             const int8x lit = sigma_sum > 0;
             if (!any8(lit)) continue;
+            const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
+            Vec3x8 emission{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};
+            for (int k = 0; k < lit_count; ++k) emission = emission + lit_colours[k] * (extinctions[k] * per_sigma);
             const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * share * (1.0f / float(samples)));
-            const float8 weight = select8(lit, (1.0f - alpha) * opacity / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
+            const float8 weight = select8(lit, (1.0f - alpha) * opacity, broadcast8(0.0f));
             store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
             store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);
             store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
-            const float8 new_alpha = alpha + weight * sigma_sum;
+            const float8 new_alpha = alpha + weight;
             store8(alpha_.data() + p, new_alpha);
             const int8x half_way = (alpha < 0.5f) & (new_alpha >= 0.5f);
             if (any8(half_way)) store8(depth_.data() + p, select8(half_way, f.depth, load8(depth_.data() + p)));

@@ -370,7 +370,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
     // Depths relative to the slab holding the block's origin keep the per-voxel arithmetic in small floats.
     const double origin_slabs = (origin_depth(block) - sheets_.first_depth) * inv_spacing;
-    const int64_t base_sheet = int64_t(std::floor(origin_slabs));
+    const int64_t base_sheet = sheet_floor(origin_slabs);
     const float base_fraction = float(origin_slabs - double(base_sheet));
     const float reach_slabs = float(depth_reach_ * inv_spacing);
     const bool spread = params_.mode == SlabMode::BilinearSpread;
@@ -395,10 +395,12 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
             const float8 centre = base_fraction + load8(order_.depth.data() + batch) * float(inv_spacing);
             const float kappa = float(shape_.depth_per_index);
             for (int l = 0; l < kBatch; ++l) {
-                const float front = std::floor(centre[l] - reach_slabs);
+                // Lanes past the block's last voxel lie at infinite depth (DepthOrder's padding) and
+                // splat nothing: their sheet is not converted from infinity.
+                const float front = b.live & (1u << l) ? std::floor(centre[l] - reach_slabs) : 0.0f;
                 b.cx[l] = cx[l];
                 b.cy[l] = cy[l];
-                b.first_sheet[l] = base_sheet + int64_t(front);
+                b.first_sheet[l] = base_sheet + sheet_floor(front);
                 b.s0[l] = (front - centre[l]) * float(spacing) / kappa;
             }
             const double det = shape_.qxx * shape_.qyy - shape_.qxy * shape_.qxy;
@@ -456,7 +458,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                     b.ext_x[lane] = float(params_.kernel->radius() * std::sqrt(qyy / det));
                     b.ext_y[lane] = float(params_.kernel->radius() * std::sqrt(qxx / det));
                     b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det) : 1.0));
-                    b.first_sheet[lane] = int64_t(front);
+                    b.first_sheet[lane] = sheet_floor(front);
                     b.s0[lane] = float((front - slabs) * spacing / kappa);
                     b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa);
                     b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa);

@@ -20,6 +20,7 @@
 /// A SlabView is immutable after construction and may be used by many tiles at once.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -33,6 +34,16 @@
 #include "sheet_buffer.h"
 
 namespace pcvr {
+
+/// floor(x) as a sheet index, saturated at +-2^60: sheets that far out are never walked, and a far
+/// clip plane at 1e300, or a depth 1e20 sheets out, must not overflow the conversion (NaN: the
+/// lowest). Two saturated indices still add up within int64.
+inline int64_t sheet_floor(double x) {
+    constexpr int64_t kFarthest = int64_t(1) << 60;
+    if (!(x > -double(kFarthest))) return -kFarthest;
+    if (!(x < double(kFarthest))) return kFarthest;
+    return int64_t(std::floor(x));
+}
 
 /// The surfaces cutting space into slabs: slab s spans [boundary(s), boundary(s + 1)] of the sheet
 /// parameter. Orthographic views: planes of constant depth (camera-space units along the view axis).
@@ -48,7 +59,7 @@ struct SheetLattice {
 
     double boundary(int64_t s) const { return first_depth + double(s) * spacing; }
     /// The slab holding depth z (may lie outside [0, count)).
-    int64_t slab_of(double z) const { return int64_t(std::floor((z - first_depth) / spacing)); }
+    int64_t slab_of(double z) const { return sheet_floor((z - first_depth) / spacing); }
 };
 
 enum class SlabMode { Footprint, BilinearSpread };

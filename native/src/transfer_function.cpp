@@ -58,7 +58,8 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
         red_[e] = float(v[0]);
         green_[e] = float(v[1]);
         blue_[e] = float(v[2]);
-        extinction_[e] = float(-std::log1p(-opacity) / unit_distance);
+        // Capped where a unit_distance of 1e-300 would make it infinite: opaque in any sample anyway.
+        extinction_[e] = float(std::min(-std::log1p(-opacity) / unit_distance, 1e30));
     }
     for (auto* channel : {&red_, &green_, &blue_, &extinction_}) (*channel)[kEntries + 1] = (*channel)[kEntries];
 

@@ -1,4 +1,5 @@
 // Vector helpers (pcvr/lanes.h) and the post filters' properties (pcvr/post_convolution.h).
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -30,6 +31,27 @@ TEST(post_filters_reach_and_overshoot) {
     // It interpolates: a pixel on a node takes that node's value.
     const PostFilter f(PostFilterShape::CatmullRom, 4);
     CHECK(f.weights(0)[1] == 1.0f && f.weights(0)[0] == 0.0f && f.weights(0)[2] == 0.0f);
+}
+
+TEST(overshoot_is_the_largest_negative_weight_over_every_pixel_phase) {
+    // Against every pair of phases: overshoot() takes the largest per phase instead, since fuzz_shaded
+    // found that pairs at a fixed stride of 70000 (5e9 of them) hung the render in the culling setup.
+    for (PostFilterShape shape : {PostFilterShape::Bilinear, PostFilterShape::Gauss14, PostFilterShape::CatmullRom})
+        for (int stride : {1, 2, 3, 5, 8, 13}) {
+            const PostFilter f(shape, stride);
+            double most = 0;
+            for (int px = 0; px < stride; ++px)
+                for (int py = 0; py < stride; ++py) {
+                    double negative = 0;
+                    for (int i = 0; i < PostFilter::kTaps; ++i)
+                        for (int j = 0; j < PostFilter::kTaps; ++j)
+                            negative += std::max(0.0, -double(f.weights(px)[i]) * f.weights(py)[j]);
+                    most = std::max(most, negative);
+                }
+            CHECK(f.overshoot() >= most - 1e-12);  // a bound (up to rounding), and a tight one
+            CHECK_NEAR(f.overshoot(), most, 1e-6);
+        }
+    CHECK_NEAR(PostFilter(PostFilterShape::CatmullRom, 65536).overshoot(), 0.28125, 1e-6);
 }
 
 TEST(post_convolving_a_region_is_the_separable_filter) {

@@ -1,6 +1,6 @@
-"""What fuzzing and the property tests found (make fuzz, make stress; docs/reliability.md), each
-kept as a test. The fuzzer inputs that found them are in tests/fuzz_regressions/<target>/, which
-make fuzz replays before it fuzzes."""
+"""What fuzzing, the sanitizers and the property tests found (make fuzz, make sanitize, make stress;
+docs/reliability.md), each kept as a test. The fuzzer inputs that found them are in
+tests/fuzz_regressions/<target>/, which make fuzz replays before it fuzzes."""
 
 from pathlib import Path
 
@@ -82,6 +82,18 @@ def test_delayed_load_table_whose_blosc_header_disagrees():
             call(path)
 
 
+def test_corrupt_topology_chunk_is_a_clear_error():
+    """fuzz_read_vdb (tests/fuzz_regressions/read_vdb/topology_blosc_chunk_corrupt.vdb): a blosc
+    chunk in a tree's topology that the reader's checks pass but blosc cannot decompress. OpenVDB
+    throws, and leaks the node it was reading into (LeakSanitizer; OpenVDB's, suppressed in
+    native/fuzz/leak_suppressions.txt): the read fails with the file and the cause; the listing,
+    which reads no topology, still names the grid."""
+    path = REGRESSIONS / "read_vdb" / "topology_blosc_chunk_corrupt.vdb"
+    with pytest.raises(pn.VDBReadError, match=r"topology_blosc_chunk_corrupt\.vdb.*Expected to decompress 4 bytes"):
+        pn.read_vdb(path)
+    assert [g["name"] for g in pn.list_grids(path)] == ["density"]
+
+
 def test_bilinear_spreading_a_voxel_wider_than_the_int_range():
     """fuzz_read_vdb (tests/fuzz_regressions/read_vdb/one_voxel_framed_at_zero_size.vdb, one voxel
     two index units from its block's origin): at 1e29 pixels per voxel bilinear spreading's stride is
@@ -121,3 +133,99 @@ def test_stride_from_a_corner_at_the_eye_stays_bounded():
     """)
     assert proc.returncode == 0, proc.stderr
     assert all(int(line.split()[1]) <= 65536 for line in proc.stdout.splitlines()), proc.stdout
+
+
+# ---- Shaded and MIP (fuzz_shaded, make sanitize) ----------------------------------------------
+
+def shaded_block(side=8):
+    """A dense block of random densities in [0, 1], seen orthographically from +z, 32 x 32 pixels
+    (one tile): every voxel is splatted once."""
+    values = np.random.default_rng(5).random((side, side, side)).astype(np.float32) + 0.01
+    grid = pn.Grid.from_dense(values, np.eye(4))
+    c = (side - 1) / 2
+    cam = pn.Camera(cameras.look_at((c, c, 40.0), (c, c, c), (0, 1, 0)), cameras.ortho(-6, 6, -6, 6, 1, 100), 32, 32)
+    return grid, cam
+
+
+def ramp(opacity=0.3, colour=1.0, unit_distance=None):
+    return pn.TransferFunction(density=[0.0, 1.0], rgba=[[colour] * 3 + [0.0], [colour] * 3 + [opacity]], unit_distance=unit_distance)
+
+
+def test_orthographic_sheets_splat_no_padding_lane():
+    """make sanitize, in test_shaded_accuracy: the voxels of a block are splatted in depth order in
+    batches of eight, and the batch after a block's last voxel holds padding at infinite depth, whose
+    first sheet was converted to int64 (undefined; UBSan: "inf is outside the range of long"), in
+    every orthographic shaded render. The fix leaves those lanes alone: each of the 512 voxels is
+    still splatted exactly once."""
+    grid, cam = shaded_block()
+    for method in ("regular", "pcvr", "bilinear_spread"):
+        stats = {}
+        image = pn.render_shaded(grid, cam, ramp(), [pn.Light.sun((0, 0, -1))], method=method, opacity_cutoff=1.0,
+                                 threads=1, stats=stats)
+        assert np.isfinite(image).all() and image[..., 3].max() > 0.5, method
+        assert stats["voxels"] == 512, (method, stats["voxels"])
+
+
+def test_sheet_spacing_beyond_what_sheets_can_be_is_refused():
+    """fuzz_shaded (tests/fuzz_regressions/shaded/sheet_spacing_1e308): sheets 1.4e308 voxels apart
+    made the sheet spacing infinite and the sheet count NaN, converted to int64 (undefined). Sheet
+    spacings outside 1e-6 to 1e6 voxels are refused (and sheet indices saturate at 2^60)."""
+    grid, cam = shaded_block()
+    for spacing in (1.39e308, 2e6, 1e-300, 5e-7):
+        with pytest.raises(ValueError, match="sheet_spacing must be a number of voxels from 1e-6 to 1e6"):
+            pn.render_mip(grid, cam, sheet_spacing=spacing)
+        with pytest.raises(ValueError, match="sheet_spacing must be a number of voxels from 1e-6 to 1e6"):
+            pn.render_shaded(grid, cam, ramp(), method="raycast", sheet_spacing=spacing)
+
+
+def test_large_strides_are_splatted_at_most_at_the_tile_and_image_size():
+    """fuzz_shaded (tests/fuzz_regressions/shaded/fixed_stride_22969, stride_on_a_one_pixel_high_image):
+    a sheet's gradient reads a node beyond its tile, so each tile's sheets are a stride wider on every
+    side. A fixed stride of 22969 on a 33 x 19 image allocated 8.5 GB for one tile (and first hung
+    for minutes in PostFilter::overshoot, which went over every pair of the stride's phases: now per
+    phase, native/tests), and a stride of 256 made a one-pixel-high image post-convolve 500 times its
+    pixels per sheet. Strides are capped at 256, the tile size and the image's smaller side; a capped
+    stride renders the same bits as asking for it."""
+    grid, cam = shaded_block()
+    tf, lights = ramp(), [pn.Light.sun((0, 0, -1))]
+    for stride, tile, expected in ((22969, 0, 32), (40, 12, 12), (300, 64, 32)):
+        stats = {}
+        image = pn.render_shaded(grid, cam, tf, lights, stride=stride, tile_size=tile, threads=1, stats=stats)
+        assert stats["strides"] == [expected], (stride, tile, stats["strides"])
+        assert np.array_equal(image, pn.render_shaded(grid, cam, tf, lights, stride=expected, tile_size=tile, threads=1))
+    thin = pn.Camera(cameras.look_at((3.5, 3.5, 40.0), (3.5, 3.5, 3.5), (0, 1, 0)), cameras.ortho(-6, 6, -0.01, 0.01, 1, 100), 600, 1)
+    stats = {}
+    assert np.isfinite(pn.render_mip(grid, thin, stats=stats)).all()
+    assert stats["strides"] == [1]
+
+
+def test_densities_beyond_float_range_are_refused():
+    """fuzz_shaded (tests/fuzz_regressions/shaded/density_scale_1e307): a density_scale of 1.2e307
+    became infinity in the float sheets and MIP returned NaN. Densities times density_scale, and their
+    integral over a slab, must stay below 1e36 (the sheets hold them in float32, range 3.4e38)."""
+    grid, cam = shaded_block()
+    message = r"grid 'density': densities times density_scale reach .*beyond 1e\+36.*scale the densities down with density_scale"
+    with pytest.raises(ValueError, match=message):
+        pn.render_mip(grid, cam, density_scale=1.2e307)
+    with pytest.raises(ValueError, match=message):
+        pn.render_shaded(grid, cam, ramp(), density_scale=1e37)
+    assert np.isfinite(pn.render_mip(grid, cam, density_scale=1e35)).all()
+
+
+def test_lighting_and_extinction_beyond_float_range_stay_finite():
+    """fuzz_shaded: transfer-function colours, light energies and material coefficients are checked
+    finite in double but held in float, and a point light at a sample divides its energy by a
+    squared distance of 1e-30; an opacity per 1e-300 units is an infinite extinction. Where an
+    infinity met a zero (colour times extinction over their sum, energy times an unlit normal) pixels
+    were NaN. Lighting is now bounded at 1e30 per stage and colours mix by extinction shares: the
+    image is finite, its alpha within [0, 1] and its colours >= 0."""
+    grid, cam = shaded_block()
+    centre = [3.0, 3.0, 3.0]  # a voxel's centre: the ray through pixel (16, 16)'s samples cross it
+    lights = [pn.Light.point(centre, strength=1e300), pn.Light.point((3.5, 3.5, 40.0), strength=1e300), pn.Light.sun((0, 0, -1), strength=1e300)]
+    bright = ramp(opacity=1.0, colour=1e300, unit_distance=1e-300)
+    for shading in (pn.Shading(), pn.Shading(ambient=1e300, diffuse=1e300, specular=1e300, shininess=1e300), pn.Shading(lit=False)):
+        for method in ("pcvr", "regular", "raycast"):
+            image = pn.render_shaded(grid, cam, bright, lights, ambient=(1e300,) * 3, shading=shading, method=method, threads=1)
+            assert np.isfinite(image).all(), method
+            assert (image[..., :3] >= 0).all() and (image[..., 3] >= 0).all() and (image[..., 3] <= 1).all(), method
+            assert image[..., 3].max() == 1.0

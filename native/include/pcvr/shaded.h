@@ -53,7 +53,7 @@ struct ShadedParams {
     /// good as or better than the bilinear filter on every shaded scene, by up to 3.6 dB on coarse data
     /// (docs/how-it-works.md, "Choosing the defaults"); the Gaussians blur surfaces.
     std::string post_filter = "catmull_rom";
-    int stride = 0;               ///< subgrid stride in pixels; 0 = automatic per grid
+    int stride = 0;               ///< subgrid stride in pixels; 0 = automatic per grid; at most 256, the tile size and the image's smaller side
     double sheet_spacing = 1.0;   ///< voxels along the view direction between sheets (raycast: between samples)
     /// Classified samples from one sheet to the next (density and gradient interpolated between them):
     /// 2 halves the sheets' terraces for 10-30% more time, 2-3 dB nearer the ray caster.
