@@ -188,7 +188,8 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
     const double stride2 = double(grid.stride()) * grid.stride(), radius = params.kernel_radius;
     const double prefilter_reach = kPrefilterReach / grid.stride();
     // The largest eigenvalue of the form (index^2 per pixel^2) above which a footprint is prefiltered.
-    const double prefilter_above = 1.0 / (kPrefilterBelowPixelsPerVoxel * kPrefilterBelowPixelsPerVoxel);
+    const double prefilter_above =
+        params.antialias ? 1.0 / (kPrefilterBelowPixelsPerVoxel * kPrefilterBelowPixelsPerVoxel) : INFINITY;
     const double4 zero = {0, 0, 0, 0};
     auto sqrt4 = [](double4 x) { return double4(_mm256_sqrt_pd(__m256d(x))); };
     const double box_variance = prefilter_reach * prefilter_reach / 3.0;  // (2 h)^2 / 12
@@ -273,8 +274,9 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         NodeShape s{float(f.qxx), float(f.qxy), float(f.qyy), float(f.extent_x(params.kernel_radius)),
                     float(f.extent_y(params.kernel_radius))};
         float amp = float(v * params.density_scale * fp.line_scale);
-        if (params.bilinear_spread || prefiltered(fp)) amp *= float(f.area_integral());
-        if (prefiltered(fp)) {
+        const bool narrow = params.antialias && prefiltered(fp);
+        if (params.bilinear_spread || narrow) amp *= float(f.area_integral());
+        if (narrow) {
             const double det = f.qxx * f.qyy - f.qxy * f.qxy, reach = kPrefilterReach / grid.stride();
             s.ext_x += float(reach);
             s.ext_y += float(reach);

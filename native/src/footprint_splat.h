@@ -30,6 +30,7 @@ struct FootprintSplatParams {
     double kernel_variance = 0.35;  ///< per axis, index units^2: the prefilter's Gaussian (pixel_prefilter.h)
     float density_scale = 1.0f;
     bool bilinear_spread = false;  ///< each footprint's integral to its 2 x 2 nearest nodes instead
+    bool antialias = true;         ///< footprints narrower than a pixel integrated over pixels (pixel_prefilter.h)
 };
 
 /// Splats the active, finite, non-zero voxels of `block` whose centres lie between the clip planes

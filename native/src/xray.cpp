@@ -111,6 +111,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
     splat.footprint_tolerance = tolerance;
+    splat.antialias = params.antialias;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {

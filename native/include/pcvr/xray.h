@@ -43,6 +43,9 @@ struct XrayParams {
     double footprint_tolerance = kFootprintTolerance;
     /// Bytes the render's buffers may take (pcvr/memory_budget.h); 0: what the machine has available.
     uint64_t memory_limit = 0;
+    /// Footprints narrower than a pixel are integrated over each pixel's area (src/pixel_prefilter.h);
+    /// false: sampled at pixel centres like `exact`'s rays.
+    bool antialias = true;
 };
 
 struct XrayStats {
