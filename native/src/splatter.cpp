@@ -10,6 +10,7 @@
 
 #include "footprint_splat.h"
 #include "near_eye_splat.h"
+#include "level_of_detail.h"
 #include "phase_splat.h"
 #include "pixel_prefilter.h"
 #include "pcvr/phase_table.h"
@@ -76,7 +77,7 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     footprints.view = &view;
     footprints.table = params.table;
     footprints.kernel_radius = params.kernel_radius;
-    footprints.kernel_variance = params.kernel->variance();
+    footprints.kernel_variance = level_kernel_variance(params.kernel->variance(), params.level);
     footprints.antialias = params.antialias;
     footprints.density_scale = params.density_scale;
     footprints.bilinear_spread = params.mode == SplatMode::BilinearSpread;

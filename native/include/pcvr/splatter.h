@@ -44,6 +44,9 @@ struct SplatParams {
     double footprint_tolerance = std::numeric_limits<double>::infinity();
     /// Footprints narrower than a pixel are integrated over each pixel's area (src/pixel_prefilter.h).
     bool antialias = true;
+    /// The grid's level of detail (Grid::level): its voxels' footprints spread like the 8^level voxels
+    /// they stand for (src/level_of_detail.h).
+    int level = 0;
 };
 
 /// The default footprint_tolerance: a linearised footprint may be off by 4% of its peak (PCVR's
