@@ -276,12 +276,21 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         float amp = float(v * params.density_scale * fp.line_scale);
         const bool narrow = params.antialias && prefiltered(fp);
         if (params.bilinear_spread || narrow) amp *= float(f.area_integral());
-        if (narrow) {
-            const double det = f.qxx * f.qyy - f.qxy * f.qxy, reach = kPrefilterReach / grid.stride();
-            s.ext_x += float(reach);
-            s.ext_y += float(reach);
-            s.sigma_x = float(std::sqrt(params.kernel_variance * f.qyy / det));
-            s.sigma_y = float(std::sqrt(params.kernel_variance * f.qxx / det));
+        if (narrow) {  // as in project(): the footprint's covariance in nodes, widened when tilted
+            const double det = f.qxx * f.qyy - f.qxy * f.qxy, reach = kPrefilterReach / grid.stride(), var = params.kernel_variance;
+            const double sxx = var * f.qyy / det, sxy = -var * f.qxy / det, syy = var * f.qxx / det;
+            if (std::abs(sxy) > kWidenAboveCovariance / stride2) {
+                const double wxx = sxx + reach * reach / 3.0, wyy = syy + reach * reach / 3.0, wdet = wxx * wyy - sxy * sxy;
+                s = {float(var * wyy / wdet), float(-var * sxy / wdet), float(var * wxx / wdet),
+                     float(params.kernel_radius * std::sqrt(wxx / var)), float(params.kernel_radius * std::sqrt(wyy / var))};
+                s.widened = true;
+                amp *= float(var / std::sqrt(wdet));
+            } else {
+                s.ext_x += float(reach);
+                s.ext_y += float(reach);
+                s.sigma_x = float(std::sqrt(sxx));
+                s.sigma_y = float(std::sqrt(syy));
+            }
         }
         float* tile = tiles ? tile_copy(tiles, turn++) : nullptr;
         add_lane(target, tile, grid, float(grid.node_x(fp.px) - target.ref_x), float(grid.node_y(fp.py) - target.ref_y), s, amp, params);
