@@ -160,6 +160,14 @@ def render(grid, cam: CameraSpec, method: str, kernel: str = "gauss1.4", post: s
     return np.asarray(img, dtype=np.float64)
 
 
+def pixel_means(grid, cam: CameraSpec, factor: int = 8, kernel: str = "gauss1.4") -> np.ndarray:
+    """The reference for anti-aliased images: `exact` at `factor` x the resolution (the same view, each
+    pixel split into factor x factor sub-pixels sampled at their centres), averaged over each pixel."""
+    fine = CameraSpec(cam.world_to_camera, cam.projection, cam.width * factor, cam.height * factor)
+    img = render(grid, fine, "exact", kernel)
+    return img.reshape(cam.height, factor, cam.width, factor).mean(axis=(1, 3))
+
+
 def kernel_variance(name: str) -> float:
     info = getattr(pn, "kernel_info", None)
     return float(info(name)["variance"]) if info else phantoms.kernel_variance(name)

@@ -190,6 +190,10 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("background", &Grid::background,
                      "The value of inactive voxels; shaded and MIP renders reconstruct towards it beyond the active ones.")
         .def_prop_ro("name", &Grid::name)
+        .def("level", &Grid::level, "k"_a,
+             "Level of detail k (0: this grid): each voxel the mean of 2 x 2 x 2 voxels of the level before, inactive "
+             "ones counting as nothing, at their centre (index_to_world scaled by 2 per level and moved by half a voxel). "
+             "Cached with the voxels.")
         .def_prop_ro(
             "source_path",
             [](const Grid& g) -> std::optional<std::string> {

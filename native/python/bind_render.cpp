@@ -27,7 +27,8 @@ namespace {
 nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::string& method,
                           const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
-                          int pixel_step, double footprint_tolerance, std::optional<uint64_t> memory_limit) {
+                          int pixel_step, double footprint_tolerance, std::optional<uint64_t> memory_limit,
+                          bool antialias, nb::handle level) {
     const std::vector<Grid> grids = grids_from_python(grid_arg, "render_xray");
     const std::vector<double> scales = scales_from_python(density_scale, grids.size(), "render_xray");
     std::vector<WeightedGrid> weighted;
@@ -41,6 +42,13 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
     params.threads = threads;
     params.pixel_step = pixel_step;
     params.footprint_tolerance = footprint_tolerance;
+    params.antialias = antialias;
+    if (nb::isinstance<nb::str>(level) && nb::cast<std::string>(level) == "auto")
+        params.level = -1;
+    else if (nb::isinstance<nb::int_>(level) && nb::cast<int64_t>(level) >= 0 && nb::cast<int64_t>(level) <= 30)
+        params.level = int(nb::cast<int64_t>(level));
+    else
+        throw InvalidArgument("render_xray: level must be 'auto' or a level of detail from 0 (the grid itself) to 30");
     if (memory_limit && *memory_limit == 0) throw InvalidArgument("memory_limit must be a positive number of bytes, or None");
     params.memory_limit = memory_limit.value_or(0);
 
@@ -62,6 +70,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
         stats["seconds"] = xs.seconds;
         stats["memory_bytes"] = xs.memory_bytes;
+        stats["level"] = xs.level;
     }
     auto* pixels = new ZeroedBuffer<float>(std::move(image.pixels));
     nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<ZeroedBuffer<float>*>(p); });
@@ -94,12 +103,17 @@ void bind_render(nb::module_& m) {
     m.def("render_xray", &render_xray_py, "grid"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "bilinear", "stride"_a = 0, "threads"_a = 0, nb::kw_only(), "density_scale"_a = 1.0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), "pixel_step"_a = 1,
-          "footprint_tolerance"_a = kFootprintTolerance, "memory_limit"_a = nb::none(),
+          "footprint_tolerance"_a = kFootprintTolerance, "memory_limit"_a = nb::none(), "antialias"_a = true,
+          "level"_a = "auto",
           "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.\n"
           "footprint_tolerance: perspective views splat voxels whose linearised footprint would be off by more\n"
           "than this fraction of its peak with exact per-ray footprints (0: all; inf: none).\n"
           "memory_limit: bytes the render's buffers may take (None: the memory this machine has available);\n"
-          "a request beyond it raises MemoryError before anything is allocated, saying what it needs.");
+          "a request beyond it raises MemoryError before anything is allocated, saying what it needs.\n"
+          "antialias: footprints of voxels smaller than a pixel are integrated over each pixel's area, so a pixel\n"
+          "is the mean of the line integral over it (False: sampled at its centre, as method 'exact' is).\n"
+          "level: 'auto' renders each grid from the coarsest level of detail (Grid.level) whose voxels project to at\n"
+          "most 1/32 of a pixel (which keeps the image within 0.1% of level 0's), or a level k >= 0 (0: the grid itself); stats['level'] says which.");
     m.def("default_memory_limit", &default_memory_limit,
           "Bytes a render may use when memory_limit is None: the memory this machine (or its cgroup) has available.");
 

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "near_eye_splat.h"
+#include "pixel_prefilter.h"
 
 namespace pcvr {
 
@@ -85,8 +86,9 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         y0 = std::min(y0, py);
         y1 = std::max(y1, py);
         if (shared && corner > 0) continue;  // the same shape at every corner
-        ext_x = std::max(ext_x, fp.extent_x(params.kernel_radius));
-        ext_y = std::max(ext_y, fp.extent_y(params.kernel_radius));
+        const double reach = prefiltered(fp) ? kPrefilterReach : 0.0;  // integrated over whole pixels
+        ext_x = std::max(ext_x, fp.extent_x(params.kernel_radius) + reach);
+        ext_y = std::max(ext_y, fp.extent_y(params.kernel_radius) + reach);
         const double m = fp.min_pixels_per_voxel();
         mag_min = std::min(mag_min, m);
         mag_max = std::max(mag_max, m);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "block_voxels.h"
+#include "pixel_prefilter.h"
 
 namespace pcvr {
 
@@ -12,7 +13,9 @@ namespace {
 /// A footprint in node units of the target grid, as floats for the tap loops.
 struct NodeShape {
     float qxx, qxy, qyy;
-    float ext_x, ext_y;  // bounding half-widths of the ellipse rho <= radius
+    float ext_x, ext_y;  // bounding half-widths of the ellipse rho <= radius (plus the prefilter's reach)
+    float sigma_x = 0, sigma_y = 0;  // > 0: narrower than a pixel, prefiltered along the pixel axes
+    bool widened = false;            // narrower than a pixel, tilted: the form widened by the box's variance
 };
 
 #ifdef PCVR_AVX2
@@ -132,15 +135,19 @@ BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, c
 
 /// Adds one footprint, given relative to the block target's reference node, into its tile when it
 /// lies inside, else into the grid.
+/// Prefiltered footprints (whose `amp` is their mass) go there whatever the mode.
 void add_lane(const BlockTarget& t, float* tile, SplatGrid& grid, float cx, float cy, const NodeShape& s, float amp,
               const FootprintSplatParams& params) {
     const DepositRegion& r = t.region;
+    const bool prefiltered = s.sigma_x > 0, bilinear = params.bilinear_spread && !prefiltered && !s.widened;
+    const PrefilteredShape box{s.sigma_x, s.sigma_y, s.ext_x, s.ext_y, float(kPrefilterReach / grid.stride())};
     if (r.tiled) {
-        const bool inside = params.bilinear_spread
-                                ? cx >= 0 && cy >= 0 && cx < r.width - 1 && cy < r.height - 1
-                                : cx - s.ext_x > 0 && cy - s.ext_y > 0 && cx + s.ext_x < r.width - 1 && cy + s.ext_y < r.height - 1;
+        const bool inside = bilinear ? cx >= 0 && cy >= 0 && cx < r.width - 1 && cy < r.height - 1
+                                     : cx - s.ext_x > 0 && cy - s.ext_y > 0 && cx + s.ext_x < r.width - 1 && cy + s.ext_y < r.height - 1;
         if (inside) {
-            if (params.bilinear_spread)
+            if (prefiltered)
+                add_prefiltered(tile, r.pitch, r.height, r.width, cx, cy, box, amp);
+            else if (bilinear)
                 add_bilinear(tile, r.pitch, r.height, r.width, cx, cy, amp);
             else
                 add_footprint(tile, r.pitch, r.height, r.width, cx, cy, s, amp, *params.table);
@@ -148,7 +155,9 @@ void add_lane(const BlockTarget& t, float* tile, SplatGrid& grid, float cx, floa
         }
     }
     const double gx = double(cx) + t.ref_x, gy = double(cy) + t.ref_y;
-    if (params.bilinear_spread)
+    if (prefiltered)
+        add_prefiltered(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, box, amp);
+    else if (bilinear)
         add_bilinear(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, amp);
     else
         add_footprint(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, s, amp, *params.table);
@@ -166,7 +175,9 @@ inline uint32_t mask_of(long4 condition) { return uint32_t(_mm256_movemask_pd(__
 /// Eight voxels projected: positions relative to the target's reference node, shape, amplitude.
 struct ProjectedBatch {
     alignas(32) float cx[8], cy[8], qxx[8], qxy[8], qyy[8], ext_x[8], ext_y[8], amp[8];
-    uint32_t live;  // lanes holding a finite, non-zero voxel inside the clip range
+    alignas(32) float sigma_x[8], sigma_y[8];  // 0: sampled at node centres; else prefiltered, amp its mass
+    uint32_t live;
+    uint32_t widened;  // lanes whose form and amp are widened by the pixel's variance (pixel_prefilter.h)  // lanes holding a finite, non-zero voxel inside the clip range
 };
 
 /// The vector pass: index offsets (i, j, k) within the block and values v of eight voxels.
@@ -175,9 +186,15 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
     const ViewProjection& view = *params.view;
     const Mat4& m = view.index_to_clip();
     const double stride2 = double(grid.stride()) * grid.stride(), radius = params.kernel_radius;
+    const double prefilter_reach = kPrefilterReach / grid.stride();
+    // The largest eigenvalue of the form (index^2 per pixel^2) above which a footprint is prefiltered.
+    const double prefilter_above =
+        params.antialias ? 1.0 / (kPrefilterBelowPixelsPerVoxel * kPrefilterBelowPixelsPerVoxel) : INFINITY;
     const double4 zero = {0, 0, 0, 0};
     auto sqrt4 = [](double4 x) { return double4(_mm256_sqrt_pd(__m256d(x))); };
-    uint32_t inside_clip = 0;
+    const double box_variance = prefilter_reach * prefilter_reach / 3.0;  // (2 h)^2 / 12
+    const double tilt_above = kWidenAboveCovariance / stride2;
+    uint32_t inside_clip = 0, widened = 0;
     for (int half = 0; half < 2; ++half) {
         auto part = [half](__m256 x) { return lanes_of(half ? _mm256_extractf128_ps(x, 1) : _mm256_castps256_ps128(x)); };
         const double4 x = part(i) + double(block.origin[0]), y = part(j) + double(block.origin[1]),
@@ -190,19 +207,35 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
         const double4 qxx = f.qxx * stride2, qxy = f.qxy * stride2, qyy = f.qyy * stride2;
         const double4 det = qxx * qyy - qxy * qxy;
         double4 amp = f.line_scale * double(params.density_scale);
-        if (params.bilinear_spread) amp = amp / sqrt4(det);  // the footprint's integral, node^2
+        const double4 mass = amp / sqrt4(det);  // the footprint's integral, node^2
+        if (params.bilinear_spread) amp = mass;
+        // Fewer than one pixel per voxel in some direction: the largest eigenvalue of the form in pixels.
+        const double4 half_trace = 0.5 * (f.qxx + f.qyy), half_difference = 0.5 * (f.qxx - f.qyy);
+        long4 narrow = half_trace + sqrt4(half_difference * half_difference + f.qxy * f.qxy) > zero + prefilter_above;
+        // The footprint's covariance (node^2) and, for tilted ones wide enough, the form widened by it.
+        const double4 var = zero + params.kernel_variance;
+        const double4 sxx = var * qyy / det, sxy = -var * qxy / det, syy = var * qxx / det;
+        const double4 wxx = sxx + box_variance, wyy = syy + box_variance, wdet = wxx * wyy - sxy * sxy;
+        const long4 widen = narrow & (sxy * sxy > zero + tilt_above * tilt_above);
+        narrow = narrow & ~widen;
+        const double4 reach = narrow ? zero + prefilter_reach : zero;
         const int o = 4 * half;
         _mm_store_ps(out.cx + o, floats_of(grid.node_x(f.px) - double(target.ref_x)));
         _mm_store_ps(out.cy + o, floats_of(grid.node_y(f.py) - double(target.ref_y)));
-        _mm_store_ps(out.qxx + o, floats_of(qxx));
-        _mm_store_ps(out.qxy + o, floats_of(qxy));
-        _mm_store_ps(out.qyy + o, floats_of(qyy));
-        _mm_store_ps(out.ext_x + o, floats_of(radius * sqrt4(qyy / det)));
-        _mm_store_ps(out.ext_y + o, floats_of(radius * sqrt4(qxx / det)));
-        _mm_store_ps(out.amp + o, floats_of(amp));
+        _mm_store_ps(out.qxx + o, floats_of(widen ? var * wyy / wdet : qxx));
+        _mm_store_ps(out.qxy + o, floats_of(widen ? -var * sxy / wdet : qxy));
+        _mm_store_ps(out.qyy + o, floats_of(widen ? var * wxx / wdet : qyy));
+        _mm_store_ps(out.ext_x + o, floats_of(widen ? radius * sqrt4(wxx / var) : radius * sqrt4(qyy / det) + reach));
+        _mm_store_ps(out.ext_y + o, floats_of(widen ? radius * sqrt4(wyy / var) : radius * sqrt4(qxx / det) + reach));
+        // Widened: the same integral, mass = amp' sqrt(det) / var over the widened covariance.
+        _mm_store_ps(out.amp + o, floats_of(narrow ? mass : widen ? mass * var / sqrt4(wdet) : amp));
+        _mm_store_ps(out.sigma_x + o, floats_of(narrow ? sqrt4(sxx) : zero));
+        _mm_store_ps(out.sigma_y + o, floats_of(narrow ? sqrt4(syy) : zero));
+        widened |= mask_of(widen) << o;
     }
     _mm256_store_ps(out.amp, _mm256_mul_ps(_mm256_load_ps(out.amp), v));
     out.live = inside_clip & uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
+    out.widened = widened;
 }
 
 #endif  // PCVR_AVX2
@@ -223,8 +256,9 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             float* tile = tiles ? tile_copy(tiles, l) : nullptr;
-            add_lane(target, tile, grid, b.cx[l], b.cy[l], {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l]}, b.amp[l],
-                     params);
+            add_lane(target, tile, grid, b.cx[l], b.cy[l],
+                     {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l], b.sigma_x[l], b.sigma_y[l], bool((b.widened >> l) & 1)},
+                     b.amp[l], params);
         }
     });
 #else
@@ -237,10 +271,27 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         f.qxx *= stride2;
         f.qxy *= stride2;
         f.qyy *= stride2;
-        const NodeShape s{float(f.qxx), float(f.qxy), float(f.qyy), float(f.extent_x(params.kernel_radius)),
-                          float(f.extent_y(params.kernel_radius))};
+        NodeShape s{float(f.qxx), float(f.qxy), float(f.qyy), float(f.extent_x(params.kernel_radius)),
+                    float(f.extent_y(params.kernel_radius))};
         float amp = float(v * params.density_scale * fp.line_scale);
-        if (params.bilinear_spread) amp *= float(f.area_integral());
+        const bool narrow = params.antialias && prefiltered(fp);
+        if (params.bilinear_spread || narrow) amp *= float(f.area_integral());
+        if (narrow) {  // as in project(): the footprint's covariance in nodes, widened when tilted
+            const double det = f.qxx * f.qyy - f.qxy * f.qxy, reach = kPrefilterReach / grid.stride(), var = params.kernel_variance;
+            const double sxx = var * f.qyy / det, sxy = -var * f.qxy / det, syy = var * f.qxx / det;
+            if (std::abs(sxy) > kWidenAboveCovariance / stride2) {
+                const double wxx = sxx + reach * reach / 3.0, wyy = syy + reach * reach / 3.0, wdet = wxx * wyy - sxy * sxy;
+                s = {float(var * wyy / wdet), float(-var * sxy / wdet), float(var * wxx / wdet),
+                     float(params.kernel_radius * std::sqrt(wxx / var)), float(params.kernel_radius * std::sqrt(wyy / var))};
+                s.widened = true;
+                amp *= float(var / std::sqrt(wdet));
+            } else {
+                s.ext_x += float(reach);
+                s.ext_y += float(reach);
+                s.sigma_x = float(std::sqrt(sxx));
+                s.sigma_y = float(std::sqrt(syy));
+            }
+        }
         float* tile = tiles ? tile_copy(tiles, turn++) : nullptr;
         add_lane(target, tile, grid, float(grid.node_x(fp.px) - target.ref_x), float(grid.node_y(fp.py) - target.ref_y), s, amp, params);
         ++count;

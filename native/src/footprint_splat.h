@@ -8,7 +8,8 @@
 /// each footprint is added row by row, its weights gathered from the FootprintTable eight taps at
 /// a time: into the block's tile (block_tile.h) when the block is dense and its footprints fit one,
 /// else straight into the grid. Bilinear spreading takes the same pass and puts each footprint's
-/// integral on its 2 x 2 nearest nodes.
+/// integral on its 2 x 2 nearest nodes. Footprints narrower than a pixel are integrated over each
+/// pixel's area instead, in every mode (pixel_prefilter.h).
 #pragma once
 
 #include <cstdint>
@@ -26,8 +27,10 @@ struct FootprintSplatParams {
     const ViewProjection* view = nullptr;
     const FootprintTable* table = nullptr;
     double kernel_radius = 2.0;   ///< index units
+    double kernel_variance = 0.35;  ///< per axis, index units^2: the prefilter's Gaussian (pixel_prefilter.h)
     float density_scale = 1.0f;
     bool bilinear_spread = false;  ///< each footprint's integral to its 2 x 2 nearest nodes instead
+    bool antialias = true;         ///< footprints narrower than a pixel integrated over pixels (pixel_prefilter.h)
 };
 
 /// Splats the active, finite, non-zero voxels of `block` whose centres lie between the clip planes

@@ -330,6 +330,49 @@ const std::vector<BlockValueRange>& Grid::block_value_ranges() const {
     return data_->ranges;
 }
 
+namespace {
+
+/// The next level of detail's voxels (see Grid::level): each active voxel adds an eighth of its value
+/// to the voxel of half its index (rounded down), in float (at most eight terms each).
+vdb::FloatGrid::Ptr halve(const std::vector<VoxelBlock>& blocks, float background) {
+    auto coarse = vdb::FloatGrid::create(background);
+    auto acc = coarse->getAccessor();
+    for (const VoxelBlock& block : blocks)
+        for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
+            const float v = block.value(offset);
+            if (!block.active(offset) || v == 0.0f || !std::isfinite(v)) continue;
+            const vdb::Coord at((block.origin[0] + (offset >> 6)) >> 1, (block.origin[1] + ((offset >> 3) & 7)) >> 1,
+                                (block.origin[2] + (offset & 7)) >> 1);
+            acc.setValue(at, (acc.isValueOn(at) ? acc.getValue(at) : 0.0f) + 0.125f * v);
+        }
+    return coarse;
+}
+
+}  // namespace
+
+Grid Grid::level(int k) const {
+    if (k < 0) throw InvalidArgument("grid '" + name_ + "': level must be 0 (the grid itself) or more");
+    if (k == 0) return *this;
+    std::shared_ptr<Data> next;
+    {
+        std::lock_guard<std::mutex> lock(data_->coarser_mutex);
+        if (!data_->coarser) {
+            auto grid = halve(blocks(), background());
+            grid->setName(name_);
+            grid->setGridClass(vdb::GRID_FOG_VOLUME);
+            data_->coarser = std::make_shared<Data>(std::move(grid), std::string());
+        }
+        next = data_->coarser;
+    }
+    // Coarse index I sits at fine index 2 I + 1/2, the centre of the voxels it averages.
+    Mat4 halving;
+    for (int r = 0; r < 3; ++r) {
+        halving.m[r][r] = 2.0;
+        halving.m[r][3] = 0.5;
+    }
+    return Grid(std::move(next), index_to_world_ * halving, name_).level(k - 1);
+}
+
 const std::vector<VoxelBlock>& Grid::blocks() const {
     // Double-checked: after the first build every caller takes only the atomic load.
     if (!data_->blocks_ready.load(std::memory_order_acquire)) {

@@ -37,6 +37,8 @@ struct Grid::Data {
     std::mutex ranges_mutex;
     std::atomic<bool> ranges_ready{false};
     std::vector<BlockValueRange> ranges;
+    std::mutex coarser_mutex;
+    std::shared_ptr<Data> coarser;  ///< the next level of detail, built by the first Grid::level(k > 0)
 
     Data(openvdb::FloatGrid::ConstPtr grid, std::string path);
 };

@@ -10,7 +10,9 @@
 
 #include "footprint_splat.h"
 #include "near_eye_splat.h"
+#include "level_of_detail.h"
 #include "phase_splat.h"
+#include "pixel_prefilter.h"
 #include "pcvr/phase_table.h"
 
 namespace pcvr {
@@ -30,6 +32,7 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
     const double stride = target.stride(), inv_stride = 1.0 / stride;
     Footprint f0, fi, fj, fk;
     view.footprint_unclipped({0, 0, 0}, f0);
+    if (params.antialias && prefiltered(f0)) return std::nullopt;  // narrower than a pixel: integrated over pixels, per voxel
     view.footprint_unclipped({1, 0, 0}, fi);
     view.footprint_unclipped({0, 1, 0}, fj);
     view.footprint_unclipped({0, 0, 1}, fk);
@@ -74,6 +77,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     footprints.view = &view;
     footprints.table = params.table;
     footprints.kernel_radius = params.kernel_radius;
+    footprints.kernel_variance = level_kernel_variance(params.kernel->variance(), params.level);
+    footprints.antialias = params.antialias;
     footprints.density_scale = params.density_scale;
     footprints.bilinear_spread = params.mode == SplatMode::BilinearSpread;
 

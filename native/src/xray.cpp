@@ -16,6 +16,7 @@
 #include "pcvr/post_convolution.h"
 #include "pcvr/splatter.h"
 
+#include "level_of_detail.h"
 #include "near_eye_splat.h"
 
 namespace pcvr {
@@ -33,6 +34,8 @@ namespace {
 /// One grid ready to splat: its view and which of its blocks go to which stride.
 struct PlannedGrid {
     const WeightedGrid* source;
+    const Grid* level_grid;  ///< the level of detail of source->grid that is splatted
+    int level;
     ViewProjection view;
     BlockPlan plan;
 };
@@ -74,9 +77,15 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     std::vector<PlannedGrid> planned;
     std::map<int, bool> strides;
     uint64_t planned_blocks = 0;
+    std::vector<Grid> levels;
+    levels.reserve(grids.size());  // PlannedGrid points into it
     for (const auto& g : grids) {
-        ViewProjection view(cam, g.grid->index_to_world());
-        BlockPlan plan = plan_blocks(g.grid->blocks(), view, plan_params, &control);
+        // Coarse levels stand for their voxels only where footprints are integrated over pixels.
+        const int level = params.level >= 0 ? params.level : params.antialias ? automatic_level(*g.grid, cam) : 0;
+        levels.push_back(g.grid->level(level));
+        stats.level = std::max(stats.level, level);
+        ViewProjection view(cam, levels.back().index_to_world());
+        BlockPlan plan = plan_blocks(levels.back().blocks(), view, plan_params, &control);
         stats.blocks_total += plan.blocks_total;
         stats.blocks_culled += plan.blocks_culled;
         if (plan.max_magnification > 0) {
@@ -88,7 +97,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             strides[stride] = true;
             planned_blocks += blocks.size();
         }
-        planned.push_back({&g, std::move(view), std::move(plan)});
+        planned.push_back({&g, &levels.back(), level, std::move(view), std::move(plan)});
     }
     // The image, and for one band at a time a splat grid per worker plus the one they are added into;
     // the finest stride's grid is the largest.
@@ -111,6 +120,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.kernel = &kernel;
     splat.kernel_radius = kernel.radius();
     splat.footprint_tolerance = tolerance;
+    splat.antialias = params.antialias;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     for (const auto& [stride, unused] : strides) {
@@ -119,7 +129,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             auto it = pg.plan.by_stride.find(stride);
             if (it == pg.plan.by_stride.end()) continue;
             splat.density_scale = float(pg.source->density_scale * range);
-            stats.voxels_splatted += splat_blocks(pg.source->grid->blocks(), it->second, pg.view, splat, target, control);
+            splat.level = pg.level;
+            stats.voxels_splatted += splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control);
         }
         if (regular)
             add_unfiltered(target, image);

@@ -15,6 +15,7 @@ import analysis_report
 import evidence_report
 import shaded_report
 import speed_of_light as sol
+import minification_bench
 import viewport_bench
 
 METHOD_ORDER = ["regular", "pcvr_bilinear", "pcvr_gauss", "bilinear_spread"]
@@ -545,6 +546,7 @@ def write(results: dict, output: Path) -> None:
     lines += analysis_report.kernel_section(results.get("kernel_search"))
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += viewport_bench.section(results.get("viewport"))
+    lines += minification_bench.section(results.get("minification"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))
         return

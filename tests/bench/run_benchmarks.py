@@ -13,6 +13,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | search      | kernel_search.py | splat kernel / post filter pairs, numpy prototype                       |
 | throughput  | this file        | PCVR's own speed, memory and limits on large volumes (below)             |
 | viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
+| zoomed out  | minification_bench.py | time and error against magnification from 1/16 to 8, every method |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -436,6 +437,8 @@ def parse_args(argv=None):
     p.add_argument("--no-search", dest="search", action="store_false", help="skip the kernel search")
     p.add_argument("--no-throughput", dest="throughput", action="store_false",
                    help="skip PCVR's own throughput, memory and limits")
+    p.add_argument("--no-minification", dest="minification", action="store_false",
+                   help="skip time and error against magnification")
     p.add_argument("--no-viewport", dest="viewport", action="store_false",
                    help="skip the rendered viewport's speed")
     args = p.parse_args(argv)
@@ -518,6 +521,11 @@ def main(argv=None) -> int:
         import viewport_bench
         log("rendered viewport")
         results["viewport"] = viewport_bench.run(args.quick, log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
+    if args.minification:
+        import minification_bench
+        log("time and error against magnification")
+        results["minification"] = minification_bench.run(args.quick, log)
         results_path.write_text(json.dumps(results, indent=1, default=float))
     for n in args.sizes if args.throughput else []:
         for kind in args.kinds:

@@ -77,6 +77,13 @@ public:
     const std::vector<VoxelBlock>& blocks() const;
     /// One range per block of blocks(); built on first use, then cached (thread-safe).
     const std::vector<BlockValueRange>& block_value_ranges() const;
+    /// Level of detail `k` (0: this grid): voxel I of level k + 1 is the mean of the 2^3 voxels
+    /// 2I .. 2I + 1 of level k, inactive ones counting as nothing (as the X-ray sees them), so each level
+    /// holds the same line integrals' mass; its index_to_world is this grid's times 2^k, moved by half a
+    /// voxel of each level, so that every level's voxel centres sit at the centroids of the voxels they
+    /// average. Built on first use, then cached with the voxels (thread-safe; copies and
+    /// with_index_to_world share them).
+    Grid level(int k) const;
 
     /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
     /// so a failed write never leaves a half-written file. Throws Error with the path on failure.

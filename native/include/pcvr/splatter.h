@@ -42,6 +42,11 @@ struct SplatParams {
     /// Perspective views: voxels of blocks the plan marks exact_footprints whose
     /// linearised_footprint_error exceeds this are splatted exactly (src/near_eye_splat.h).
     double footprint_tolerance = std::numeric_limits<double>::infinity();
+    /// Footprints narrower than a pixel are integrated over each pixel's area (src/pixel_prefilter.h).
+    bool antialias = true;
+    /// The grid's level of detail (Grid::level): its voxels' footprints spread like the 8^level voxels
+    /// they stand for (src/level_of_detail.h).
+    int level = 0;
 };
 
 /// The default footprint_tolerance: a linearised footprint may be off by 4% of its peak (PCVR's

@@ -43,6 +43,12 @@ struct XrayParams {
     double footprint_tolerance = kFootprintTolerance;
     /// Bytes the render's buffers may take (pcvr/memory_budget.h); 0: what the machine has available.
     uint64_t memory_limit = 0;
+    /// Footprints narrower than a pixel are integrated over each pixel's area (src/pixel_prefilter.h);
+    /// false: sampled at pixel centres like `exact`'s rays.
+    bool antialias = true;
+    /// Level of detail (Grid::level) each grid is rendered from; -1: the coarsest whose voxels project
+    /// to at most 1/32 of a pixel (src/level_of_detail.h), 0 without antialias. `exact` always takes level 0.
+    int level = -1;
 };
 
 struct XrayStats {
@@ -52,6 +58,7 @@ struct XrayStats {
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
     std::vector<int> strides;      ///< the subgrid strides used (one per depth band)
+    int level = 0;                 ///< the coarsest level of detail a grid was rendered from
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     double seconds = 0;
 };
