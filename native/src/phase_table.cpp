@@ -34,6 +34,33 @@ PhaseFootprintTable PhaseFootprintTable::bilinear_spread() {
     return t;
 }
 
+PhaseFootprintTable PhaseFootprintTable::pixel_averaged(double sigma_x, double sigma_y, double half_pixel, int half_width) {
+    PhaseFootprintTable t(half_width, phases_for(half_width));
+    const int window = 2 * half_width;
+    // One axis's weights for a centre at phase f: the Gaussian's mass over each tap's box.
+    auto axis = [&](double sigma, double f, std::vector<double>& w) {
+        const double scale = 1.0 / (sigma * std::sqrt(2.0));
+        double sum = 0;
+        for (int i = 0; i < window; ++i) {
+            const double d = i - (half_width - 1) - f;
+            w[i] = 0.5 * (std::erf((d + half_pixel) * scale) - std::erf((d - half_pixel) * scale));
+            sum += w[i];
+        }
+        for (double& v : w) v = sum > 0 ? v / sum : 0.0;
+    };
+    std::vector<double> wx(window), wy(window);
+    for (int py = 0; py <= t.phases_; ++py) {
+        axis(sigma_y, double(py) / t.phases_, wy);
+        for (int px = 0; px <= t.phases_; ++px) {
+            axis(sigma_x, double(px) / t.phases_, wx);
+            float* w = t.values_.data() + (size_t(py) * (t.phases_ + 1) + px) * t.entry_size_;
+            for (int j = 0; j < window; ++j)
+                for (int i = 0; i < window; ++i) w[size_t(j) * t.pitch_ + i] = float(wx[i] * wy[j]);
+        }
+    }
+    return t;
+}
+
 PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width)
     : PhaseFootprintTable(half_width, phases_for(half_width)) {
     const int window = 2 * half_width;

@@ -34,6 +34,12 @@ public:
     /// node, whose window at each corner phase holds 1 on the node the centre sits on. Interpolating
     /// between the four corners spreads a voxel bilinearly over its 2 x 2 nearest nodes.
     static PhaseFootprintTable bilinear_spread();
+
+    /// A footprint narrower than a pixel averaged over each pixel's box (src/pixel_prefilter.h), for
+    /// footprints whose axes are the node axes: per axis a Gaussian of standard deviation sigma (nodes)
+    /// convolved with a box of half-width `half_pixel` (nodes), each axis's taps normalised to sum to
+    /// one (times a voxel's mass, the window then holds all of it).
+    static PhaseFootprintTable pixel_averaged(double sigma_x, double sigma_y, double half_pixel, int half_width);
     bool is_bilinear_spread() const { return phases_ == 1 && half_width_ == 1; }
 
     int half_width() const { return half_width_; }
