@@ -68,11 +68,12 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
+    plan_params.fractional_strides = true;
     const double tolerance = geometric_tolerance(params.footprint_tolerance, kernel);
     plan_params.footprint_tolerance = tolerance;
 
     std::vector<PlannedGrid> planned;
-    std::map<int, bool> strides;
+    std::map<double, bool> strides;
     uint64_t planned_blocks = 0;
     for (const auto& g : grids) {
         ViewProjection view(cam, g.grid->index_to_world());
@@ -95,8 +96,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     MemoryBudget budget(params.memory_limit);
     budget.add("image", uint64_t(cam.width()) * cam.height() * sizeof(float));
     if (!strides.empty()) {
-        const int workers = tbb::this_task_arena::max_concurrency(), finest = strides.begin()->first;
-        budget.add("splat grid at stride " + std::to_string(finest) + copies(workers),
+        const int workers = tbb::this_task_arena::max_concurrency();
+        const double finest = strides.begin()->first;
+        std::ostringstream name;
+        name << "splat grid at stride " << finest << copies(workers);
+        budget.add(name.str(),
                    uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
     }
     check_memory(budget, cam, stats);
@@ -119,12 +123,12 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             auto it = pg.plan.by_stride.find(stride);
             if (it == pg.plan.by_stride.end()) continue;
             splat.density_scale = float(pg.source->density_scale * range);
-            stats.voxels_splatted += splat_blocks(pg.source->grid->blocks(), it->second, pg.view, splat, target, control);
+            stats.voxels_splatted += splat_blocks(pg.source->grid->blocks(), it->second, pg.view, splat, target, control, &stats.taps);
         }
         if (regular)
             add_unfiltered(target, image);
         else
-            post_convolve(target, PostFilter(post_shape, stride), image, control);
+            post_convolve(target, post_shape, image, control);
         stats.strides.push_back(stride);
     }
     if (range != 1.0)

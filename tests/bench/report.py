@@ -13,6 +13,7 @@ from pathlib import Path
 
 import analysis_report
 import evidence_report
+import magnification_curve
 import speed_of_light as sol
 import viewport_bench
 
@@ -544,6 +545,7 @@ def write(results: dict, output: Path) -> None:
     lines += analysis_report.kernel_section(results.get("kernel_search"))
     lines += analysis_report.shaded_section()
     lines += viewport_bench.section(results.get("viewport"))
+    lines += magnification_curve.section(results.get("magnification_curve"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))
         return
