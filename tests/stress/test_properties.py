@@ -82,7 +82,12 @@ def footprint_peaks(volume, spec, kernel):
         directions = np.tile(world_to_index[:3, :3] @ (camera_to_world[:3, :3] @ [0.0, 0.0, -1.0]), (len(indices), 1))
     else:
         directions = indices - (world_to_index @ np.r_[camera_to_world[:3, 3], 1.0])[:3]
-    world_per_index = np.linalg.norm(directions @ xf[:3, :3].T, axis=1) / np.linalg.norm(directions, axis=1)
+    lengths = np.linalg.norm(directions, axis=1)
+    # A voxel centred on the eye has no ray through its centre: bound its peak by the longest world
+    # length per index length.
+    largest = np.linalg.svd(xf[:3, :3], compute_uv=False).max()
+    world_per_index = np.where(lengths > 0, np.linalg.norm(directions @ xf[:3, :3].T, axis=1) / np.maximum(lengths, 1e-300),
+                               largest)
     centre = pn.kernel_info(kernel)["line_integral_at_centre"]
     return np.abs(values[values != 0]).astype(float) * centre * world_per_index
 
