@@ -430,13 +430,18 @@ def _write_result(engine, depsgraph, view, pixels):
 # -------------------------------------------------------------------------------------------------
 # Statistics
 
+def format_strides(strides):
+    """Subgrid strides for display: X-ray strides are pixels between nodes and need not be whole."""
+    return ", ".join(f"{stride:.2f}".rstrip("0").rstrip(".") for stride in strides) or "-"
+
+
 def format_stats(stats):
     """One line for the status bar from render_xray's statistics."""
     if not stats:
         return "No volume in view"
     low, high = stats["magnification"], stats["magnification_max"]
     magnification = f"{low:.2f}" if high - low < 0.005 else f"{low:.2f}-{high:.2f}"
-    strides = ", ".join(str(stride) for stride in stats["strides"]) or "-"
+    strides = format_strides(stats["strides"])
     return (f"Voxels {stats['voxels']:,} | Magnification {magnification} px/voxel | Stride {strides} | "
             f"Time {stats['seconds']:.2f} s")
 
@@ -446,7 +451,7 @@ def format_sheet_stats(stats):
     if not stats:
         return "No volume in view"
     culled = stats["blocks_outside"] + stats["blocks_transparent"]
-    strides = ", ".join(str(stride) for stride in stats["strides"]) or "-"
+    strides = format_strides(stats["strides"])
     return (f"Voxels {stats['voxels']:,} | Culled blocks {culled:,} of {stats['blocks']:,} | "
             f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s")
 
@@ -462,7 +467,7 @@ def statistics_rows(mode, stats):
     if mode == 'XRAY':
         return [("Voxels", f"{stats['voxels']:,}"),
                 ("Magnification", f"{stats['magnification']:.2f} - {stats['magnification_max']:.2f} px/voxel"),
-                ("Stride", ", ".join(map(str, stats["strides"])) or "-"),
+                ("Stride", format_strides(stats["strides"])),
                 ("Time", f"{stats['seconds']:.3f} s")]
     seconds = [("Planning", "seconds_plan"), ("Splatting", "seconds_splat"),
                ("Post-convolution", "seconds_post_convolution"), ("Shading", "seconds_shading")]
@@ -476,7 +481,7 @@ def statistics_rows(mode, stats):
         ("Tiles finished early", _share(stats["tiles_terminated"], stats["tiles"])),
         ("Empty tile sheets", _share(stats["tile_sheets_skipped"],
                                      stats["tile_sheets_skipped"] + stats["tile_sheets_composited"])),
-        ("Stride", ", ".join(map(str, stats["strides"])) or "-"),
+        ("Stride", format_strides(stats["strides"])),
         ("Time", f"{stats['seconds']:.3f} s"),
     ] + [(label, f"{stats[key]:.3f} s (threads)") for label, key in seconds]
 
@@ -511,5 +516,6 @@ def sampling_estimate(depsgraph, settings):
         if grid_high == 0:
             continue  # none of its blocks is in view after all
         low, high = min(low, grid_low), max(high, grid_high)
-        strides.add(settings.subgrid_stride or pcvr_native.automatic_stride(grid, native))
+        automatic = pcvr_native.automatic_stride(grid, native)  # X-ray's; sheets take its whole part
+        strides.add(settings.subgrid_stride or (automatic if settings.mode == 'XRAY' else int(automatic)))
     return ((low, high) if high else None), sorted(strides), unread

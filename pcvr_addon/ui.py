@@ -111,7 +111,7 @@ def draw_sampling_estimate(layout, context):
         low, high = magnification
         text = f"{low:.2f} px/voxel" if high - low < 0.005 else f"{low:.2f} - {high:.2f} px/voxel"
         if settings.method != 'REGULAR':
-            text += ", stride " + ", ".join(str(stride) for stride in strides)
+            text += ", stride " + engine.format_strides(strides)
         layout.label(text=text, icon='INFO')
     if unread:
         layout.label(text=f"Render to measure {unread} volume(s) not read yet", icon='INFO')

@@ -60,7 +60,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
 
     if (!stats.is_none()) {
         nb::list strides;
-        for (int s : xs.strides) strides.append(s);
+        for (double s : xs.strides) strides.append(s);
         stats["voxels"] = xs.voxels_splatted;
         stats["blocks"] = xs.blocks_total;
         stats["blocks_culled"] = xs.blocks_culled;
@@ -68,6 +68,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["magnification_max"] = xs.max_magnification;
         stats["strides"] = strides;
         stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
+        stats["taps"] = xs.taps;
         stats["seconds"] = xs.seconds;
         stats["memory_bytes"] = xs.memory_bytes;
         stats["level"] = xs.level;
@@ -137,11 +138,11 @@ void bind_render(nb::module_& m) {
           [](const Grid& grid, const Camera& camera) {
               nb::gil_scoped_release release;
               const auto [lo, hi] = effective_magnification(grid, camera);
-              return hi > 0 ? automatic_stride(lo) : 1;
+              return hi > 0 ? fractional_stride(lo, lo) : 1.0;
           },
           "grid"_a, "camera"_a,
-          "The subgrid stride PCVR picks for the least magnified part of the grid in view (perspective views "
-          "use coarser strides for nearer depth bands).");
+          "The X-ray subgrid stride (pixels between nodes, not necessarily whole) PCVR picks for the least "
+          "magnified part of the grid in view (perspective views use coarser strides for nearer depth bands).");
 }
 
 }  // namespace pcvr::python

@@ -20,6 +20,15 @@ int automatic_stride(double pixels_per_voxel) {
 
 int nearest_stride(double pixels_per_voxel) { return clamp_to_int(std::round(pixels_per_voxel), 1, kMaxStride); }
 
+double fractional_stride(double pixels_per_voxel, double least) {
+    double base = std::clamp(least, 1.0, double(kMaxStride));
+    // An exact magnification of 4 (computed as 3.9999999) keeps stride 4, as the whole strides do.
+    if (std::abs(base - std::round(base)) < 1e-6 * base) base = std::round(base);
+    if (!(pixels_per_voxel > base)) return base;
+    const double band = std::floor(std::log(pixels_per_voxel / base) / std::log(kStrideBandRatio) + 1e-9);
+    return std::min(base * std::pow(kStrideBandRatio, band), double(kMaxStride));
+}
+
 namespace {
 
 enum ClipSide : int { kInside = 0, kBeforeNear = 1, kBeyondFar = 2 };
@@ -48,10 +57,14 @@ bool needs_exact_footprints(const VoxelBlock& block, const ViewProjection& view,
     return linearised_footprint_error(radius, depth, lateral, view.max_line_scale_slope()) > tolerance;
 }
 
+bool wants_fractional_strides(const BlockPlanParams& params) {
+    return params.fractional_strides && params.fixed_stride == 0 && !params.nearest_stride;
+}
+
 /// What the plan decides about one block.
 struct BlockDecision {
     bool culled = false;
-    int stride = 1;
+    double stride = 1;  // fractional strides are set once the least magnification is known
     double mag_min = 0, mag_max = 0;  // pixels per voxel over its corners (0: none projectable)
     PlannedBlock planned{};
 };
@@ -101,6 +114,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
     }
     if (params.fixed_stride > 0)
         d.stride = params.fixed_stride;
+    else if (mag_max > 0 && wants_fractional_strides(params))
+        d.stride = std::clamp(mag_min, 1.0, double(kMaxStride));  // at least its band's, for the margin below
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
     const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
@@ -130,6 +145,7 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
 
 BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjection& view, const BlockPlanParams& params,
                       const RenderControl* control) {
+    const bool fractional = wants_fractional_strides(params);
     std::optional<Footprint> shared;
     if (view.orthographic()) {
         Footprint f;
@@ -155,7 +171,11 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
             mag_min = std::min(mag_min, d.mag_min);
             mag_max = std::max(mag_max, d.mag_max);
         }
-        plan.by_stride[d.stride].push_back(d.planned);
+    }
+    for (const BlockDecision& d : decisions) {
+        if (d.culled) continue;
+        const double stride = fractional && d.mag_max > 0 ? fractional_stride(d.mag_min, mag_min) : d.stride;
+        plan.by_stride[stride].push_back(d.planned);
     }
     if (mag_max > 0) {
         plan.min_magnification = mag_min;

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <type_traits>
 #include <vector>
 
@@ -48,6 +49,7 @@ struct DepositRegion {
 /// A worker's scratch memory for the batched splats, reused from block to block.
 struct SplatScratch {
     std::vector<float> tiles;  ///< kTileCopies tiles, zero between blocks
+    uint64_t taps = 0;         ///< window taps the splats wrote (the render's work, for its statistics)
 
     float* tile_copies() {
         if (tiles.empty()) tiles.assign(size_t(kTileCopies) * kTileFloats, 0.0f);

@@ -34,8 +34,9 @@ inline __m256 tap_weights(__m256 rho2, float amp, __m256 inside, const Footprint
 /// chord of the ellipse; for narrow ones a row is one or two vectors anyway, and the chord's square
 /// root would cost more than it saves. Rows are written in whole 8-lane vectors, lanes past the
 /// footprint holding zero weight: the grid's padding and the tile's slack take those stores.
+/// Returns the number of taps evaluated.
 template <class T>
-void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, double cy, const NodeShape& s, float amp,
+uint64_t add_footprint(T* base, size_t pitch, int rows, int columns, double cx, double cy, const NodeShape& s, float amp,
                    const FootprintTable& table) {
     constexpr float kChordWidth = 8.0f;  // half-width in nodes from which rows are trimmed to the chord
     const int r0 = clamp_to_int(std::ceil(cy - s.ext_y), 0, rows), r1 = clamp_to_int(std::floor(cy + s.ext_y), -1, rows - 1);
@@ -55,11 +56,12 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
             const __m256 rho2 = _mm256_fmadd_ps(_mm256_fmadd_ps(_mm256_set1_ps(s.qyy), dy, qxy2_dx), dy, qxx_dx2);
             accumulate8(base + size_t(r) * pitch + box_c0, tap_weights(rho2, amp, inside, table));
         }
-        return;
+        return uint64_t(std::max(0, r1 - r0 + 1)) * uint64_t(box_c1 - box_c0 + 1);
     }
 #endif
     const bool trim_rows = s.ext_x > kChordWidth;
     const double radius2 = table.radius2();
+    uint64_t taps = 0;
     for (int r = r0; r <= r1; ++r) {
         const double dy = r - cy;
         int c0 = box_c0, c1 = box_c1;
@@ -73,6 +75,7 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
             c1 = clamp_to_int(std::floor(cx + (-b + root) / s.qxx), -1, c1);
         }
         T* out = base + size_t(r) * pitch;
+        taps += uint64_t(std::max(0, c1 - c0 + 1));
         const float fdy = float(dy), lin = 2.0f * s.qxy * fdy, row_base = s.qyy * fdy * fdy;
         const float first_dx = float(c0 - cx);
 #ifdef PCVR_AVX2
@@ -90,12 +93,13 @@ void add_footprint(T* base, size_t pitch, int rows, int columns, double cx, doub
         }
 #endif
     }
+    return taps;
 }
 
 /// Westenberg-Roerdink: the footprint's whole integral, spread bilinearly to the 2 x 2 nodes around
 /// (cx, cy), clipped to rows x columns nodes at `base`.
 template <class T>
-void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, double cy, float mass) {
+uint64_t add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, double cy, float mass) {
     const int c = clamp_to_int(std::floor(cx), -2, columns), r = clamp_to_int(std::floor(cy), -2, rows);
     const double fx = cx - c, fy = cy - r;
     const double w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
@@ -105,6 +109,7 @@ void add_bilinear(T* base, size_t pitch, int rows, int columns, double cx, doubl
         for (int i = 0; i < 2; ++i)
             if (c + i >= 0 && c + i < columns) out[c + i] += T(mass * w[j][i]);
     }
+    return 4;
 }
 
 /// Where a block's footprints go: a tile around the block's planned bounds when the block is dense
@@ -134,33 +139,25 @@ BlockTarget block_target(const VoxelBlock& block, const PlannedBlock& planned, c
 }
 
 /// Adds one footprint, given relative to the block target's reference node, into its tile when it
-/// lies inside, else into the grid.
+/// lies inside, else into the grid. Returns the number of taps evaluated.
 /// Prefiltered footprints (whose `amp` is their mass) go there whatever the mode.
-void add_lane(const BlockTarget& t, float* tile, SplatGrid& grid, float cx, float cy, const NodeShape& s, float amp,
-              const FootprintSplatParams& params) {
+uint64_t add_lane(const BlockTarget& t, float* tile, SplatGrid& grid, float cx, float cy, const NodeShape& s, float amp,
+                  const FootprintSplatParams& params) {
     const DepositRegion& r = t.region;
     const bool prefiltered = s.sigma_x > 0, bilinear = params.bilinear_spread && !prefiltered && !s.widened;
     const PrefilteredShape box{s.sigma_x, s.sigma_y, s.ext_x, s.ext_y, float(kPrefilterReach / grid.stride())};
     if (r.tiled) {
         const bool inside = bilinear ? cx >= 0 && cy >= 0 && cx < r.width - 1 && cy < r.height - 1
                                      : cx - s.ext_x > 0 && cy - s.ext_y > 0 && cx + s.ext_x < r.width - 1 && cy + s.ext_y < r.height - 1;
-        if (inside) {
-            if (prefiltered)
-                add_prefiltered(tile, r.pitch, r.height, r.width, cx, cy, box, amp);
-            else if (bilinear)
-                add_bilinear(tile, r.pitch, r.height, r.width, cx, cy, amp);
-            else
-                add_footprint(tile, r.pitch, r.height, r.width, cx, cy, s, amp, *params.table);
-            return;
-        }
+        if (inside)
+            return prefiltered ? add_prefiltered(tile, r.pitch, r.height, r.width, cx, cy, box, amp)
+                   : bilinear  ? add_bilinear(tile, r.pitch, r.height, r.width, cx, cy, amp)
+                               : add_footprint(tile, r.pitch, r.height, r.width, cx, cy, s, amp, *params.table);
     }
     const double gx = double(cx) + t.ref_x, gy = double(cy) + t.ref_y;
-    if (prefiltered)
-        add_prefiltered(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, box, amp);
-    else if (bilinear)
-        add_bilinear(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, amp);
-    else
-        add_footprint(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, s, amp, *params.table);
+    return prefiltered ? add_prefiltered(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, box, amp)
+           : bilinear  ? add_bilinear(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, amp)
+                       : add_footprint(grid.row(0), grid.columns(), grid.rows(), grid.columns(), gx, gy, s, amp, *params.table);
 }
 
 #ifdef PCVR_AVX2
@@ -256,9 +253,10 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             float* tile = tiles ? tile_copy(tiles, l) : nullptr;
-            add_lane(target, tile, grid, b.cx[l], b.cy[l],
-                     {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l], b.sigma_x[l], b.sigma_y[l], bool((b.widened >> l) & 1)},
-                     b.amp[l], params);
+            scratch.taps += add_lane(target, tile, grid, b.cx[l], b.cy[l],
+                                     {b.qxx[l], b.qxy[l], b.qyy[l], b.ext_x[l], b.ext_y[l], b.sigma_x[l], b.sigma_y[l],
+                                      bool((b.widened >> l) & 1)},
+                                     b.amp[l], params);
         }
     });
 #else
@@ -293,7 +291,8 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
             }
         }
         float* tile = tiles ? tile_copy(tiles, turn++) : nullptr;
-        add_lane(target, tile, grid, float(grid.node_x(fp.px) - target.ref_x), float(grid.node_y(fp.py) - target.ref_y), s, amp, params);
+        scratch.taps += add_lane(target, tile, grid, float(grid.node_x(fp.px) - target.ref_x),
+                                 float(grid.node_y(fp.py) - target.ref_y), s, amp, params);
         ++count;
     });
 #endif

@@ -111,8 +111,9 @@ struct RowFootprint {
     }
 };
 
-/// Adds one voxel's exact footprint (value `amp`, centre `c`) into the grid.
-void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, const NodeRays& rays,
+/// Adds one voxel's exact footprint (value `amp`, centre `c`) into the grid. Returns the number of
+/// taps evaluated.
+uint64_t splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, const NodeRays& rays,
                  const FootprintTable& table, SplatGrid& grid) {
     const Vec3 w = c - eye;
     const double w2 = dot(w, w), r2 = radius * radius, k = w2 - r2;
@@ -130,11 +131,12 @@ void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, cons
         // A row is reached where its discriminant beta^2 - alpha gamma, a quadratic in v, is positive.
         Span rows[2];
         const int n = positive_spans(b1 * b1 - alpha * c2, b0 * b1 - 0.5 * alpha * c1, b0 * b0 - alpha * c0, grid.rows(), rows);
-        if (n == 0) return;
+        if (n == 0) return 0;
         if (n == 1) v0 = rows[0].lo, v1 = rows[0].hi;  // two spans: the conic's sides; keep every row
     }
 
     int c_min = grid.columns(), c_max = -1, r_min = grid.rows(), r_max = -1;
+    uint64_t taps = 0;
     for (int v = v0; v <= v1; ++v) {
         const double g = g0 + g1 * v, e_du = e0 + e1 * v, e2 = n0 + v * (n1 + v * n2);
         Span spans[2];
@@ -144,11 +146,13 @@ void splat_exact(const Vec3& c, double amp, const Vec3& eye, double radius, cons
         for (int s = 0; s < n; ++s) {
             if (spans[s].lo > spans[s].hi) continue;
             f.add(grid.row(v), spans[s].lo, spans[s].hi, table);
+            taps += uint64_t(spans[s].hi - spans[s].lo + 1);
             c_min = std::min(c_min, spans[s].lo), c_max = std::max(c_max, spans[s].hi);
             r_min = std::min(r_min, v), r_max = std::max(r_max, v);
         }
     }
     if (r_min <= r_max) grid.mark(c_min, r_min, c_max, r_max);
+    return taps;
 }
 
 }  // namespace
@@ -168,7 +172,7 @@ uint64_t splat_block_near_eye(const VoxelBlock& block, const PlannedBlock& plann
         far.mask[offset >> 6] &= ~(uint64_t(1) << (offset & 63));
         const float value = block.value(offset);
         if (value == 0.0f || !std::isfinite(value) || !ViewProjection::inside_clip_range(view.to_clip(c))) continue;
-        splat_exact(c, double(value) * params.density_scale, eye, params.kernel_radius, rays, *params.table, grid);
+        scratch.taps += splat_exact(c, double(value) * params.density_scale, eye, params.kernel_radius, rays, *params.table, grid);
         ++count;
     }
     return count + splat_block_footprints(far, planned, params, grid, scratch);

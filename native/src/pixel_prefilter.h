@@ -33,6 +33,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "block_tile.h"
@@ -122,15 +123,15 @@ private:
 /// prefiltered footprint centred at (cx, cy), clipped to rows x columns nodes at `base` (row pitch
 /// `pitch`): the grid (T = double) or a block tile (T = float). Rows are written in whole 8-lane
 /// vectors, lanes past the footprint holding zero weight (the grid's padding and the tile's slack take
-/// those stores), as add_footprint does.
+/// those stores), as add_footprint does. Returns the number of taps written.
 template <class T>
-void add_prefiltered(T* base, size_t pitch, int rows, int columns, double cx, double cy, const PrefilteredShape& s, float mass) {
+uint64_t add_prefiltered(T* base, size_t pitch, int rows, int columns, double cx, double cy, const PrefilteredShape& s, float mass) {
     constexpr int kFar = 1 << 30;  // beyond any grid: such footprints are clipped away whole
     const int lo_x = clamp_to_int(std::ceil(cx - s.ext_x), -kFar, kFar), hi_x = clamp_to_int(std::floor(cx + s.ext_x), -kFar, kFar);
     const int lo_y = clamp_to_int(std::ceil(cy - s.ext_y), -kFar, kFar), hi_y = clamp_to_int(std::floor(cy + s.ext_y), -kFar, kFar);
     const int c0 = std::max(lo_x, 0), c1 = std::min(hi_x, columns - 1);
     const int r0 = std::max(lo_y, 0), r1 = std::min(hi_y, rows - 1);
-    if (c1 < c0 || r1 < r0) return;
+    if (c1 < c0 || r1 < r0) return 0;
     const AxisPrefilter along_x(cx, s.sigma_x, s.half_pixel, lo_x, hi_x), along_y(cy, s.sigma_y, s.half_pixel, lo_y, hi_y);
     constexpr int kChunk = 8;
     for (int col = c0; col <= c1; col += kChunk) {
@@ -148,6 +149,7 @@ void add_prefiltered(T* base, size_t pitch, int rows, int columns, double cx, do
             }
         }
     }
+    return uint64_t(c1 - c0 + 1) * uint64_t(r1 - r0 + 1);
 }
 
 }  // namespace pcvr

@@ -229,7 +229,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         plan_params.margin_nodes = regular ? 1 : 3;
         plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
         cap_strides(plans.back(), largest_stride);
-        for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, stride);
+        for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, int(stride));
     }
     if (smallest_stride == INT32_MAX) smallest_stride = 1;
 
@@ -253,7 +253,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0));
             shader = shaders.back().get();
         }
-        const int finest = plan.by_stride.empty() ? 1 : plan.by_stride.begin()->first;
+        const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);
         setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale)});
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
@@ -261,7 +261,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
 
         // One layer per stride; its blocks in depth and under the transfer function, each listed in the
         // tiles it reaches.
-        for (const auto& [stride, list] : plan.by_stride) {
+        for (const auto& [whole_stride, list] : plan.by_stride) {
+            const int stride = int(whole_stride);  // the sheet renderer plans whole strides only
             splat.stride = stride;
             splat.density_scale = float(volume.density_scale);
             splat.background = grid.background();

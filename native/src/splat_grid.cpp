@@ -1,18 +1,18 @@
 #include "pcvr/splat_grid.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <tbb/parallel_for.h>
 
 namespace pcvr {
 
 namespace {
-int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-
-int nodes_across(int pixels, int stride, int margin) { return floor_div(pixels - 1, stride) + 1 + 2 * margin; }
+// The same floor as PostFilterAxis::node of the last pixel.
+int nodes_across(int pixels, double stride, int margin) { return int(std::floor((pixels - 1) / stride)) + 1 + 2 * margin; }
 }  // namespace
 
-SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(stride) {
+SplatGrid::SplatGrid(int width, int height, double stride, int margin) : stride_(stride) {
     node_x0_ = -margin;
     node_y0_ = -margin;
     nx_ = nodes_across(width, stride, margin);
@@ -23,7 +23,7 @@ SplatGrid::SplatGrid(int width, int height, int stride, int margin) : stride_(st
     touched_.assign(size_t(tiles_x_) * tiles_y_, 0);
 }
 
-uint64_t SplatGrid::bytes(int width, int height, int stride, int margin) {
+uint64_t SplatGrid::bytes(int width, int height, double stride, int margin) {
     const uint64_t nx = uint64_t(nodes_across(width, stride, margin)), ny = uint64_t(nodes_across(height, stride, margin));
     const uint64_t tiles = ((nx + kTile - 1) / kTile) * ((ny + kTile - 1) / kTile);
     return (nx * ny + kPadding) * sizeof(double) + tiles;

@@ -92,7 +92,8 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
 }  // namespace
 
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
-                      const ViewProjection& view, const SplatParams& params, SplatGrid& target, RenderControl& control) {
+                      const ViewProjection& view, const SplatParams& params, SplatGrid& target, RenderControl& control,
+                      uint64_t* taps) {
     const std::optional<PhaseSplat> phases = phase_splat(view, target, params);
     FootprintSplatParams footprints;
     footprints.view = &view;
@@ -119,6 +120,7 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
                                                      : splat_block_footprints(block, pb, footprints, grid, scratch);
             if (n == 0) continue;
             count += n;
+            if (phases) scratch.taps += n * uint64_t(phases->table.window()) * uint64_t(phases->table.window());
             // The plan's bounds hold every node the block can reach; the post-convolution skips the rest.
             grid.mark(int(std::floor(grid.node_x(double(std::max(pb.min_x, -1e9f))))),
                       int(std::floor(grid.node_y(double(std::max(pb.min_y, -1e9f))))),
@@ -131,6 +133,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     for (const SplatGrid& local : locals) target.add(local);
     uint64_t total = 0;
     for (uint64_t c : counts) total += c;
+    if (taps)
+        for (const SplatScratch& scratch : scratches) *taps += scratch.taps;
     return total;
 }
 

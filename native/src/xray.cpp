@@ -71,11 +71,12 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     plan_params.fixed_stride = regular ? 1 : params.stride;
     plan_params.margin_nodes = regular ? 0 : PostFilter::kMarginNodes;
     plan_params.nearest_stride = params.method == XrayMethod::BilinearSpread;
+    plan_params.fractional_strides = true;
     const double tolerance = geometric_tolerance(params.footprint_tolerance, kernel);
     plan_params.footprint_tolerance = tolerance;
 
     std::vector<PlannedGrid> planned;
-    std::map<int, bool> strides;
+    std::map<double, bool> strides;
     uint64_t planned_blocks = 0;
     std::vector<Grid> levels;
     levels.reserve(grids.size());  // PlannedGrid points into it
@@ -104,8 +105,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     MemoryBudget budget(params.memory_limit);
     budget.add("image", uint64_t(cam.width()) * cam.height() * sizeof(float));
     if (!strides.empty()) {
-        const int workers = tbb::this_task_arena::max_concurrency(), finest = strides.begin()->first;
-        budget.add("splat grid at stride " + std::to_string(finest) + copies(workers),
+        const int workers = tbb::this_task_arena::max_concurrency();
+        const double finest = strides.begin()->first;
+        std::ostringstream name;
+        name << "splat grid at stride " << finest << copies(workers);
+        budget.add(name.str(),
                    uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
     }
     check_memory(budget, cam, stats);
@@ -130,12 +134,13 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             if (it == pg.plan.by_stride.end()) continue;
             splat.density_scale = float(pg.source->density_scale * range);
             splat.level = pg.level;
-            stats.voxels_splatted += splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control);
+            stats.voxels_splatted +=
+                splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control, &stats.taps);
         }
         if (regular)
             add_unfiltered(target, image);
         else
-            post_convolve(target, PostFilter(post_shape, stride), image, control);
+            post_convolve(target, post_shape, image, control);
         stats.strides.push_back(stride);
     }
     if (range != 1.0)

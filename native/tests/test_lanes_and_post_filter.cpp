@@ -5,6 +5,7 @@
 
 #include "pcvr/lanes.h"
 #include "pcvr/post_convolution.h"
+#include "pcvr/splat_grid.h"
 #include "unit_test.h"
 
 using namespace pcvr;
@@ -74,4 +75,62 @@ TEST(post_convolving_a_region_is_the_separable_filter) {
                 CHECK_NEAR(out[size_t(y - y0) * w + (x - x0)], sum, 1e-5);
             }
     }
+}
+
+TEST(post_filter_axis_at_whole_strides_is_the_post_filter) {
+    for (PostFilterShape shape : {PostFilterShape::Bilinear, PostFilterShape::Gauss14, PostFilterShape::CatmullRom})
+        for (int L : {1, 3, 4}) {
+            const PostFilter f(shape, L);
+            const PostFilterAxis axis(shape, double(L), 23);
+            for (int x = 0; x < 23; ++x) {
+                CHECK(axis.node(x) == x / L);
+                for (int k = 0; k < PostFilter::kTaps; ++k) CHECK(axis.tap_weights(k)[x] == f.weights(x % L)[k]);
+            }
+            for (int n = 0; n <= 23 / L + 1; ++n) CHECK(axis.first_pixel(n) == std::min(23, n * L));
+        }
+}
+
+TEST(post_filter_axis_at_fractional_strides) {
+    // Nodes 2.2 pixels apart: pixel x reads nodes floor(x / 2.2) - 1 .. + 2 with the filter's weights
+    // at its distance from each, normalised; node n's pixels are those whose node it is.
+    const double spacing = 2.2;
+    const int pixels = 50;
+    const PostFilterAxis axis(PostFilterShape::Bilinear, spacing, pixels);
+    for (int x = 0; x < pixels; ++x) {
+        const int n = int(std::floor(x / spacing));
+        CHECK(axis.node(x) == n);
+        CHECK(axis.first_pixel(n) <= x && x < axis.first_pixel(n + 1));
+        const double t = x / spacing - n;  // bilinear: 1 - t on node n, t on node n + 1
+        CHECK_NEAR(axis.tap_weights(1)[x], 1.0 - t, 1e-6);
+        CHECK_NEAR(axis.tap_weights(2)[x], t, 1e-6);
+        CHECK(axis.tap_weights(0)[x] == 0.0f && axis.tap_weights(3)[x] == 0.0f);
+    }
+    const PostFilterAxis gauss(PostFilterShape::Gauss14, spacing, pixels);
+    for (int x = 0; x < pixels; ++x) {
+        double sum = 0;
+        for (int k = 0; k < PostFilter::kTaps; ++k) sum += gauss.tap_weights(k)[x];
+        CHECK_NEAR(sum, 1.0, 1e-6);
+    }
+}
+
+TEST(post_convolving_a_grid_at_a_fractional_stride_is_the_separable_filter) {
+    const int width = 37, height = 29, margin = PostFilter::kMarginNodes;
+    const double spacing = 2.7;
+    SplatGrid grid(width, height, spacing, margin);
+    for (int r = 0; r < grid.rows(); ++r)
+        for (int c = 0; c < grid.columns(); ++c) grid.row(r)[c] = double((r * 31 + c * 17) % 13) / 13.0;
+    grid.mark(0, 0, grid.columns() - 1, grid.rows() - 1);
+    ImageAccumulator image(width, height);
+    RenderControl control;
+    post_convolve(grid, PostFilterShape::CatmullRom, image, control);
+    const PostFilterAxis across(PostFilterShape::CatmullRom, spacing, width), down(PostFilterShape::CatmullRom, spacing, height);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            double sum = 0;
+            for (int j = 0; j < 4; ++j)
+                for (int i = 0; i < 4; ++i)
+                    sum += double(down.tap_weights(j)[y]) * across.tap_weights(i)[x] *
+                           grid.row(down.node(y) + margin - 1 + j)[across.node(x) + margin - 1 + i];
+            CHECK_NEAR(image.pixels[size_t(y) * width + x], sum, 1e-5);
+        }
 }

@@ -14,6 +14,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | throughput  | this file        | PCVR's own speed, memory and limits on large volumes (below)             |
 | viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
 | zoomed out  | minification_bench.py | time and error against magnification from 1/16 to 8, every method |
+| magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -441,6 +442,8 @@ def parse_args(argv=None):
                    help="skip time and error against magnification")
     p.add_argument("--no-viewport", dest="viewport", action="store_false",
                    help="skip the rendered viewport's speed")
+    p.add_argument("--no-magnification-curve", dest="magnification_curve", action="store_false",
+                   help="skip pcvr's time over magnification")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.
@@ -526,6 +529,11 @@ def main(argv=None) -> int:
         import minification_bench
         log("time and error against magnification")
         results["minification"] = minification_bench.run(args.quick, log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
+    if args.magnification_curve:
+        import magnification_curve
+        log("X-ray speed over magnification")
+        results["magnification_curve"] = magnification_curve.run(args.quick, log)
         results_path.write_text(json.dumps(results, indent=1, default=float))
     for n in args.sizes if args.throughput else []:
         for kind in args.kinds:

@@ -105,16 +105,15 @@ def _footprint_interpolant(kernel: str):
 # More of PCVR's second stage in numpy (post_weight, post_matrix and predict_pcvr are in
 # tests/xray_helpers.py).
 
-def phase_moments(post: str, stride: int):
-    """First and second moments (pixels, pixels^2) of the node offsets, per output phase."""
-    m1, m2 = np.zeros(stride), np.zeros(stride)
-    k = np.arange(-4, 5, dtype=np.float64)
-    for phase in range(stride):
-        delta = stride * k - phase  # node minus pixel
-        w = post_weight(post, delta / stride)
-        w /= w.sum()
-        m1[phase], m2[phase] = np.sum(w * delta), np.sum(w * delta * delta)
-    return m1, m2
+def pixel_moments(post: str, stride: float, pixels: int):
+    """First and second moments (pixels, pixels^2) of the node offsets of pixels 0 .. pixels - 1, for
+    nodes `stride` pixels apart (whole or not: node n sits on pixel stride * n)."""
+    x = np.arange(pixels, dtype=np.float64)[:, None]
+    node = np.floor(x / stride) + np.arange(-4, 5)[None, :]
+    delta = stride * node - x  # node minus pixel
+    w = post_weight(post, delta / stride)
+    w /= w.sum(axis=1, keepdims=True)
+    return np.sum(w * delta, axis=1), np.sum(w * delta * delta, axis=1)
 
 
 def project_to_pixels(points_world: np.ndarray, cam: CameraSpec) -> np.ndarray:
@@ -178,18 +177,17 @@ def sampling_mass_error(kernel: str, values, xf, cam: CameraSpec, spacing_px: fl
     return float(np.sqrt(np.sum(kernel_spectrum(kernel, q) ** 2)) * np.sqrt(np.sum(v * v)) / abs(np.sum(v)))
 
 
-def taylor_pcvr_error(image: np.ndarray, stride: int, post: str) -> np.ndarray:
+def taylor_pcvr_error(image: np.ndarray, stride: float, post: str) -> np.ndarray:
     """Second-order Taylor estimate of pcvr - image for a smooth image (pixel units).
 
     Output pixel p is sum_n w_n E(p + delta_n) over nodes at offsets delta_n, so
     pcvr - E ~ m1x Ex + m1y Ey + (m2x Exx + m2y Eyy) / 2 + m1x m1y Exy with the per-phase moments
     m1 = sum w delta, m2 = sum w delta^2 of each axis (the filter is separable). For bilinear m1 = 0
-    and m2 = L^2 t (1 - t) at phase t; for the Gaussians m2 ~ L^2 / (2 a) at every phase.
+    and m2 = L^2 t (1 - t) at phase t (the pixel's fraction of a node); for the Gaussians m2 ~ L^2 / (2 a) at every phase.
     """
-    m1, m2 = phase_moments(post, stride)
     h, w = image.shape
-    m1x, m2x = m1[np.arange(w) % stride][None, :], m2[np.arange(w) % stride][None, :]
-    m1y, m2y = m1[np.arange(h) % stride][:, None], m2[np.arange(h) % stride][:, None]
+    m1x, m2x = (m[None, :] for m in pixel_moments(post, stride, w))
+    m1y, m2y = (m[:, None] for m in pixel_moments(post, stride, h))
     ey, ex = np.gradient(image)
     exx = np.zeros_like(image)
     eyy = np.zeros_like(image)

@@ -4,9 +4,10 @@
 /// Culling happens per 8^3 block before any voxel is touched: a block whose projected footprint
 /// misses the area the splat grid covers, or that lies wholly outside the clip range, costs nothing.
 /// Blocks that straddle a clip plane are marked so their voxels are tested one by one.
-/// The stride of a block is the largest integer that does not undersample its projected voxel
-/// spacing, floor(min pixels per voxel over its corners): one value for an orthographic view, a few
-/// depth bands under perspective (nearer blocks are magnified more and take a coarser subgrid).
+/// The stride of a block is the node spacing that does not undersample its projected voxel spacing:
+/// with `fractional_strides` the least magnification over its corners itself (on a ladder of bands,
+/// see automatic_stride), else its floor. One value for an orthographic view, a few depth bands under
+/// perspective (nearer blocks are magnified more and take a coarser subgrid).
 #pragma once
 
 #include <cstdint>
@@ -36,6 +37,10 @@ struct BlockPlanParams {
     /// Bilinear spreading replaces the footprint by a one-node tent, which only reconstructs when the
     /// nodes are about one voxel apart: round the stride to the nearest instead of flooring it.
     bool nearest_stride = false;
+    /// Automatic strides need not be whole pixels: a node per projected voxel spacing keeps every
+    /// footprint within PCVR's 4 x 4 window at any magnification (X-ray; the sheet renderer's
+    /// post-convolution needs whole strides).
+    bool fractional_strides = false;
     /// Cull blocks whose voxel centres all lie before the near or beyond the far plane (X-ray clips
     /// per voxel). The shaded renderer clips per sample instead and culls by depth itself.
     bool clip_planes = true;
@@ -46,7 +51,8 @@ struct BlockPlanParams {
 };
 
 struct BlockPlan {
-    std::map<int, std::vector<PlannedBlock>> by_stride;  ///< stride -> blocks splatted at that stride
+    /// stride (pixels between subgrid nodes; whole unless fractional_strides) -> blocks splatted at it
+    std::map<double, std::vector<PlannedBlock>> by_stride;
     uint64_t blocks_total = 0;
     uint64_t blocks_culled = 0;
     double min_magnification = 0;  ///< over the kept blocks (pixels per voxel)
@@ -59,8 +65,15 @@ struct BlockPlan {
 /// a voxel.)
 constexpr int kMaxStride = 1 << 16;
 
-/// The stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
+/// The whole stride that never undersamples a projected voxel spacing of `pixels_per_voxel`.
 int automatic_stride(double pixels_per_voxel);
+/// The fractional stride of blocks magnified `pixels_per_voxel` in a view whose least magnified
+/// block has `least` pixels per voxel: the band below it on a ladder that starts at
+/// max(1, least) (a whole number when within 1e-6 of one) and grows by kStrideBandRatio. An
+/// orthographic view's blocks all have `least` and one band; a perspective view's nearer blocks
+/// take coarser bands, whose footprints span at most kStrideBandRatio times the 4 x 4 window's.
+double fractional_stride(double pixels_per_voxel, double least);
+constexpr double kStrideBandRatio = 1.189207115002721;  // 2^(1/4)
 /// The stride closest to one voxel per node (for bilinear spreading).
 int nearest_stride(double pixels_per_voxel);
 

@@ -8,10 +8,12 @@
 /// | "gauss2.0" | exp(-2.0 t^2)                                               | |t| < 2   |
 /// | "catmull_rom" | Catmull-Rom cubic: interpolates, exact for quadratics (negative lobes) | |t| < 2 |
 ///
-/// Because the subgrid nodes coincide with pixels, each output pixel has one of L phases and the
-/// filter is a table of L x 4 weights, normalised per phase so constants are preserved. X-ray images
-/// go through post_convolve once, computing only tiles near touched subgrid tiles; the sheet renderer
-/// calls post_convolve_region on each tile of each sheet that splats touched.
+/// When the subgrid's stride L is a whole number of pixels, each output pixel has one of L phases and
+/// the filter is a table of L x 4 weights (PostFilter), normalised per phase so constants are
+/// preserved; the sheet renderer calls post_convolve_region with it on each tile of each sheet that
+/// splats touched. X-ray subgrids may have any node spacing of at least one pixel (one node per
+/// voxel spacing at every magnification), so post_convolve takes per-pixel weights along each axis
+/// (PostFilterAxis) and goes over the image once, computing only tiles near touched subgrid tiles.
 #pragma once
 
 #include <string>
@@ -51,6 +53,27 @@ private:
     std::vector<float> by_tap_;   // [tap][phase], for the horizontal pass's contiguous loops
 };
 
+/// The filter along one image axis of `pixels` pixels, for nodes `spacing` >= 1 pixels apart (node n
+/// on pixel spacing * n): per pixel the node at or before it and the weights of its four taps
+/// (PostFilter's weights at whole spacings).
+class PostFilterAxis {
+public:
+    PostFilterAxis(PostFilterShape shape, double spacing, int pixels);
+    /// The node at or before pixel x; its taps are nodes node(x) - 1 .. node(x) + 2.
+    int node(int x) const { return node_[size_t(x)]; }
+    /// The first pixel whose node is at least n (0 before the first node, `pixels` after the last):
+    /// node n's pixels are [first_pixel(n), first_pixel(n + 1)).
+    int first_pixel(int n) const {
+        return n <= 0 ? 0 : n >= int(first_pixel_.size()) ? first_pixel_.back() : first_pixel_[size_t(n)];
+    }
+    /// Tap k's weight for every pixel.
+    const float* tap_weights(int k) const { return by_tap_[k].data(); }
+
+private:
+    std::vector<int> node_, first_pixel_;
+    std::vector<float> by_tap_[PostFilter::kTaps];
+};
+
 /// Row-major width x height image that the depth bands add into. Float is enough here: the many
 /// small contributions were already summed in double on the splat grid; a pixel gets one value per band.
 struct ImageAccumulator {
@@ -59,8 +82,9 @@ struct ImageAccumulator {
     ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h) {}
 };
 
-/// image += filter applied to grid. The grid must cover the image with PostFilter::kMarginNodes.
-void post_convolve(const SplatGrid& grid, const PostFilter& filter, ImageAccumulator& image, RenderControl& control);
+/// image += the filter of `shape` applied to grid, at the grid's node spacing. The grid must cover
+/// the image with PostFilter::kMarginNodes.
+void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control);
 
 /// A sheet's nodes in float, as the sheet renderer keeps them: node (0, 0) is subgrid node
 /// (node_x0, node_y0), i.e. pixel (L node_x0, L node_y0); rows `pitch` floats apart.

@@ -1,8 +1,9 @@
 /// @file splat_grid.h
-/// @brief The accumulation buffer splats land in: every `stride`-th image pixel, plus a margin.
+/// @brief The accumulation buffer splats land in: a node every `stride` image pixels, plus a margin.
 ///
 /// Node (i, j) sits on image pixel (stride * i, stride * j), so for stride 1 the grid is the image
 /// itself and for stride L it is PCVR's subgrid, stored compactly (the paper's "adjusting indices").
+/// The stride need not be whole: X-ray subgrids put one node per projected voxel spacing.
 /// Nodes extend `margin` beyond the image on each side because the post-convolution reads them.
 /// Values are double: thousands of voxels can land on one node without losing precision.
 /// Tiles of kTile x kTile nodes remember whether anything landed in them, so the post-convolution
@@ -25,20 +26,21 @@ public:
     static constexpr int kPadding = 8;
 
     SplatGrid() = default;
-    /// The grid of stride `stride` covering a width x height image with `margin` extra nodes per side.
-    SplatGrid(int width, int height, int stride, int margin);
+    /// The grid of nodes `stride` >= 1 pixels apart covering a width x height image with `margin`
+    /// extra nodes per side.
+    SplatGrid(int width, int height, double stride, int margin);
     /// What such a grid allocates (for MemoryBudget).
-    static uint64_t bytes(int width, int height, int stride, int margin);
+    static uint64_t bytes(int width, int height, double stride, int margin);
 
-    int stride() const { return stride_; }
+    double stride() const { return stride_; }
     int first_node_x() const { return node_x0_; }  ///< node index of column 0 (negative: margin)
     int first_node_y() const { return node_y0_; }
     int columns() const { return nx_; }
     /// Storage node coordinates of pixel coordinates (T: double, or a vector of doubles).
     template <class T>
-    T node_x(T px) const { return px / double(stride_) - double(node_x0_); }
+    T node_x(T px) const { return px / stride_ - double(node_x0_); }
     template <class T>
-    T node_y(T py) const { return py / double(stride_) - double(node_y0_); }
+    T node_y(T py) const { return py / stride_ - double(node_y0_); }
     int rows() const { return ny_; }
 
     double* row(int r) { return values_.data() + size_t(r) * nx_; }
@@ -56,7 +58,8 @@ public:
     void add(const SplatGrid& other);
 
 private:
-    int stride_ = 1, node_x0_ = 0, node_y0_ = 0, nx_ = 0, ny_ = 0, tiles_x_ = 0, tiles_y_ = 0;
+    double stride_ = 1;
+    int node_x0_ = 0, node_y0_ = 0, nx_ = 0, ny_ = 0, tiles_x_ = 0, tiles_y_ = 0;
     ZeroedBuffer<double> values_;
     std::vector<uint8_t> touched_;
 };

@@ -57,9 +57,10 @@ struct SplatParams {
 constexpr double kFootprintTolerance = 0.04;
 
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,
-/// inside the clip range). Advances `control` by one unit per block and stops with Cancelled.
+/// inside the clip range) and adds the window taps written to `*taps` when given. Advances `control`
+/// by one unit per block and stops with Cancelled.
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
                       const ViewProjection& view, const SplatParams& params, SplatGrid& target,
-                      RenderControl& control);
+                      RenderControl& control, uint64_t* taps = nullptr);
 
 }  // namespace pcvr

@@ -57,7 +57,8 @@ struct XrayStats {
     uint64_t blocks_culled = 0;
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
-    std::vector<int> strides;      ///< the subgrid strides used (one per depth band)
+    std::vector<double> strides;   ///< pixels between subgrid nodes, one per depth band (fractional when automatic)
+    uint64_t taps = 0;             ///< splat window taps written (work: taps / voxels_splatted per voxel)
     int level = 0;                 ///< the coarsest level of detail a grid was rendered from
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     double seconds = 0;
