@@ -244,7 +244,7 @@ def method_rows(label: str, cfg: dict) -> list[str]:
         strides = m.get("strides") or ([m["stride"]] if m.get("stride") else [])
         stride = ""
         if key != "regular" and strides:
-            stride = f" (L={strides[0]})" if len(strides) == 1 else f" (L={min(strides)}–{max(strides)})"
+            stride = f" (L={strides[0]:.3g})" if len(strides) == 1 else f" (L={min(strides):.3g}–{max(strides):.3g})"
         out.append("| {} | {} | {}{} | {} | {} | {} | {} | {} | {} | {} | {} |".format(
             label if first else "", f"{cfg['width']}×{cfg['height']}" if first else "", LABELS[key], stride, m["runs"],
             fmt(1e3 * m["median_s"], ".1f"), fmt(m.get("cores_busy"), ".2f"),
