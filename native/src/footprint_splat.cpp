@@ -275,9 +275,10 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         const bool narrow = params.antialias && prefiltered(fp);
         if (params.bilinear_spread || narrow) amp *= float(f.area_integral());
         if (narrow) {  // as in project(): the footprint's covariance in nodes, widened when tilted
-            const double det = f.qxx * f.qyy - f.qxy * f.qxy, reach = kPrefilterReach / grid.stride(), var = params.kernel_variance;
-            const double sxx = var * f.qyy / det, sxy = -var * f.qxy / det, syy = var * f.qxx / det;
-            if (std::abs(sxy) > kWidenAboveCovariance / stride2) {
+            const double reach = kPrefilterReach / grid.stride(), var = params.kernel_variance;
+            const FootprintCovariance c(f.qxx, f.qxy, f.qyy, var);
+            const double sxx = c.xx, sxy = c.xy, syy = c.yy;
+            if (c.tilted(grid.stride())) {
                 const double wxx = sxx + reach * reach / 3.0, wyy = syy + reach * reach / 3.0, wdet = wxx * wyy - sxy * sxy;
                 s = {float(var * wyy / wdet), float(-var * sxy / wdet), float(var * wxx / wdet),
                      float(params.kernel_radius * std::sqrt(wxx / var)), float(params.kernel_radius * std::sqrt(wyy / var))};

@@ -56,6 +56,20 @@ constexpr double kWidenAboveCovariance = 0.02;
 
 inline bool prefiltered(const Footprint& f) { return f.min_pixels_per_voxel() < kPrefilterBelowPixelsPerVoxel; }
 
+/// The covariance (node^2) of a footprint whose form in nodes is (qxx, qxy, qyy), for a kernel of
+/// `variance` per axis: the variance through the form's inverse. (project() in footprint_splat.cpp
+/// computes the same eight lanes at a time.)
+struct FootprintCovariance {
+    double xx, xy, yy;
+    FootprintCovariance(double qxx, double qxy, double qyy, double variance) {
+        const double det = qxx * qyy - qxy * qxy;
+        xx = variance * qyy / det, xy = -variance * qxy / det, yy = variance * qxx / det;
+    }
+    /// Tilted enough against the pixel axes (grid stride `stride`) to be widened rather than averaged
+    /// over pixels along them.
+    bool tilted(double stride) const { return std::abs(xy) > kWidenAboveCovariance / (stride * stride); }
+};
+
 /// The standard normal distribution function, tabulated (linear interpolation: error < 3e-7).
 class NormalCdf {
 public:

@@ -37,17 +37,16 @@ bool phases_resolve(double sigma, const PhaseFootprintTable& table) { return sig
 /// instead) and footprints too narrow for the table's phases (their box edges are sharp) stay per voxel.
 std::optional<PhaseSplat> pixel_averaged_splat(const Footprint& f0, OrthographicMapping map, double stride, const SplatParams& params) {
     const double s2 = stride * stride;
-    const double qxx = f0.qxx * s2, qxy = f0.qxy * s2, qyy = f0.qyy * s2, det = qxx * qyy - qxy * qxy;
-    const double variance = level_kernel_variance(params.kernel->variance(), params.level);
-    const double sxx = variance * qyy / det, sxy = -variance * qxy / det, syy = variance * qxx / det;
-    if (!params.kernel->smooth_footprint() || std::abs(sxy) > kWidenAboveCovariance / s2) return std::nullopt;
+    const double qxx = f0.qxx * s2, qxy = f0.qxy * s2, qyy = f0.qyy * s2;
+    const FootprintCovariance c(qxx, qxy, qyy, level_kernel_variance(params.kernel->variance(), params.level));
+    if (!params.kernel->smooth_footprint() || c.tilted(stride)) return std::nullopt;
     const double half_pixel = kPrefilterReach / stride;
     const double reach = std::max(f0.extent_x(params.kernel_radius), f0.extent_y(params.kernel_radius)) / stride + half_pixel;
     const int half_width = clamp_to_int(std::ceil(reach - 1e-4), 0, PhaseFootprintTable::kMaxHalfWidth + 1);
     if (half_width > PhaseFootprintTable::kMaxHalfWidth) return std::nullopt;
-    PhaseFootprintTable table = PhaseFootprintTable::pixel_averaged(std::sqrt(sxx), std::sqrt(syy), half_pixel, std::max(half_width, 2));
-    if (!phases_resolve(std::sqrt(std::min(sxx, syy)), table)) return std::nullopt;
-    map.amp_per_value *= float(1.0 / std::sqrt(det));  // the footprint's integral, node^2
+    PhaseFootprintTable table = PhaseFootprintTable::pixel_averaged(std::sqrt(c.xx), std::sqrt(c.yy), half_pixel, std::max(half_width, 2));
+    if (!phases_resolve(std::sqrt(std::min(c.xx, c.yy)), table)) return std::nullopt;
+    map.amp_per_value *= float(1.0 / std::sqrt(qxx * qyy - qxy * qxy));  // the footprint's integral, node^2
     return PhaseSplat{map, std::move(table)};
 }
 
