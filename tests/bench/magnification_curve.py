@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import datasets  # noqa: E402
+from timing import cpu_seconds  # noqa: E402
 import views  # noqa: E402
 
 DATASETS = ("blobs", "ct")
@@ -35,16 +35,6 @@ MAGNIFICATIONS = [1.0 + 0.25 * i for i in range(29)]  # 1 to 8
 REPS = 3
 # The magnifications whose rows the page's table shows (all are in the plot data).
 TABLE_MAGNIFICATIONS = (1.0, 1.5, 2.0, 2.25, 2.5, 3.0, 3.5, 4.0, 5.5, 8.0)
-
-
-def cpu_seconds(render, reps: int) -> float:
-    render()  # warm: block caches, page faults of the first image
-    times = []
-    for _ in range(reps):
-        t0 = time.process_time()
-        render()
-        times.append(time.process_time() - t0)
-    return statistics.median(times)
 
 
 def volume(key: str, size: int):

@@ -19,14 +19,14 @@ from __future__ import annotations
 import argparse
 import datetime
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / "tests"))
 sys.path.insert(0, str(HERE.parents[1] / "tests" / "native"))
+
+from timing import cpu_seconds  # noqa: E402
 
 MAGNIFICATIONS = (1 / 128, 1 / 64, 1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1, 2, 4, 8)
 RUNS = (("regular", 0), ("pcvr", 0), ("bilinear_spread", 0), ("pcvr", "auto"), ("pcvr", 1), ("pcvr", 2))
@@ -48,15 +48,12 @@ def run(quick: bool, log=print) -> dict:
         for method, level in RUNS:
             if level not in (0, "auto") and m > 1 / 8:  # fixed coarse levels only where they are an option
                 continue
-            times = []
-            for _ in range(reps):
-                stats = {}
-                start = time.process_time()
-                pn.render_xray(grid, cam.camera(), method=method, threads=1, stats=stats, level=level)
-                times.append(time.process_time() - start)
+            stats = {}
+            seconds = cpu_seconds(lambda: pn.render_xray(grid, cam.camera(), method=method, threads=1, stats=stats,
+                                                         level=level), reps)
             error = rel_rmse(render(grid, window, method, level=level), reference)
             rows.append({"magnification": m, "method": method, "requested": level, "level": stats["level"],
-                         "width": cam.width, "height": cam.height, "median_s": statistics.median(times),
+                         "width": cam.width, "height": cam.height, "median_s": seconds,
                          "voxels": stats.get("voxels", 0), "error": error})
     return {"date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"), "n": 48,
             "active_voxels": int(grid.active_voxel_count), "load": os.getloadavg()[0], "rows": rows}
