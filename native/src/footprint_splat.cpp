@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
+#include "block_linearisation.h"
 #include "block_voxels.h"
 #include "pixel_prefilter.h"
 
@@ -235,6 +237,96 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
     out.widened = widened;
 }
 
+/// The vector pass of a linearised block (block_linearisation.h): the same outputs as project(),
+/// from the block's affine models in float. No lane is prefiltered or outside the clip range.
+void project_linearised(const BlockLinearisation& lin, __m256 i, __m256 j, __m256 k, __m256 v,
+                        const FootprintSplatParams& params, ProjectedBatch& out) {
+    auto eval = [&](const AffineInBlock& f) {
+        return _mm256_fmadd_ps(_mm256_set1_ps(f.dk), k,
+               _mm256_fmadd_ps(_mm256_set1_ps(f.dj), j, _mm256_fmadd_ps(_mm256_set1_ps(f.di), i, _mm256_set1_ps(f.at))));
+    };
+    const __m256 w = eval(lin.w);
+    _mm256_store_ps(out.cx, _mm256_div_ps(eval(lin.x), w));
+    _mm256_store_ps(out.cy, _mm256_div_ps(eval(lin.y), w));
+    const __m256 qxx = eval(lin.qxx), qxy = eval(lin.qxy), qyy = eval(lin.qyy);
+    const __m256 inv_det = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_fmsub_ps(qxx, qyy, _mm256_mul_ps(qxy, qxy)));
+    const __m256 radius = _mm256_set1_ps(float(params.kernel_radius));
+    _mm256_store_ps(out.qxx, qxx);
+    _mm256_store_ps(out.qxy, qxy);
+    _mm256_store_ps(out.qyy, qyy);
+    _mm256_store_ps(out.ext_x, _mm256_mul_ps(radius, _mm256_sqrt_ps(_mm256_mul_ps(qyy, inv_det))));
+    _mm256_store_ps(out.ext_y, _mm256_mul_ps(radius, _mm256_sqrt_ps(_mm256_mul_ps(qxx, inv_det))));
+    __m256 amp = _mm256_mul_ps(_mm256_mul_ps(eval(lin.line_scale), _mm256_set1_ps(params.density_scale)), v);
+    if (params.bilinear_spread) amp = _mm256_mul_ps(amp, _mm256_sqrt_ps(inv_det));  // the integral, node^2
+    _mm256_store_ps(out.amp, amp);
+    _mm256_store_ps(out.sigma_x, _mm256_setzero_ps());
+    _mm256_store_ps(out.sigma_y, _mm256_setzero_ps());
+    out.live = uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
+    out.widened = 0;
+}
+
+/// The node windows of a linearised batch's footprints within the block's tile: first node, and
+/// nodes across and down (the ellipse's bounding box).
+struct TileWindows {
+    alignas(32) int32_t col[8], row[8], columns[8], rows[8];
+    uint32_t fits;  // lanes whose window lies inside the tile and is at most 8 nodes wide
+};
+
+TileWindows tile_windows(const ProjectedBatch& b, const DepositRegion& region) {
+    const __m256 cx = _mm256_load_ps(b.cx), cy = _mm256_load_ps(b.cy);
+    const __m256 ext_x = _mm256_load_ps(b.ext_x), ext_y = _mm256_load_ps(b.ext_y);
+    const __m256i c0 = _mm256_cvtps_epi32(_mm256_ceil_ps(_mm256_sub_ps(cx, ext_x)));
+    const __m256i r0 = _mm256_cvtps_epi32(_mm256_ceil_ps(_mm256_sub_ps(cy, ext_y)));
+    const __m256i c1 = _mm256_cvtps_epi32(_mm256_floor_ps(_mm256_add_ps(cx, ext_x)));
+    const __m256i r1 = _mm256_cvtps_epi32(_mm256_floor_ps(_mm256_add_ps(cy, ext_y)));
+    const __m256i one = _mm256_set1_epi32(1), columns = _mm256_add_epi32(_mm256_sub_epi32(c1, c0), one);
+    // Inside as add_lane tests it (one node of margin), and whole 8-float rows within the tile's slack.
+    const __m256i outside = _mm256_or_si256(
+        _mm256_or_si256(_mm256_cmpgt_epi32(one, c0), _mm256_cmpgt_epi32(one, r0)),
+        _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(c1, _mm256_set1_epi32(region.width - 2)),
+                                        _mm256_cmpgt_epi32(r1, _mm256_set1_epi32(region.height - 2))),
+                        _mm256_cmpgt_epi32(columns, _mm256_set1_epi32(8))));
+    TileWindows w;
+    _mm256_store_si256(reinterpret_cast<__m256i*>(w.col), c0);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(w.row), r0);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(w.columns), columns);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(w.rows), _mm256_add_epi32(_mm256_sub_epi32(r1, r0), one));
+    w.fits = region.tiled ? ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu : 0;
+    return w;
+}
+
+/// Lane l's footprint added into its tile copy (row pitch `pitch`): windows up to four nodes wide
+/// two rows per vector (as PCVR's orthographic 4 x 4 windows go), wider ones a row per vector.
+/// Returns the number of taps evaluated.
+uint64_t add_tile_window(float* tile, size_t pitch, const ProjectedBatch& b, const TileWindows& w, int l,
+                         const FootprintTable& table) {
+    const int columns = w.columns[l], rows = w.rows[l];
+    float* out = tile + size_t(w.row[l]) * pitch + w.col[l];
+    const __m256 qxx = _mm256_set1_ps(b.qxx[l]), qxy2 = _mm256_set1_ps(2.0f * b.qxy[l]), qyy = _mm256_set1_ps(b.qyy[l]);
+    const float dx0 = float(w.col[l]) - b.cx[l], dy0 = float(w.row[l]) - b.cy[l], amp = b.amp[l];
+    const bool paired = columns <= 4;
+    const __m256 column = paired ? _mm256_setr_ps(0, 1, 2, 3, 0, 1, 2, 3) : _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256 row_of_lane = paired ? _mm256_setr_ps(0, 0, 0, 0, 1, 1, 1, 1) : _mm256_setzero_ps();
+    const __m256 dx = _mm256_add_ps(_mm256_set1_ps(dx0), column);
+    const __m256 qxx_dx2 = _mm256_mul_ps(_mm256_mul_ps(qxx, dx), dx), qxy2_dx = _mm256_mul_ps(qxy2, dx);
+    const __m256 in_columns = _mm256_cmp_ps(column, _mm256_set1_ps(float(columns)), _CMP_LT_OQ);
+    const int step = paired ? 2 : 1;
+    for (int r = 0; r < rows; r += step, out += step * pitch) {
+        const __m256 lane_row = _mm256_add_ps(_mm256_set1_ps(float(r)), row_of_lane);
+        const __m256 dy = _mm256_add_ps(_mm256_set1_ps(dy0), lane_row);
+        const __m256 rho2 = _mm256_fmadd_ps(_mm256_fmadd_ps(qyy, dy, qxy2_dx), dy, qxx_dx2);
+        const __m256 inside = _mm256_and_ps(in_columns, _mm256_cmp_ps(lane_row, _mm256_set1_ps(float(rows)), _CMP_LT_OQ));
+        const __m256 weights = tap_weights(rho2, amp, inside, table);
+        if (!paired) {
+            accumulate8(out, weights);
+            continue;
+        }
+        accumulate4(out, _mm256_castps256_ps128(weights));
+        if (r + 1 < rows) accumulate4(out + pitch, _mm256_extractf128_ps(weights, 1));
+    }
+    return uint64_t(columns) * uint64_t(rows);
+}
+
 #endif  // PCVR_AVX2
 
 }  // namespace
@@ -247,10 +339,28 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
     uint64_t count = 0;
 #ifdef PCVR_AVX2
     ProjectedBatch b;
+    const std::optional<BlockLinearisation> lin =
+        params.view->orthographic() ? std::nullopt
+                                    : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y, params.antialias);
     for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
-        project(block, i, j, k, v, params, grid, target, b);
+        uint32_t todo = 0;
+        if (lin) {
+            project_linearised(*lin, i, j, k, v, params, b);
+            todo = b.live;
+            if (!params.bilinear_spread) {
+                const TileWindows windows = tile_windows(b, target.region);
+                for (uint32_t fits = b.live & windows.fits; fits; fits &= fits - 1) {
+                    const int l = __builtin_ctz(fits);
+                    scratch.taps += add_tile_window(tile_copy(tiles, l), target.region.pitch, b, windows, l, *params.table);
+                }
+                todo &= ~windows.fits;
+            }
+        } else {
+            project(block, i, j, k, v, params, grid, target, b);
+            todo = b.live;
+        }
         count += __builtin_popcount(b.live);
-        for (uint32_t todo = b.live; todo; todo &= todo - 1) {
+        for (; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             float* tile = tiles ? tile_copy(tiles, l) : nullptr;
             scratch.taps += add_lane(target, tile, grid, b.cx[l], b.cy[l],

@@ -7,7 +7,8 @@
 /// clip test, quadratic form, line scale) and turns them into node units of the target grid; then
 /// each footprint is added row by row, its weights gathered from the FootprintTable eight taps at
 /// a time: into the block's tile (block_tile.h) when the block is dense and its footprints fit one,
-/// else straight into the grid. Bilinear spreading takes the same pass and puts each footprint's
+/// else straight into the grid. Perspective blocks far enough from the eye take their footprints
+/// from the block's linearised projection instead, in float (block_linearisation.h). Bilinear spreading takes the same pass and puts each footprint's
 /// integral on its 2 x 2 nearest nodes. Footprints narrower than a pixel are integrated over each
 /// pixel's area instead, in every mode (pixel_prefilter.h).
 #pragma once

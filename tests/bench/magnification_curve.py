@@ -6,7 +6,7 @@ For each data set (the Gaussian blobs of datasets.py, and its CT head phantom wi
 voxels of 1:1:2 as CT scans often have) and each magnification m from 1
 to 8, the oblique orthographic view of views.py at m pixels per voxel and the perspective view with m pixels
 per voxel at the volume's centre are rendered with `method="pcvr"` (automatic stride, bilinear post filter) on
-one thread; the CPU time of one render is the median of REPS (the machine is shared: CPU time on one thread is
+one thread; the calling thread's CPU time of one render is the median of REPS (the machine is shared: CPU time on one thread is
 what other work disturbs least). Throughput is active voxels per CPU second.
 
     python tests/bench/magnification_curve.py [--quick]     # prints the table
@@ -95,9 +95,10 @@ def section(results) -> list[str]:
              f"`pcvr` (automatic stride, bilinear post filter) on {results['size']}^3 volumes through the oblique "
              "orthographic view at m pixels per voxel and the perspective view with m pixels per voxel at the "
              f"volume's centre (`tests/bench/magnification_curve.py`); CPU time of one render on one thread, median "
-             f"of {results['reps']}. The automatic stride puts a subgrid node every projected voxel spacing, so every "
-             "orthographic footprint is PCVR's 4 x 4 window whatever m; perspective views split into depth bands "
-             "2^(1/4) apart and project each voxel's own footprint.", ""]
+             f"of {results['reps']} (the calling thread's CPU time: see tests/bench/timing.py). The automatic stride puts "
+             "a subgrid node every projected voxel spacing, so every orthographic footprint is PCVR's 4 x 4 window "
+             "whatever m; perspective views split into depth bands 2^(1/4) apart, and each block's footprints come "
+             "from its projection linearised (docs/how-it-works.md, *Perspective: depth bands*).", ""]
     for key, entry in results["datasets"].items():
         r = ratios(entry["rows"])
         lines += [f"**{entry['name']}** ({entry['active_voxels']:,} active voxels): slowest over fastest magnification "
