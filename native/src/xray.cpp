@@ -143,8 +143,12 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             post_convolve(target, post_shape, image, control);
         stats.strides.push_back(stride);
     }
-    if (range != 1.0)
-        for (float& pixel : image.pixels) pixel = float(double(pixel) / range);
+    if (range != 1.0) {
+        // A power of two: multiplying in float rounds exactly as dividing in double did (once, and
+        // only below float's normal range), and vectorises (the division took 4 ms at 1698 x 1715).
+        const float unscale = float(1.0 / range);
+        for (float& pixel : image.pixels) pixel *= unscale;
+    }
     return image;
 }
 
