@@ -8,9 +8,9 @@
 /// D voxels from the eye. So a block's exact footprints at its centre and at its eight corners fix
 /// an affine model of each, and the voxels take theirs from it in float, eight at a time; their
 /// centres stay exact, since a projection is a ratio of affine functions. Blocks where the model
-/// misses a corner's exact footprint by more than kLinearisedTolerance (near the eye), straddle a
-/// clip plane, or hold footprints narrower than a pixel (prefiltered per voxel) keep the exact
-/// per-voxel projection.
+/// misses a corner's exact footprint by more than kLinearisedTolerance (near the eye), that reach
+/// beyond a clip plane, or that hold footprints both wider and narrower than a pixel, or narrower
+/// ones tilted enough to be widened (pixel_prefilter.h), keep the exact per-voxel projection.
 #pragma once
 
 #include <algorithm>
@@ -41,6 +41,9 @@ struct BlockLinearisation {
     AffineInBlock x, y, w;
     /// The footprint's form in node^2 units of the target grid, and its line scale.
     AffineInBlock qxx, qxy, qyy, line_scale;
+    /// Every footprint of the block is narrower than a pixel and integrated over pixels along the
+    /// pixel axes (none is tilted enough to be widened).
+    bool prefiltered = false;
 };
 
 namespace detail {
@@ -63,16 +66,23 @@ inline std::optional<AffineInBlock> fit_corners(double centre, const std::array<
 
 /// The linearisation of `block`'s footprints on `grid`, node coordinates relative to node
 /// (ref_x, ref_y); nullopt where the exact per-voxel projection is needed (see above).
+/// `antialias`: footprints narrower than a pixel are prefiltered, with the kernel's
+/// `kernel_variance` (index units^2).
 inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view,
-                                                         const SplatGrid& grid, int ref_x, int ref_y, bool antialias) {
+                                                         const SplatGrid& grid, int ref_x, int ref_y, bool antialias,
+                                                         double kernel_variance) {
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
+    const double stride2 = grid.stride() * grid.stride();
     Footprint centre, corner[8];
     if (!view.footprint(origin + Vec3{3.5, 3.5, 3.5}, centre)) return std::nullopt;
+    const bool narrow = antialias && prefiltered(centre);
     for (int c = 0; c < 8; ++c) {
         const Vec3 offset{7.0 * (c & 1), 7.0 * ((c >> 1) & 1), 7.0 * ((c >> 2) & 1)};
-        if (!view.footprint(origin + offset, corner[c]) || (antialias && prefiltered(corner[c]))) return std::nullopt;
+        Footprint& f = corner[c];
+        if (!view.footprint(origin + offset, f) || (antialias && prefiltered(f)) != narrow) return std::nullopt;
+        if (narrow && FootprintCovariance(f.qxx * stride2, f.qxy * stride2, f.qyy * stride2, kernel_variance).tilted(grid.stride()))
+            return std::nullopt;
     }
-    const double stride2 = grid.stride() * grid.stride();
     const double form_scale = 0.5 * (centre.qxx + centre.qyy) * stride2;
     auto fit = [&](auto member, double scale, double unit) -> std::optional<AffineInBlock> {
         std::array<double, 8> at_corners;
@@ -101,6 +111,7 @@ inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block
     out.qxy = *qxy;
     out.qyy = *qyy;
     out.line_scale = *line;
+    out.prefiltered = narrow;
     return out;
 }
 

@@ -238,9 +238,9 @@ void project(const VoxelBlock& block, __m256 i, __m256 j, __m256 k, __m256 v, co
 }
 
 /// The vector pass of a linearised block (block_linearisation.h): the same outputs as project(),
-/// from the block's affine models in float. No lane is prefiltered or outside the clip range.
+/// from the block's affine models in float. No lane is widened or outside the clip range.
 void project_linearised(const BlockLinearisation& lin, __m256 i, __m256 j, __m256 k, __m256 v,
-                        const FootprintSplatParams& params, ProjectedBatch& out) {
+                        const FootprintSplatParams& params, double grid_stride, ProjectedBatch& out) {
     auto eval = [&](const AffineInBlock& f) {
         return _mm256_fmadd_ps(_mm256_set1_ps(f.dk), k,
                _mm256_fmadd_ps(_mm256_set1_ps(f.dj), j, _mm256_fmadd_ps(_mm256_set1_ps(f.di), i, _mm256_set1_ps(f.at))));
@@ -257,10 +257,20 @@ void project_linearised(const BlockLinearisation& lin, __m256 i, __m256 j, __m25
     _mm256_store_ps(out.ext_x, _mm256_mul_ps(radius, _mm256_sqrt_ps(_mm256_mul_ps(qyy, inv_det))));
     _mm256_store_ps(out.ext_y, _mm256_mul_ps(radius, _mm256_sqrt_ps(_mm256_mul_ps(qxx, inv_det))));
     __m256 amp = _mm256_mul_ps(_mm256_mul_ps(eval(lin.line_scale), _mm256_set1_ps(params.density_scale)), v);
-    if (params.bilinear_spread) amp = _mm256_mul_ps(amp, _mm256_sqrt_ps(inv_det));  // the integral, node^2
+    if (params.bilinear_spread || lin.prefiltered) amp = _mm256_mul_ps(amp, _mm256_sqrt_ps(inv_det));  // the integral, node^2
     _mm256_store_ps(out.amp, amp);
-    _mm256_store_ps(out.sigma_x, _mm256_setzero_ps());
-    _mm256_store_ps(out.sigma_y, _mm256_setzero_ps());
+    if (lin.prefiltered) {
+        // As in project(): the footprint's covariance in nodes, and the reach of half a pixel more.
+        const __m256 variance = _mm256_set1_ps(float(params.kernel_variance));
+        const __m256 reach = _mm256_set1_ps(float(kPrefilterReach / grid_stride));
+        _mm256_store_ps(out.sigma_x, _mm256_sqrt_ps(_mm256_mul_ps(variance, _mm256_mul_ps(qyy, inv_det))));
+        _mm256_store_ps(out.sigma_y, _mm256_sqrt_ps(_mm256_mul_ps(variance, _mm256_mul_ps(qxx, inv_det))));
+        _mm256_store_ps(out.ext_x, _mm256_add_ps(_mm256_load_ps(out.ext_x), reach));
+        _mm256_store_ps(out.ext_y, _mm256_add_ps(_mm256_load_ps(out.ext_y), reach));
+    } else {
+        _mm256_store_ps(out.sigma_x, _mm256_setzero_ps());
+        _mm256_store_ps(out.sigma_y, _mm256_setzero_ps());
+    }
     out.live = uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
     out.widened = 0;
 }
@@ -341,13 +351,14 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
     ProjectedBatch b;
     const std::optional<BlockLinearisation> lin =
         params.view->orthographic() ? std::nullopt
-                                    : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y, params.antialias);
+                                    : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y,
+                                                      params.antialias, params.kernel_variance);
     for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
         uint32_t todo = 0;
         if (lin) {
-            project_linearised(*lin, i, j, k, v, params, b);
+            project_linearised(*lin, i, j, k, v, params, grid.stride(), b);
             todo = b.live;
-            if (!params.bilinear_spread) {
+            if (!params.bilinear_spread && !lin->prefiltered) {
                 const TileWindows windows = tile_windows(b, target.region);
                 for (uint32_t fits = b.live & windows.fits; fits; fits &= fits - 1) {
                     const int l = __builtin_ctz(fits);

@@ -115,12 +115,26 @@ struct PrefilteredShape {
 class AxisPrefilter {
 public:
     AxisPrefilter(double centre, double sigma, double half_pixel, int lo, int hi)
-        : cdf_(NormalCdf::instance()), centre_(centre), inv_sigma_(1.0 / sigma), half_(half_pixel) {
+        : cdf_(NormalCdf::instance()), centre_(centre), inv_sigma_(1.0 / sigma), half_(half_pixel), lo_(lo) {
+        if (half_pixel == 0.5 && hi - lo < 7) {
+            // Nodes one pixel apart (stride 1, where every prefiltered footprint is): node n's box
+            // ends where node n + 1's begins, so one vector of edges gives every weight and their sum.
+            const float8 edges = cdf_((lane_index8() + float(lo - 0.5 - centre_)) * float(inv_sigma_));
+            alignas(32) float e[8];
+            store8(e, edges);
+            const int nodes = hi - lo + 1;
+            const float total = e[nodes] - e[0];
+            const float8 next = __builtin_shuffle(edges, int8x{1, 2, 3, 4, 5, 6, 7, 7});
+            weights_ = select8(lane_index8() < float(nodes), (next - edges) * (total > 0 ? 1.0f / total : 0.0f), float8{});
+            shared_edges_ = true;
+            return;
+        }
         const double total = edge(hi + half_) - edge(lo - half_);
         scale_ = total > 0 ? 1.0 / total : 0.0;
     }
     /// The weights of nodes first .. first + 7, zero from lane `count` on.
     float8 weights8(int first, int count) const {
+        if (shared_edges_ && first == lo_) return select8(lane_index8() < float(count), weights_, float8{});
         const float8 at = (lane_index8() + float(first - centre_)) * float(inv_sigma_);
         const float step = float(half_ * inv_sigma_);
         const float8 w = (cdf_(at + step) - cdf_(at - step)) * float(scale_);
@@ -131,6 +145,9 @@ private:
     double edge(double at) const { return double(cdf_((at - centre_) * inv_sigma_)); }
     const NormalCdf& cdf_;
     double centre_, inv_sigma_, half_, scale_ = 0;
+    int lo_;
+    bool shared_edges_ = false;
+    float8 weights_{};  // nodes lo .. hi, with shared edges
 };
 
 /// Adds `mass` (the footprint's integral in node^2 times the voxel's amplitude) spread by the

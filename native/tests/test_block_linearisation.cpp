@@ -10,6 +10,8 @@ using namespace pcvr;
 
 namespace {
 
+constexpr double kVariance = 0.357;  // gauss1.4's per-axis variance (index units^2)
+
 /// A 512 x 384 camera at the origin looking down -z with a 40-degree vertical field of view.
 Camera perspective_camera() {
     const double f = 1.0 / std::tan(20.0 * 3.14159265358979 / 180.0), aspect = 512.0 / 384.0, n = 0.1, far = 1000.0;
@@ -63,7 +65,7 @@ TEST(linearised_block_footprints_match_the_exact_projection) {
     const ViewProjection view(cam, voxels_at(-0.3, 0.2, -4.0));
     const SplatGrid grid(cam.width(), cam.height(), 2.5, 2);
     const VoxelBlock block = block_at(8, -16, -8);
-    const auto lin = linearise_block(block, view, grid, 0, 0, true);
+    const auto lin = linearise_block(block, view, grid, 0, 0, true, kVariance);
     CHECK(lin.has_value());
     if (!lin) return;
     const ModelError e = model_error(*lin, block, view, grid);
@@ -77,10 +79,24 @@ TEST(blocks_near_the_eye_keep_exact_footprints) {
     const Camera cam = perspective_camera();
     const ViewProjection view(cam, voxels_at(-0.04, -0.04, -0.1));
     const SplatGrid grid(cam.width(), cam.height(), 4.0, 2);
-    CHECK(!linearise_block(block_at(0, 0, -8), view, grid, 0, 0, true).has_value());
-    // Footprints narrower than a pixel are prefiltered per voxel (far away), unless antialiasing is off.
-    const ViewProjection far(cam, voxels_at(0.0, 0.0, -400.0));
-    const SplatGrid far_grid(cam.width(), cam.height(), 1.0, 2);
-    CHECK(!linearise_block(block_at(0, 0, 0), far, far_grid, 0, 0, true).has_value());
-    CHECK(linearise_block(block_at(0, 0, 0), far, far_grid, 0, 0, false).has_value());
+    CHECK(!linearise_block(block_at(0, 0, -8), view, grid, 0, 0, true, kVariance).has_value());
+}
+
+TEST(blocks_narrower_than_a_pixel_are_linearised_as_prefiltered) {
+    // Far away every footprint of the block is narrower than a pixel: prefiltered, unless
+    // antialiasing is off; the model holds there too.
+    const Camera cam = perspective_camera();
+    const ViewProjection far(cam, voxels_at(0.0, 0.0, -40.0));
+    const SplatGrid grid(cam.width(), cam.height(), 1.0, 2);
+    const VoxelBlock block = block_at(0, 0, 0);
+    const auto lin = linearise_block(block, far, grid, 0, 0, true, kVariance);
+    CHECK(lin.has_value() && lin->prefiltered);
+    const auto sampled = linearise_block(block, far, grid, 0, 0, false, kVariance);
+    CHECK(sampled.has_value() && !sampled->prefiltered);
+    if (lin) CHECK(model_error(*lin, block, far, grid).form < kLinearisedTolerance);
+    // A block whose voxels span a pixel at one end and less at the other keeps exact footprints:
+    // a voxel of 0.01 units spans 1 pixel at 384 / (2 tan 20 deg) / 100 = 5.275 units from the eye,
+    // and the block's voxels lie 5.23 to 5.30 units away.
+    const ViewProjection straddling(cam, voxels_at(-0.035, -0.035, -5.30));
+    CHECK(!linearise_block(block_at(0, 0, 0), straddling, grid, 0, 0, true, kVariance).has_value());
 }

@@ -2,7 +2,7 @@
 unit-scale image times the scale (a line integral is density times world length).
 
 Measured (48 x 48, a 12^3 volume, every method): at the origin the scaled image matches the unit one
-to 1.9e-7 of its peak (float32 rounding); 1e8 units out, positions are resolved only to
+to 1.9e-7 of its peak (float32 rounding; 8.4e-7 in perspective, whose footprints are modelled in float); 1e8 units out, positions are resolved only to
 |offset| x 2.2e-16, and the error is at most half that resolution measured in voxels (1.2e-5 for
 1.7e-4-unit voxels). Where the resolution passes a tenth of a voxel the grid is refused with the
 numbers. Files carry scales OpenVDB's transform cannot hold in metadata."""
@@ -20,7 +20,10 @@ from stress_helpers import METHODS, max_error, placed, resolution_in_voxels, sce
 
 PHANTOM = phantoms.dense_volume(12, seed=3)
 VOXEL = float(np.linalg.norm(PHANTOM.index_to_world[:3, 0]))
-FLOAT32_ROUNDING = 4e-7  # twice the largest error measured at the origin
+FLOAT32_ROUNDING = 4e-7  # twice the largest error measured at the origin, orthographic
+# Perspective footprints come from a per-block model evaluated in float (docs/how-it-works.md,
+# *Perspective*), whose coefficients round differently at each scale: up to 8.4e-7 measured.
+FLOAT32_ROUNDING_PERSPECTIVE = 1.7e-6
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +42,7 @@ def test_scaled_scene_renders_the_unit_image(unit_images, scale, offset, persp):
     where = np.array([1.0, -0.5, 0.25]) * offset
     grid = PHANTOM.grid().with_index_to_world(placed(scale, where) @ PHANTOM.index_to_world)
     cam = scene_camera(scale, where, persp)
-    tolerance = FLOAT32_ROUNDING + resolution_in_voxels(where, scale * VOXEL)
+    tolerance = (FLOAT32_ROUNDING_PERSPECTIVE if persp else FLOAT32_ROUNDING) + resolution_in_voxels(where, scale * VOXEL)
     for method in METHODS:
         image = pn.render_xray(grid, cam, method=method)
         assert np.isfinite(image).all()
