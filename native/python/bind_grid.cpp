@@ -3,6 +3,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/filesystem.h>
 #include <nanobind/stl/optional.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -14,6 +15,7 @@
 #include "bindings.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
+#include "pcvr/grid_stream.h"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -225,6 +227,61 @@ void bind_grid(nb::module_& m) {
         "float grid. Double and integer grids are converted to float, level sets to fog volumes.\n"
         "Raises FileNotFoundError, VDBReadError (not a VDB, truncated, corrupt) or GridError (unknown\n"
         "grid, vector grid, frustum transform).");
+    nb::class_<GridStream>(m, "GridStream",
+                           "A grid left in its .vdb file (stream_vdb): render_xray reads it a batch of 128^3 regions at a\n"
+                           "time, so memory stays bounded whatever the file's size.")
+        .def_prop_ro("name", &GridStream::name)
+        .def_prop_ro("path", &GridStream::path)
+        .def_prop_ro("index_to_world", [](const GridStream& s) { return mat4_to_numpy(s.index_to_world()); })
+        .def_prop_ro("background", &GridStream::background)
+        .def_prop_ro("active_voxel_count", &GridStream::active_voxel_count)
+        .def_prop_ro(
+            "index_bbox",
+            [](const GridStream& s) {
+                const auto b = s.index_bbox();
+                return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
+            },
+            "Inclusive index bounds of the active voxels, as Grid.index_bbox.")
+        .def(
+            "with_index_to_world",
+            [](const GridStream& s, nb::handle matrix) { return s.with_index_to_world(grid_matrix(matrix, "index_to_world")); },
+            "index_to_world"_a, "The same stream (file, topology) under another index-to-world matrix.")
+        .def_prop_ro(
+            "value_range",
+            [](const GridStream& s) {
+                std::pair<float, float> r;
+                {
+                    nb::gil_scoped_release release;  // the first call reads the file
+                    r = s.value_range();
+                }
+                return nb::make_tuple(double(r.first), double(r.second));
+            },
+            "(min, max) over the active voxels, as Grid.value_range; the first call reads the whole file.")
+        .def_prop_ro("batch_bytes", [](const GridStream& s) -> std::optional<uint64_t> {
+            if (s.batch_bytes() == 0) return std::nullopt;
+            return s.batch_bytes();
+        })
+        .def_prop_ro("leaf_count", &GridStream::leaf_count)
+        .def_prop_ro("value_bytes", &GridStream::value_bytes, "Bytes the voxel values would take read whole.")
+        .def("__repr__", [](const GridStream& s) {
+            std::ostringstream out;
+            out << "<pcvr_native.GridStream '" << s.name() << "': " << s.active_voxel_count() << " active voxels in "
+                << s.leaf_count() << " leaves, from '" << s.path() << "'>";
+            return out.str();
+        });
+    m.def(
+        "stream_vdb",
+        [](const std::filesystem::path& path, std::optional<std::string> grid, std::optional<uint64_t> batch_bytes) {
+            if (batch_bytes && *batch_bytes == 0) throw InvalidArgument("stream_vdb: batch_bytes must be positive, or None");
+            nb::gil_scoped_release release;
+            return GridStream::open(path.string(), grid.value_or(""), batch_bytes.value_or(0));
+        },
+        "path"_a, "grid"_a = nb::none(), "batch_bytes"_a = nb::none(),
+        "Open one grid of a .vdb file without reading its values: a GridStream, which render_xray takes in\n"
+        "place of a Grid and reads a batch of whole 128^3 regions at a time. batch_bytes: the values a batch\n"
+        "may hold (a region alone may hold more: up to 8 MiB); None: half of render_xray's\n"
+        "memory_limit, or 64 MiB without one. The file's layout is checked now, as read_vdb does. Float fog\n"
+        "volumes only: other grids raise GridError (read them with read_vdb).");
     m.def(
         "list_grids",
         [](const std::filesystem::path& path) {

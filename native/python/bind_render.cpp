@@ -4,6 +4,7 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 
 
@@ -13,6 +14,7 @@
 #include "pcvr/camera.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
+#include "pcvr/grid_stream.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
 #include "pcvr/xray.h"
@@ -29,10 +31,29 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
                           int pixel_step, double footprint_tolerance, std::optional<uint64_t> memory_limit,
                           bool antialias, nb::handle level) {
-    const std::vector<Grid> grids = grids_from_python(grid_arg, "render_xray");
-    const std::vector<double> scales = scales_from_python(density_scale, grids.size(), "render_xray");
+    // Grids and streamed grids, in any mix; scales follow the sequence's order.
+    const nb::list items = nb::isinstance<Grid>(grid_arg) || nb::isinstance<GridStream>(grid_arg)
+                               ? nb::list(nb::make_tuple(grid_arg))
+                               : grid_sequence(grid_arg, "render_xray");
+    const std::vector<double> scales = scales_from_python(density_scale, items.size(), "render_xray");
+    std::vector<Grid> grids;
+    std::vector<std::shared_ptr<GridStream>> streams;
+    std::vector<double> grid_scales, stream_scales;
+    for (size_t i = 0; i < items.size(); ++i) {
+        if (nb::isinstance<GridStream>(items[i])) {
+            streams.push_back(nb::cast<std::shared_ptr<GridStream>>(items[i]));
+            stream_scales.push_back(scales[i]);
+        } else {
+            if (!nb::isinstance<Grid>(items[i]))
+                throw nb::type_error("render_xray: `grid` must be a pcvr_native.Grid or GridStream, or a sequence of them");
+            grids.push_back(nb::cast<Grid>(items[i]));
+            grid_scales.push_back(scales[i]);
+        }
+    }
     std::vector<WeightedGrid> weighted;
-    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], scales[i]});
+    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], grid_scales[i]});
+    std::vector<WeightedStream> weighted_streams;
+    for (size_t i = 0; i < streams.size(); ++i) weighted_streams.push_back({streams[i].get(), stream_scales[i]});
 
     XrayParams params;
     params.method = xray_method_from_name(method);
@@ -56,7 +77,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     XrayImage image;
     XrayStats xs;
-    run_polled([&] { image = render_xray(weighted, camera, params, control, &xs); }, control, progress, cancel);
+    run_polled([&] { image = render_xray(weighted, weighted_streams, camera, params, control, &xs); }, control, progress, cancel);
 
     if (!stats.is_none()) {
         nb::list strides;
@@ -71,6 +92,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["taps"] = xs.taps;
         stats["seconds"] = xs.seconds;
         stats["memory_bytes"] = xs.memory_bytes;
+        stats["batches"] = xs.batches;
         stats["level"] = xs.level;
     }
     auto* pixels = new ZeroedBuffer<float>(std::move(image.pixels));
@@ -107,6 +129,8 @@ void bind_render(nb::module_& m) {
           "footprint_tolerance"_a = kFootprintTolerance, "memory_limit"_a = nb::none(), "antialias"_a = true,
           "level"_a = "auto",
           "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.\n"
+          "A GridStream (stream_vdb) stands wherever a Grid may: it is read a batch at a time, and memory_limit\n"
+          "then bounds the batch's voxels (half the limit) as well as the buffers (the other half).\n"
           "footprint_tolerance: perspective views splat voxels whose linearised footprint would be off by more\n"
           "than this fraction of its peak with exact per-ray footprints (0: all; inf: none).\n"
           "memory_limit: bytes the render's buffers may take (None: the memory this machine has available);\n"

@@ -34,6 +34,15 @@ inline std::vector<Grid> grids_from_python(nb::handle grids, const char* functio
     return out;
 }
 
+/// The items of a sequence argument, or TypeError naming `function`.
+inline nb::list grid_sequence(nb::handle grids, const char* function) {
+    try {
+        return nb::list(grids);
+    } catch (const std::exception&) {
+        throw nb::type_error((std::string(function) + ": `grid` must be a pcvr_native.Grid or a sequence of them").c_str());
+    }
+}
+
 inline std::vector<double> scales_from_python(nb::handle scales, size_t count, const char* function) {
     if (nb::isinstance<nb::float_>(scales) || nb::isinstance<nb::int_>(scales))
         return std::vector<double>(count, nb::cast<double>(scales));

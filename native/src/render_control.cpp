@@ -17,7 +17,13 @@ double RenderControl::fraction() const {
     const double part = std::min(1.0, double(done_.load(std::memory_order_relaxed)) /
                                           double(total_.load(std::memory_order_relaxed)));
     const double b = begin_.load(std::memory_order_relaxed), e = end_.load(std::memory_order_relaxed);
-    return b + (e - b) * part;
+    const double sb = span_begin_.load(std::memory_order_relaxed), se = span_end_.load(std::memory_order_relaxed);
+    return sb + (se - sb) * (b + (e - b) * part);
+}
+
+void RenderControl::set_span(double begin, double end) {
+    span_begin_.store(begin, std::memory_order_relaxed);
+    span_end_.store(end, std::memory_order_relaxed);
 }
 
 void RenderControl::throw_if_cancelled() const {

@@ -83,36 +83,6 @@ vdb::FloatGrid::Ptr to_float_fog(const vdb::GridBase::Ptr& grid, const std::stri
     return out;
 }
 
-std::string grid_list(const Reader& r) {
-    std::string s;
-    for (const Entry& e : r.entries()) {
-        if (!s.empty()) s += ", ";
-        s += Reader::display_name(e) + " (" + e.value_type + ")";
-    }
-    return s.empty() ? "none" : s;
-}
-
-/// Index of the grid to read: the one asked for, else 'density', else the first float grid,
-/// else the first other scalar grid.
-size_t choose_grid(const Reader& r, const std::string& requested) {
-    const auto& entries = r.entries();
-    if (!requested.empty()) {
-        const int i = r.find(requested);
-        if (i < 0)
-            throw GridError(quoted(r.path()) + " has no grid named " + quoted(requested) +
-                            "; grids in the file: " + grid_list(r));
-        return size_t(i);
-    }
-    if (entries.empty()) throw GridError(quoted(r.path()) + " contains no grids");
-    const int density = r.find("density");
-    if (density >= 0) return size_t(density);
-    for (size_t i = 0; i < entries.size(); ++i)
-        if (entries[i].value_type == "float" || entries[i].value_type == "double") return i;
-    for (size_t i = 0; i < entries.size(); ++i)
-        if (entries[i].scalar) return i;
-    throw GridError(quoted(r.path()) + " has no scalar grid to render; grids in the file: " + grid_list(r));
-}
-
 /// io::Archive's stream writer, which io::File calls without checking that the writes succeeded.
 class Writer : public vdb::io::Archive {
 public:

@@ -183,6 +183,55 @@ public:
         return grid;
     }
 
+    /// A float grid's metadata, transform and topology, its leaves without values (about 100 bytes
+    /// each), after the same checks as read_grid; and where each leaf's record starts in the file, in
+    /// the tree's leaf order, for read_leaves. For grid_stream.cpp: float fog volumes with their own
+    /// tree (file format 223 or later) only; anything else throws GridError saying to read it whole.
+    struct Topology {
+        vdb::FloatGrid::Ptr grid;
+        std::vector<int64_t> leaf_positions;
+    };
+    Topology read_topology(size_t index) {
+        const Entry& e = entries_.at(index);
+        const std::string context = "grid " + quoted(display_name(e)) + " in " + vdb_reader::quoted(path_);
+        if (e.grid || e.gd.isInstance() || e.gd.gridType() != vdb::FloatTree::treeType() ||
+            fileVersion() < vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING)
+            throw GridError(context + " cannot be read a part at a time (only float grids with a tree of their own, "
+                                      "from OpenVDB 3 or later, can): read it whole");
+        e.gd.seekToGrid(is_);
+        const int64_t start = tell();
+        check_grid_header();
+        check_affine_map(e);
+        Topology out;
+        leaf_positions_ = &out.leaf_positions;
+        const int64_t end = check_layout(e);
+        leaf_positions_ = nullptr;
+        check_grid_end(e, end);
+        is_.seekg(start);
+        readGridCompression(is_);
+        out.grid = vdb::FloatGrid::create();
+        out.grid->setSaveFloatAsHalf(e.gd.saveFloatAsHalf());
+        out.grid->readMeta(is_);
+        if (out.grid->getGridClass() == vdb::GRID_LEVEL_SET)
+            throw GridError(context + " is a level set, which is converted to a fog volume as a whole: read it whole");
+        vdb::io::setGridClass(is_, out.grid->getGridClass());
+        out.grid->readTransform(is_);
+        out.grid->readTopology(is_);
+        // Leaves whose inactive values were left out of the file take the background.
+        vdb::io::setGridBackgroundValuePtr(is_, &out.grid->tree().background());
+        if (out.leaf_positions.size() != out.grid->tree().leafCount())
+            throw_corrupt("grid " + quoted(display_name(e)) + ": its topology and its layout disagree on the number of leaves");
+        return out;
+    }
+
+    /// Fill the values of `leaves` (consecutive in the tree's leaf order, their value masks set by
+    /// read_topology) from their records, the first at `position`. Not thread-safe: one stream.
+    template <typename LeafRange>
+    void read_leaves(const LeafRange& leaves, int64_t position, bool half) {
+        is_.seekg(position);
+        for (auto* leaf : leaves) leaf->readBuffers(is_, half);
+    }
+
     /// Metadata and class of a grid, without its voxels.
     vdb::GridBase::Ptr read_grid_metadata(size_t index) {
         const Entry& e = entries_.at(index);
@@ -353,6 +402,13 @@ private:
         is_.seekg(start);
     }
 
+    /// The layout check's end of a grid (-1: not checked) must be its descriptor's.
+    void check_grid_end(const Entry& e, int64_t end) const {
+        if (end >= 0 && e.gd.getEndPos() > 0 && end != e.gd.getEndPos())
+            throw_corrupt("grid " + quoted(display_name(e)) + " should end at byte " + std::to_string(e.gd.getEndPos()) +
+                          " but its nodes end at byte " + std::to_string(end));
+    }
+
     /// Read a whole grid starting at the stream position (just after its descriptor), once its
     /// layout has been checked. Leaves the stream at the end of the grid.
     vdb::GridBase::Ptr read_at_current(const Entry& e) {
@@ -361,9 +417,7 @@ private:
         check_affine_map(e);
         const int64_t end = check_layout(e);
         const std::string name = quoted(display_name(e));
-        if (end >= 0 && e.gd.getEndPos() > 0 && end != e.gd.getEndPos())
-            throw_corrupt("grid " + name + " should end at byte " + std::to_string(e.gd.getEndPos()) +
-                          " but its nodes end at byte " + std::to_string(end));
+        check_grid_end(e, end);
         is_.seekg(start);
         vdb::GridBase::Ptr grid = vdb::GridBase::createGrid(e.gd.gridType());
         grid->setSaveFloatAsHalf(e.gd.saveFloatAsHalf());
@@ -441,6 +495,7 @@ private:
     // The walk keeps its own position and steps over data with ignore(): tellg and seekg cost a
     // system call each and discard the stream's buffer.
     int64_t walk_pos_ = 0;
+    std::vector<int64_t>* leaf_positions_ = nullptr;  ///< where check_buffers records each leaf, when set
 
     void walk_read(void* dst, int64_t n, const char* what) {
         if (n > size_ - walk_pos_) throw_corrupt(std::string("truncated ") + what);
@@ -515,6 +570,7 @@ private:
             for (uint16_t active : leaves) {
                 switch (st.layout->leaf) {
                     case ValueLayout::kValues:
+                        if (leaf_positions_) leaf_positions_->push_back(walk_pos_);
                         skip(64, "leaf");  // value mask, skipped on seekable streams
                         check_compressed_values(st, 512, active);
                         break;
@@ -568,6 +624,36 @@ private:
     vdb::io::StreamMetadata::Ptr stream_meta_;
     std::vector<Entry> entries_;
 };
+
+inline std::string grid_list(const Reader& r) {
+    std::string s;
+    for (const Entry& e : r.entries()) {
+        if (!s.empty()) s += ", ";
+        s += Reader::display_name(e) + " (" + e.value_type + ")";
+    }
+    return s.empty() ? "none" : s;
+}
+
+/// Index of the grid to read: the one asked for, else 'density', else the first float grid,
+/// else the first other scalar grid.
+inline size_t choose_grid(const Reader& r, const std::string& requested) {
+    const auto& entries = r.entries();
+    if (!requested.empty()) {
+        const int i = r.find(requested);
+        if (i < 0)
+            throw GridError(quoted(r.path()) + " has no grid named " + quoted(requested) +
+                            "; grids in the file: " + grid_list(r));
+        return size_t(i);
+    }
+    if (entries.empty()) throw GridError(quoted(r.path()) + " contains no grids");
+    const int density = r.find("density");
+    if (density >= 0) return size_t(density);
+    for (size_t i = 0; i < entries.size(); ++i)
+        if (entries[i].value_type == "float" || entries[i].value_type == "double") return i;
+    for (size_t i = 0; i < entries.size(); ++i)
+        if (entries[i].scalar) return i;
+    throw GridError(quoted(r.path()) + " has no scalar grid to render; grids in the file: " + grid_list(r));
+}
 
 /// Run `f`, turning anything that escapes OpenVDB or the C++ library into VdbReadError naming the file.
 /// pcvr errors (FileNotFound, GridError, ...) pass through unchanged.

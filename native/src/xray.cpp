@@ -189,6 +189,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam,
         if (!std::isfinite(g.density_scale)) throw InvalidArgument("density_scale must be finite");
 
     XrayStats stats;
+    stats.batches = 1;
     XrayImage out;
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
     arena.execute([&] {

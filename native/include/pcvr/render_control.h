@@ -17,6 +17,9 @@ public:
     void begin_phase(uint64_t units, double begin, double end);
     void advance(uint64_t units = 1) { done_.fetch_add(units, std::memory_order_relaxed); }
     double fraction() const;
+    /// Map every phase from here on into [begin, end] of the whole: a render made of several renders
+    /// (one per batch of a streamed grid) gives each its share.
+    void set_span(double begin, double end);
 
     void request_cancel() { cancelled_.store(true, std::memory_order_relaxed); }
     bool cancelled() const { return cancelled_.load(std::memory_order_relaxed); }
@@ -26,6 +29,7 @@ public:
 private:
     std::atomic<uint64_t> done_{0}, total_{1};
     std::atomic<double> begin_{0.0}, end_{1.0};
+    std::atomic<double> span_begin_{0.0}, span_end_{1.0};
     std::atomic<bool> cancelled_{false};
 };
 

@@ -19,6 +19,7 @@
 #include "pcvr/camera.h"
 #include "pcvr/exact_xray.h"
 #include "pcvr/grid.h"
+#include "pcvr/grid_stream.h"
 #include "pcvr/render_control.h"
 #include "pcvr/splatter.h"
 #include "pcvr/zeroed_buffer.h"
@@ -61,6 +62,7 @@ struct XrayStats {
     uint64_t taps = 0;             ///< splat window taps written (work: taps / voxels_splatted per voxel)
     int level = 0;                 ///< the coarsest level of detail a grid was rendered from
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
+    uint64_t batches = 0;          ///< renders the streamed grids took (one per batch), and one for the others
     double seconds = 0;
 };
 
@@ -71,6 +73,19 @@ struct XrayImage {
 
 XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& camera, const XrayParams& params,
                       RenderControl& control, XrayStats* stats = nullptr);
+
+/// A grid read from its file a batch at a time (grid_stream.h), and the factor its densities are scaled by.
+struct WeightedStream {
+    const GridStream* stream;
+    double density_scale = 1.0;
+};
+
+/// render_xray of `grids` and the streamed grids (src/streamed_xray.cpp): X-ray images add, so each
+/// batch is rendered as a grid of its own and the images are summed. With a memory limit, a batch's
+/// voxels take half of it and the render's buffers the other half (without one, batches take
+/// GridStream::kDefaultBatchBytes); progress runs over the voxels, and stats add up over the batches.
+XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<WeightedStream>& streams,
+                      const Camera& camera, const XrayParams& params, RenderControl& control, XrayStats* stats = nullptr);
 
 /// Smallest and largest pixels per voxel over the grid's blocks in view (0, 0 when nothing is in view).
 std::pair<double, double> effective_magnification(const Grid& grid, const Camera& camera);

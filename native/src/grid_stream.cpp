@@ -1,0 +1,195 @@
+/// @file grid_stream.cpp
+/// @brief GridStream: a VDB grid's topology in memory, its values read a batch of 128^3 regions at a time.
+#include "pcvr/grid_stream.h"
+
+#include "grid_data.h"
+#include "vdb_reader.h"
+
+#include <filesystem>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+#include "pcvr/errors.h"
+
+namespace pcvr {
+
+namespace vdb = openvdb;
+using namespace vdb_reader;
+
+namespace {
+
+using UpperT = vdb::FloatTree::RootNodeType::ChildNodeType;
+using LowerT = UpperT::ChildNodeType;
+using LeafT = vdb::FloatTree::LeafNodeType;
+constexpr uint64_t kLeafBytes = sizeof(float) * LeafT::SIZE;
+
+/// What tells a file apart from its rewritten self: a stream opened on one file reads only that one.
+struct FileIdentity {
+    uintmax_t size = 0;
+    std::filesystem::file_time_type modified;
+
+    static FileIdentity of(const std::string& path) {
+        std::error_code ec;
+        FileIdentity id{std::filesystem::file_size(path, ec), std::filesystem::last_write_time(path, ec)};
+        if (ec) throw VdbReadError("cannot read " + vdb_reader::quoted(path) + ": " + ec.message());
+        return id;
+    }
+    bool operator==(const FileIdentity& o) const { return size == o.size && modified == o.modified; }
+};
+
+/// A 128^3 region with leaves: its node in the topology and where its first leaf's record starts.
+struct Region {
+    const LowerT* node;
+    int64_t position;
+    uint64_t leaves;
+};
+
+}  // namespace
+
+struct GridStream::Impl {
+    std::string path, name;
+    FileIdentity identity;
+    std::unique_ptr<Reader> reader;  ///< the open file; its stream is tagged with this grid's settings
+    vdb::FloatGrid::Ptr topology;    ///< leaves without values
+    bool half = false;               ///< values stored as half floats
+    Mat4 file_index_to_world;        ///< as the file places it
+    uint64_t active_voxels = 0;
+    std::array<int32_t, 6> bbox{};
+    std::vector<Region> regions;     ///< in the file's (and the tree's) leaf order
+    std::mutex mutex;                ///< one stream: one batch walk at a time
+    std::mutex range_mutex;
+    std::optional<std::pair<float, float>> value_range;  ///< once value_range() has read it
+
+    /// An empty float grid with the stream's background, for a batch.
+    vdb::FloatGrid::Ptr empty_batch() const { return vdb::FloatGrid::create(topology->background()); }
+
+    /// Copy the active tiles (constant regions above the leaves) into `batch`; returns their voxels.
+    uint64_t add_tiles(vdb::FloatTree& batch) const {
+        uint64_t voxels = 0;
+        auto it = topology->tree().cbeginValueOn();
+        it.setMaxDepth(vdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1);
+        for (; it; ++it) {
+            batch.addTile(it.getLevel(), it.getCoord(), *it, true);
+            voxels += it.getVoxelCount();
+        }
+        return voxels;
+    }
+
+    /// Read region `r`'s leaves into `batch`; returns their active voxels.
+    uint64_t add_region(const Region& r, vdb::FloatTree& batch) {
+        std::vector<std::unique_ptr<LeafT>> leaves;
+        leaves.reserve(r.leaves);
+        uint64_t voxels = 0;
+        for (auto src = r.node->cbeginChildOn(); src; ++src) {
+            auto leaf = std::make_unique<LeafT>(vdb::PartialCreate(), src->origin(), topology->background());
+            leaf->setValueMask(src->getValueMask());
+            voxels += src->onVoxelCount();
+            leaves.push_back(std::move(leaf));
+        }
+        std::vector<LeafT*> targets;
+        for (auto& leaf : leaves) targets.push_back(leaf.get());
+        reader->read_leaves(targets, r.position, half);
+        for (auto& leaf : leaves) batch.addLeaf(leaf.release());
+        return voxels;
+    }
+};
+
+GridStream::GridStream(std::shared_ptr<Impl> impl, const Mat4& index_to_world, uint64_t batch_bytes)
+    : impl_(std::move(impl)), index_to_world_(index_to_world), batch_bytes_(batch_bytes) {}
+
+std::shared_ptr<GridStream> GridStream::open(const std::string& path, const std::string& grid_name, uint64_t batch_bytes) {
+    detail::initialize_openvdb();
+    return guard_read(path, [&] {
+        auto impl = std::make_shared<Impl>();
+        impl->path = path;
+        impl->identity = FileIdentity::of(path);
+        impl->reader = std::make_unique<Reader>(path);
+        const size_t index = choose_grid(*impl->reader, grid_name);
+        const Entry& entry = impl->reader->entries()[index];
+        impl->name = Reader::display_name(entry);
+        const std::string context = "grid " + vdb_reader::quoted(impl->name) + " in " + vdb_reader::quoted(path);
+        Reader::Topology topology = impl->reader->read_topology(index);
+        impl->topology = topology.grid;
+        impl->half = entry.gd.saveFloatAsHalf();
+        impl->file_index_to_world = detail::from_vdb_transform(*impl->topology, context);
+
+        const vdb::FloatTree& tree = impl->topology->tree();
+        impl->active_voxels = tree.activeVoxelCount();
+        vdb::CoordBBox box;
+        if (impl->active_voxels > 0 && tree.evalActiveVoxelBoundingBox(box))
+            impl->bbox = {box.min().x(), box.min().y(), box.min().z(), box.max().x(), box.max().y(), box.max().z()};
+        // Regions in the order readBuffers (and so the file) visits leaves: the root's children by
+        // origin, then each internal node's children by index.
+        size_t leaf = 0;
+        for (auto upper = tree.root().cbeginChildOn(); upper; ++upper)
+            for (auto lower = upper->cbeginChildOn(); lower; ++lower) {
+                const uint64_t leaves = lower->getChildMask().countOn();
+                if (leaves == 0) continue;
+                impl->regions.push_back({&*lower, topology.leaf_positions[leaf], leaves});
+                leaf += leaves;
+            }
+        const Mat4 index_to_world = impl->file_index_to_world;
+        return std::make_shared<GridStream>(std::move(impl), index_to_world, batch_bytes);
+    });
+}
+
+const std::string& GridStream::name() const { return impl_->name; }
+const std::string& GridStream::path() const { return impl_->path; }
+std::shared_ptr<GridStream> GridStream::with_index_to_world(const Mat4& index_to_world) const {
+    detail::check_index_to_world(index_to_world, "grid '" + impl_->name + "'");
+    return std::make_shared<GridStream>(impl_, index_to_world, batch_bytes_);
+}
+float GridStream::background() const { return impl_->topology->background(); }
+uint64_t GridStream::active_voxel_count() const { return impl_->active_voxels; }
+std::array<int32_t, 6> GridStream::index_bbox() const { return impl_->bbox; }
+uint64_t GridStream::leaf_count() const { return impl_->topology->tree().leafCount(); }
+uint64_t GridStream::value_bytes() const { return leaf_count() * kLeafBytes; }
+
+std::pair<float, float> GridStream::value_range() const {
+    std::lock_guard<std::mutex> lock(impl_->range_mutex);
+    if (!impl_->value_range) {
+        std::pair<float, float> range{0.0f, 0.0f};
+        bool any = false;
+        for_each_batch(kDefaultBatchBytes, [&](const Batch& batch) {
+            if (batch.grid.active_voxel_count() == 0) return;
+            const auto [lo, hi] = batch.grid.value_range();
+            range = any ? std::pair<float, float>{std::min(range.first, lo), std::max(range.second, hi)} : std::pair<float, float>{lo, hi};
+            any = true;
+        });
+        impl_->value_range = range;
+    }
+    return *impl_->value_range;
+}
+
+void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const {
+    Impl& s = *impl_;
+    std::lock_guard<std::mutex> lock(s.mutex);
+    const std::string context = "grid " + vdb_reader::quoted(s.name) + " in " + vdb_reader::quoted(s.path);
+    guard_read(s.path, [&] {
+        if (!(FileIdentity::of(s.path) == s.identity))
+            throw VdbReadError("cannot read " + vdb_reader::quoted(s.path) + ": the file changed since " + vdb_reader::quoted(s.name) +
+                               " was opened from it; open it again");
+    });
+    uint64_t voxels_done = 0;
+    size_t next = 0;
+    // Tiles ride with the first batch; an empty grid still makes one (empty) batch.
+    for (bool first = true; first || next < s.regions.size(); first = false) {
+        vdb::FloatGrid::Ptr batch = s.empty_batch();
+        uint64_t bytes = 0;
+        guard_read(s.path, [&] {
+            if (first) voxels_done += s.add_tiles(batch->tree());
+            for (; next < s.regions.size(); ++next) {
+                const uint64_t region_bytes = s.regions[next].leaves * kLeafBytes;
+                if (bytes > 0 && bytes + region_bytes > batch_bytes) break;
+                voxels_done += s.add_region(s.regions[next], batch->tree());
+                bytes += region_bytes;
+            }
+        });
+        batch->setName(s.name);
+        const Grid grid(std::make_shared<Grid::Data>(std::move(batch), s.path), index_to_world_, s.name);
+        visit(Batch{grid, voxels_done});
+    }
+}
+
+}  // namespace pcvr
