@@ -4,7 +4,8 @@
 
 A file is identified by its path, modification time and size: re-rendering a scene, or rendering the
 next frame of a volume that does not change, reads nothing. The least recently used grids are
-dropped once the cache holds more than `max_voxels` active voxels.
+dropped once the cache holds more than `max_voxels` active voxels. Streamed grids (pcvr_native.GridStream)
+are cached beside them under their own kind; they hold only their topology, about 100 bytes a leaf.
 """
 
 import os
@@ -31,14 +32,15 @@ class GridCache:
         self._lock = threading.Lock()
 
     @staticmethod
-    def _key(filepath, grid_name):
+    def _key(filepath, grid_name, kind):
         stat = os.stat(filepath)
-        return (os.path.realpath(filepath), stat.st_mtime_ns, stat.st_size, grid_name)
+        return (os.path.realpath(filepath), stat.st_mtime_ns, stat.st_size, grid_name, kind)
 
-    def get(self, filepath, grid_name, read):
+    def get(self, filepath, grid_name, read, kind="grid"):
         """The grid `grid_name` of `filepath`, calling `read(filepath, grid_name)` only when it is not
-        cached. Raises FileNotFoundError for a missing file and whatever `read` raises."""
-        key = self._key(filepath, grid_name)
+        cached as `kind` ("grid" or "stream"). Raises FileNotFoundError for a missing file and whatever
+        `read` raises."""
+        key = self._key(filepath, grid_name, kind)
         with self._lock:
             grid = self._grids.get(key)
             if grid is not None:
@@ -51,20 +53,25 @@ class GridCache:
         with self._lock:
             self.stats.reads += 1
             # An older version of the same file is stale.
-            for stale in [k for k in self._grids if k[0] == key[0] and k[3] == grid_name]:
+            for stale in [k for k in self._grids if k[0] == key[0] and k[3:] == key[3:]]:
                 del self._grids[stale]
             self._grids[key] = grid
             self._evict(keep=key)
         return grid
 
-    def peek(self, filepath, grid_name):
+    def peek(self, filepath, grid_name, kind="grid"):
         """The cached grid, or None; never reads."""
         try:
-            key = self._key(filepath, grid_name)
+            key = self._key(filepath, grid_name, kind)
         except OSError:
             return None
         with self._lock:
             return self._grids.get(key)
+
+    def cached(self):
+        """The cached grids and streams, least recently used first."""
+        with self._lock:
+            return list(self._grids.values())
 
     def clear(self):
         with self._lock:
@@ -72,12 +79,18 @@ class GridCache:
             self.stats = CacheStats()
 
     def _evict(self, keep):
-        total = sum(grid.active_voxel_count for grid in self._grids.values())
+        total = sum(resident_voxels(grid) for grid in self._grids.values())
         for key in list(self._grids):
             if total <= self.max_voxels:
                 break
             if key != keep:
-                total -= self._grids.pop(key).active_voxel_count
+                total -= resident_voxels(self._grids.pop(key))
+
+
+def resident_voxels(grid):
+    """What a cached grid holds in memory, in float voxels: a stream only its leaves' topology."""
+    leaf_count = getattr(grid, "leaf_count", None)  # GridStream: about 100 bytes a leaf
+    return leaf_count * 25 if leaf_count is not None else grid.active_voxel_count
 
 
 # The one cache of this Blender session.

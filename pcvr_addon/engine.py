@@ -24,6 +24,7 @@ Blender's data must not be touched) and repeat only those that a change reaches:
 """
 
 import dataclasses
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,6 +58,33 @@ def read_grid(filepath, grid_name):
     return pcvr_native.read_vdb(filepath, grid_name)
 
 
+def stream_grid(filepath, grid_name):
+    import pcvr_native
+    return pcvr_native.stream_vdb(filepath, grid_name)
+
+
+MiB = 1 << 20
+
+
+def stream_threshold(stream_above_mib):
+    """Bytes of voxel values above which an X-ray streams a volume (RenderInputs.stream_above_mib), or None."""
+    import pcvr_native
+
+    if stream_above_mib is None:
+        return None
+    return stream_above_mib * MiB if stream_above_mib > 0 else pcvr_native.default_memory_limit() // 4
+
+
+def value_bytes(filepath, grid_name):
+    """The bytes a file's grid takes read whole, from its metadata (read_vdb's choice when `grid_name` is
+    None); 0 when the file does not say."""
+    import pcvr_native
+
+    grids = pcvr_native.list_grids(filepath)
+    chosen = [g for g in grids if g["name"] == (grid_name or "density")] or grids[:1]
+    return 4 * chosen[0]["active_voxels"] if chosen else 0
+
+
 def export_grid(source):
     """The grid of a procedural VolumeSource (made or changed by modifiers), through a temporary file.
     Blender's data: call on its main thread."""
@@ -84,7 +112,7 @@ def native_camera(view):
 class LoadedVolume:
     index: int                          # in RenderInputs.volumes
     inputs: scene_inputs.VolumeInputs
-    grid: object                        # pcvr_native.Grid in world space
+    grid: object                        # pcvr_native.Grid in world space (X-ray: or a GridStream)
 
 
 @dataclass
@@ -105,11 +133,20 @@ class PreparedScene:
         return [volume.inputs.density_scale for volume in self.volumes]
 
 
-def _grid(volume):
+def _grid(volume, stream_above=None):
+    """A VolumeInputs' grid: a pcvr_native.GridStream when its file's values take more than `stream_above`
+    bytes and it can be streamed (float fog volumes), else the Grid read whole."""
+    import pcvr_native
+
     if volume.error:
         raise OSError(volume.error)
     if volume.grid is not None:
         return volume.grid
+    if stream_above is not None and value_bytes(volume.filepath, volume.grid_name) > stream_above:
+        try:
+            return cache.grids.get(volume.filepath, volume.grid_name, stream_grid, kind="stream")
+        except pcvr_native.GridError:
+            pass  # a double grid, a level set: converted as a whole
     return cache.grids.get(volume.filepath, volume.grid_name, read_grid)
 
 
@@ -118,12 +155,13 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
     `reading(name)` is told of each volume before it is read; a true `cancelled()` stops reading. Raises
     ValueError for a transfer function without a range."""
     loaded, errors = [], []
+    stream_above = stream_threshold(inputs.stream_above_mib)
     for index, volume in enumerate(inputs.volumes):
         if cancelled():
             break
         reading(volume.name)
         try:
-            grid = _grid(volume)
+            grid = _grid(volume, stream_above)
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
             errors.append(f"Volume object '{volume.name}': {ex}")
             continue
@@ -390,8 +428,9 @@ def render(engine, depsgraph):
 
     engine.update_stats("", "Rendering")
     stats = {}
+    voxels = sum(volume.grid.active_voxel_count for volume in prepared.volumes) if inputs.mode == 'XRAY' else None
     try:
-        raw = render_raw(prepared, view, Control(engine.update_progress, engine.test_break), stats)
+        raw = render_raw(prepared, view, Control(ProgressReport(engine, voxels), engine.test_break), stats)
     except pcvr_native.RenderCancelled:
         return
     except (MemoryError, ValueError, RuntimeError) as ex:  # RuntimeError: any other native error
@@ -433,6 +472,40 @@ def _write_result(engine, depsgraph, view, pixels):
 def format_strides(strides):
     """Subgrid strides for display: X-ray strides are pixels between nodes and need not be whole."""
     return ", ".join(f"{stride:.2f}".rstrip("0").rstrip(".") for stride in strides) or "-"
+
+
+class ProgressReport:
+    """The progress callback of an F12 render: Blender's progress bar, and a status line with the voxels
+    splatted so far (X-ray, where the native progress runs over them) and an estimate of the time left."""
+
+    INTERVAL = 0.25  # seconds between status lines
+
+    def __init__(self, engine, voxels=None, clock=time.monotonic):
+        self.engine, self.voxels, self.clock = engine, voxels, clock
+        self.start = clock()
+        self.shown = None
+
+    def __call__(self, fraction):
+        self.engine.update_progress(fraction)
+        now = self.clock()
+        if self.shown is not None and now - self.shown < self.INTERVAL:
+            return
+        self.shown = now
+        self.engine.update_stats("", progress_line(fraction, now - self.start, self.voxels))
+
+
+def progress_line(fraction, elapsed, voxels=None):
+    """"Splatting 12.3M of 134.2M voxels | 4 s left": the status line of a render `fraction` done after
+    `elapsed` seconds (the time left extrapolated once 2% is done)."""
+    done = f"Splatting {_millions(fraction * voxels)} of {_millions(voxels)} voxels" if voxels \
+        else f"Rendering {100 * fraction:.0f}%"
+    if fraction < 0.02 or fraction >= 1:
+        return done
+    return f"{done} | {elapsed * (1 - fraction) / fraction:.0f} s left"
+
+
+def _millions(count):
+    return f"{count / 1e6:.1f}M"
 
 
 def format_stats(stats):

@@ -188,6 +188,15 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         default='TRANSFER_FUNCTION',
         update=tag_changed,
     )
+    stream_above: IntProperty(
+        name="Stream Above",
+        description="X-ray: volumes whose voxels take more than this many MiB are read from their files a part "
+                    "at a time while rendering, so memory stays bounded whatever their size (0: above a quarter "
+                    "of the memory available)",
+        min=0, soft_max=65536,
+        default=0,
+        update=tag_changed,
+    )
     xray_gain: FloatProperty(
         name="Gain",
         description="Attenuation per unit of integrated density in the Combined pass: 1 - exp(-gain * integral)",

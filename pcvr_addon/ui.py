@@ -76,6 +76,17 @@ class PCVR_RENDER_PT_method(PCVRRenderPanel, Panel):
         draw_sampling_estimate(layout.column(align=True), context)
 
 
+class PCVR_RENDER_PT_memory(PCVRRenderPanel, Panel):
+    bl_label = "Memory"
+    bl_parent_id = "PCVR_RENDER_PT_pcvr"
+    bl_options = {'DEFAULT_CLOSED'}
+    modes = {'XRAY'}  # shaded and MIP need every voxel at once
+
+    def draw(self, context):
+        layout = property_split(self.layout)
+        layout.prop(context.scene.pcvr, "stream_above", text="Stream Above (MiB)")
+
+
 class PCVR_RENDER_PT_statistics(PCVRRenderPanel, Panel):
     bl_label = "Last Render"
     bl_parent_id = "PCVR_RENDER_PT_pcvr"
@@ -314,6 +325,7 @@ def get_panels():
 classes = (
     PCVR_RENDER_PT_pcvr,
     PCVR_RENDER_PT_method,
+    PCVR_RENDER_PT_memory,
     PCVR_RENDER_PT_statistics,
     PCVR_RENDER_PT_film,
     PCVR_RENDER_PT_passes,

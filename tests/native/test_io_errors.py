@@ -20,10 +20,16 @@ import pcvr_native as pn
 from _io_helpers import HAVE_BPY, describe, run_blender_openvdb, run_python, sparse_volume, unprivileged_prefix
 
 # Reads every damaged copy of a file with read_vdb and list_grids (and, when reading succeeds, walks
-# the voxel blocks), printing one JSON line per case. argv: source file, cases JSON file, work dir.
+# the voxel blocks), and streams it into an X-ray (which decodes every leaf), printing one JSON line per
+# case. argv: source file, cases JSON file, work dir.
 DAMAGE_RUNNER = r"""
 import json, os, sys
+import numpy as np
 import pcvr_native as pn
+
+def stream_and_render(path):
+    projection = np.diag([0.05, 0.05, -0.01, 1.0])
+    pn.render_xray(pn.stream_vdb(path, batch_bytes=1), pn.Camera(np.eye(4), projection, 16, 16))
 
 source, cases_file, work = sys.argv[1:4]
 data = open(source, 'rb').read()
@@ -36,7 +42,7 @@ for case in json.load(open(cases_file)):
         f.write(damaged)
     print(json.dumps({'start': case}), flush=True)
     results = []
-    for call in (pn.read_vdb, pn.list_grids):
+    for call in (pn.read_vdb, pn.list_grids, stream_and_render):
         try:
             value = call(path)
             if isinstance(value, pn.Grid):
@@ -54,7 +60,8 @@ print('done', flush=True)
 
 
 def run_damage_cases(source, cases, tmp_path):
-    """Read each damaged copy of `source` in one subprocess; returns [(case, [read_vdb, list_grids results])]."""
+    """Read each damaged copy of `source` in one subprocess; returns [(case, [read_vdb, list_grids, stream
+    results])]."""
     cases_file = tmp_path / "cases.json"
     cases_file.write_text(json.dumps(cases))
     work = tmp_path / "work"
@@ -174,7 +181,7 @@ def test_corrupted_files_never_crash(tmp_path, kind):
             if kind_ != "ok":
                 assert "damaged.vdb" in result["message"], (case, result)
             outcomes[kind_] += 1
-    assert sum(outcomes.values()) == 2 * len(cases)
+    assert sum(outcomes.values()) == 3 * len(cases)
 
 
 # ------------------------------------------------------------------------------------------------

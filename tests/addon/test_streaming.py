@@ -1,0 +1,82 @@
+"""Big volumes in Blender: in X-ray mode a volume whose voxels take more than the scene's Stream Above
+(MiB) renders from its file a batch at a time (pcvr_native.GridStream), with the same image; shaded and MIP
+modes, which need every voxel at once, read it whole. F12 shows the voxels splatted and the time left."""
+
+import numpy as np
+import pcvr_native as pn
+import pytest
+
+import blender_scenes as bs
+from pcvr_addon import cache, engine
+
+
+@pytest.fixture
+def big_volume(tmp_path):
+    """A 96^3 field (3.4 MiB of values), 1.6 units wide."""
+    i = np.indices((96, 96, 96), dtype=np.float32) / 95 * 2 - 1
+    values = np.exp(-3 * (i ** 2).sum(axis=0)) * (1 + 0.3 * np.sin(17 * i[0]) * np.cos(11 * i[1]))
+    filepath = bs.write_vdb(tmp_path / "big.vdb", values.astype(np.float32), bs.centred(1 / 60, 96))
+    return bs.add_volume("Big", filepath, rotation=(0.3, 0.2, 0.5))
+
+
+def cached_kinds():
+    return sorted(type(grid).__name__ for grid in cache.grids.cached())
+
+
+def test_a_volume_above_the_threshold_renders_streamed_with_the_same_image(big_volume):
+    scene = bs.setup(64, 48, method='PCVR')
+    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.4)
+    cache.grids.clear()
+    scene.pcvr.stream_above = 1  # MiB
+    streamed = bs.xray(bs.render(scene))
+    assert cached_kinds() == ["GridStream"]
+    scene.pcvr.stream_above = 4
+    whole = bs.xray(bs.render(scene))
+    assert cached_kinds() == ["Grid", "GridStream"]
+    assert whole.max() > 0
+    np.testing.assert_allclose(streamed, whole, rtol=0, atol=1e-6 * whole.max())
+
+
+def test_shaded_mode_reads_a_big_volume_whole(big_volume):
+    scene = bs.setup(32, 24, method='PCVR', xray_pass=False)
+    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.4)
+    scene.pcvr.mode = 'SHADED'
+    scene.pcvr.stream_above = 1
+    cache.grids.clear()
+    bs.render(scene)
+    assert cached_kinds() == ["Grid"]
+
+
+def test_the_threshold_follows_the_memory_available_by_default():
+    assert engine.stream_threshold(None) is None  # shaded and MIP modes
+    assert engine.stream_threshold(0) == pn.default_memory_limit() // 4
+    assert engine.stream_threshold(3) == 3 * engine.MiB
+
+
+def test_progress_line_counts_voxels_and_time_left():
+    assert engine.progress_line(0.25, 3.0, 134_200_000) == "Splatting 33.5M of 134.2M voxels | 9 s left"
+    assert engine.progress_line(0.01, 0.5, 134_200_000) == "Splatting 1.3M of 134.2M voxels"  # too early to tell
+    assert engine.progress_line(0.5, 2.0) == "Rendering 50% | 2 s left"
+    assert engine.progress_line(1.0, 4.0) == "Rendering 100%"
+
+
+class FakeEngine:
+    def __init__(self):
+        self.progress, self.lines = [], []
+
+    def update_progress(self, fraction):
+        self.progress.append(fraction)
+
+    def update_stats(self, stats, info):
+        self.lines.append(info)
+
+
+def test_progress_report_updates_the_bar_every_time_and_the_line_four_times_a_second():
+    fake, now = FakeEngine(), [100.0]
+    report = engine.ProgressReport(fake, voxels=1_000_000, clock=lambda: now[0])
+    for fraction, time in [(0.1, 100.1), (0.2, 100.2), (0.3, 100.4), (0.5, 101.0)]:
+        now[0] = time
+        report(fraction)
+    assert fake.progress == [0.1, 0.2, 0.3, 0.5]
+    assert fake.lines == ["Splatting 0.1M of 1.0M voxels | 1 s left", "Splatting 0.3M of 1.0M voxels | 1 s left",
+                          "Splatting 0.5M of 1.0M voxels | 1 s left"]
