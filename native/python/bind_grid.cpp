@@ -261,6 +261,16 @@ void bind_grid(nb::module_& m) {
             if (s.batch_bytes() == 0) return std::nullopt;
             return s.batch_bytes();
         })
+        .def(
+            "level",
+            [](const GridStream& s, int k) {
+                nb::gil_scoped_release release;  // the first call for a level reads the file
+                return s.level(k);
+            },
+            "k"_a,
+            "Level of detail k, 1 <= k <= 7, as Grid.level(k) of the grid read whole: made by reading every batch "
+            "once, then kept with the stream. render_xray renders a zoomed-out view of a stream from it when it "
+            "takes no more than a batch.")
         .def_prop_ro("leaf_count", &GridStream::leaf_count)
         .def_prop_ro("value_bytes", &GridStream::value_bytes, "Bytes the voxel values would take read whole.")
         .def("__repr__", [](const GridStream& s) {

@@ -6,6 +6,7 @@
 #include "vdb_reader.h"
 
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <vector>
@@ -60,6 +61,10 @@ struct GridStream::Impl {
     std::mutex mutex;                ///< one stream: one batch walk at a time
     std::mutex range_mutex;
     std::optional<std::pair<float, float>> value_range;  ///< once value_range() has read it
+    std::mutex levels_mutex;
+    std::map<int, std::shared_ptr<Grid::Data>> levels;   ///< those level() has made
+
+    void for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world, const std::function<void(const Batch&)>& visit);
 
     /// An empty float grid with the stream's background, for a batch.
     vdb::FloatGrid::Ptr empty_batch() const { return vdb::FloatGrid::create(topology->background()); }
@@ -162,8 +167,9 @@ std::pair<float, float> GridStream::value_range() const {
     return *impl_->value_range;
 }
 
-void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const {
-    Impl& s = *impl_;
+void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world,
+                                      const std::function<void(const Batch&)>& visit) {
+    Impl& s = *this;
     std::lock_guard<std::mutex> lock(s.mutex);
     const std::string context = "grid " + vdb_reader::quoted(s.name) + " in " + vdb_reader::quoted(s.path);
     guard_read(s.path, [&] {
@@ -187,9 +193,42 @@ void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(c
             }
         });
         batch->setName(s.name);
-        const Grid grid(std::make_shared<Grid::Data>(std::move(batch), s.path), index_to_world_, s.name);
+        const Grid grid(std::make_shared<Grid::Data>(std::move(batch), s.path), index_to_world, s.name);
         visit(Batch{grid, voxels_done});
     }
+}
+
+void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const {
+    impl_->for_each_batch(batch_bytes, index_to_world_, visit);
+}
+
+Grid GridStream::level(int k) const {
+    if (k < 1 || k > kMaxLevel)
+        throw InvalidArgument("grid '" + impl_->name + "': a stream's level must be from 1 to " + std::to_string(kMaxLevel));
+    std::shared_ptr<Grid::Data> data;
+    {
+        std::lock_guard<std::mutex> lock(impl_->levels_mutex);
+        auto& cached = impl_->levels[k];
+        if (!cached) {
+            // Each batch's level holds the level's voxels over the batch's regions, and no other batch has
+            // voxels there: merging the active voxels makes the whole level.
+            vdb::FloatGrid::Ptr merged = impl_->empty_batch();
+            impl_->for_each_batch(kDefaultBatchBytes, impl_->file_index_to_world, [&](const Batch& batch) {
+                vdb::FloatGrid::Ptr part = batch.grid.level(k).data()->vdb->deepCopy();
+                merged->tree().merge(part->tree(), vdb::MERGE_ACTIVE_STATES);
+            });
+            merged->setName(impl_->name);
+            cached = std::make_shared<Grid::Data>(std::move(merged), impl_->path);
+        }
+        data = cached;
+    }
+    // Level k's index I sits at fine index 2^k I + (2^k - 1) / 2, the centre of the voxels it averages.
+    Mat4 to_fine;
+    for (int r = 0; r < 3; ++r) {
+        to_fine.m[r][r] = std::ldexp(1.0, k);
+        to_fine.m[r][3] = 0.5 * (std::ldexp(1.0, k) - 1.0);
+    }
+    return Grid(std::move(data), index_to_world_ * to_fine, impl_->name);
 }
 
 }  // namespace pcvr

@@ -26,6 +26,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "pcvr/camera.h"
@@ -46,12 +47,10 @@ inline double level_kernel_variance(double variance, int level) {
 }
 
 /// The coarsest level whose voxels project to at most kLevelPixelsPerVoxel pixels in every direction
-/// at every corner of the grid's active box (0 when a corner lies behind a perspective eye), and no
-/// coarser than two voxels across the box.
-inline int automatic_level(const Grid& grid, const Camera& camera) {
-    if (grid.active_voxel_count() == 0) return 0;
-    const ViewProjection view(camera, grid.index_to_world());
-    const auto box = grid.index_bbox();
+/// at every corner of the active index box `box` (0 when a corner lies behind a perspective eye), and
+/// no coarser than two voxels across the box.
+inline int automatic_level(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera) {
+    const ViewProjection view(camera, index_to_world);
     double most_pixels = 0;  // pixels per voxel in the most magnified direction, over the corners
     for (int corner = 0; corner < 8; ++corner) {
         const Vec3 p{double(box[(corner & 1) ? 3 : 0]), double(box[(corner & 2) ? 4 : 1]), double(box[(corner & 4) ? 5 : 2])};
@@ -67,6 +66,11 @@ inline int automatic_level(const Grid& grid, const Camera& camera) {
     // The tolerance keeps an exact 1/64 (computed as 0.01562500001) at level 1.
     while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= kLevelPixelsPerVoxel * (1 + 1e-6)) ++level;
     return level;
+}
+
+inline int automatic_level(const Grid& grid, const Camera& camera) {
+    if (grid.active_voxel_count() == 0) return 0;
+    return automatic_level(grid.index_bbox(), grid.index_to_world(), camera);
 }
 
 }  // namespace pcvr

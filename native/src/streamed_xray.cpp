@@ -7,6 +7,8 @@
 #include "pcvr/errors.h"
 #include "pcvr/xray.h"
 
+#include "level_of_detail.h"
+
 namespace pcvr {
 
 namespace {
@@ -28,6 +30,16 @@ void accumulate(XrayStats& total, const XrayStats& part) {
     for (double stride : part.strides)
         if (std::find(total.strides.begin(), total.strides.end(), stride) == total.strides.end())
             total.strides.push_back(stride);
+}
+
+/// The level of detail a stream renders from: as render_xray chooses for a grid (level_of_detail.h), over
+/// the whole stream's box so that every batch takes the same, and at most GridStream::kMaxLevel.
+int stream_level(const GridStream& stream, const Camera& camera, const XrayParams& params) {
+    if (params.method == XrayMethod::Exact || stream.active_voxel_count() == 0) return 0;
+    const int level = params.level >= 0 ? params.level
+                      : params.antialias ? automatic_level(stream.index_bbox(), stream.index_to_world(), camera)
+                                         : 0;
+    return std::min(level, GridStream::kMaxLevel);
 }
 
 }  // namespace
@@ -59,11 +71,11 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     bool first_part = true;
     XrayStats stats;
     uint64_t voxels_before = 0;  // voxels of the renders before this one
-    auto render_part = [&](const std::vector<WeightedGrid>& part, uint64_t voxels) {
+    auto render_part = [&](const std::vector<WeightedGrid>& part, uint64_t voxels, const XrayParams& with) {
         control.throw_if_cancelled();
         control.set_span(double(voxels_before) * per_voxel, double(voxels_before + voxels) * per_voxel);
         XrayStats part_stats;
-        XrayImage rendered = render_xray(part, camera, part_params, control, &part_stats);
+        XrayImage rendered = render_xray(part, camera, with, control, &part_stats);
         accumulate(stats, part_stats);
         voxels_before += voxels;
         if (first_part) {
@@ -76,12 +88,21 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     if (!grids.empty()) {
         uint64_t voxels = 0;
         for (const WeightedGrid& g : grids) voxels += g.grid->active_voxel_count();
-        render_part(grids, voxels);
+        render_part(grids, voxels, part_params);
     }
     for (const WeightedStream& s : streams) {
+        const int level = stream_level(*s.stream, camera, params);
+        if (level > 0 && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
+            // A zoomed-out view: the level fits where a batch would, and stays for the next render.
+            const Grid coarse = s.stream->level(level);
+            render_part({WeightedGrid{&coarse, s.density_scale, level}}, s.stream->active_voxel_count(), part_params);
+            continue;
+        }
+        XrayParams batch_params = part_params;
+        batch_params.level = level;  // every batch the same level
         uint64_t streamed = 0;
         s.stream->for_each_batch(batch_bytes, [&](const GridStream::Batch& batch) {
-            render_part({WeightedGrid{&batch.grid, s.density_scale}}, batch.voxels_done - streamed);
+            render_part({WeightedGrid{&batch.grid, s.density_scale}}, batch.voxels_done - streamed, batch_params);
             streamed = batch.voxels_done;
         });
     }

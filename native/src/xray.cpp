@@ -82,8 +82,9 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     levels.reserve(grids.size());  // PlannedGrid points into it
     for (const auto& g : grids) {
         // Coarse levels stand for their voxels only where footprints are integrated over pixels.
-        const int level = params.level >= 0 ? params.level : params.antialias ? automatic_level(*g.grid, cam) : 0;
-        levels.push_back(g.grid->level(level));
+        const int chosen = g.level > 0 ? 0 : params.level >= 0 ? params.level : params.antialias ? automatic_level(*g.grid, cam) : 0;
+        levels.push_back(g.grid->level(chosen));
+        const int level = g.level + chosen;
         stats.level = std::max(stats.level, level);
         ViewProjection view(cam, levels.back().index_to_world());
         BlockPlan plan = plan_blocks(levels.back().blocks(), view, plan_params, &control);

@@ -196,3 +196,35 @@ def test_a_volume_bigger_than_the_memory_limit_renders_within_it(tmp_path):
     assert results["read_vdb"][0] > 64 * MiB  # what the stream saves: the check could fail
     assert total == pytest.approx(results["read_vdb"][2], rel=1e-6)
     os.remove(path)
+
+
+def test_a_zoomed_out_stream_renders_its_level_from_memory(files, tmp_path):
+    """Where a view picks a coarse level (here level 1 at 1/200 of a pixel per voxel) that takes no more
+    than a batch, the stream makes the level once, from every batch, and keeps it: the image is the whole
+    grid's at that level, and the next render reads nothing from the file (so a file replaced since still
+    renders, from the level kept)."""
+    path = tmp_path / "field.vdb"
+    path.write_bytes((files / "field.vdb").read_bytes())
+    grid, stream = pn.read_vdb(str(path)), pn.stream_vdb(str(path))
+    cam = field_view(grid, "orthographic", magnification=1 / 200)
+    whole_stats, stream_stats = {}, {}
+    whole = pn.render_xray(grid, cam, stats=whole_stats)
+    streamed = pn.render_xray(stream, cam, stats=stream_stats)
+    assert whole_stats["level"] == stream_stats["level"] == 1
+    assert stream_stats["voxels"] == whole_stats["voxels"] < grid.active_voxel_count / 7
+    np.testing.assert_allclose(streamed, whole, rtol=0, atol=1e-6 * whole.max())
+    pn.Grid.from_dense(smooth_field(24), np.eye(4)).write_vdb(str(path))
+    np.testing.assert_array_equal(pn.render_xray(stream, cam), streamed)
+    with pytest.raises(pn.VDBReadError, match="changed since"):
+        pn.render_xray(stream, cam, level=0)
+
+
+def test_a_stream_level_is_the_grid_level(files):
+    """Level k of a stream, made batch by batch, holds the voxels of Grid.level(k), placed alike."""
+    path = str(files / "field.vdb")
+    grid, stream = pn.read_vdb(path), pn.stream_vdb(path, batch_bytes=1)
+    for k in (1, 3, 7):
+        np.testing.assert_array_equal(stream.level(k).to_dense(), grid.level(k).to_dense())
+        np.testing.assert_allclose(stream.level(k).index_to_world, grid.level(k).index_to_world, rtol=1e-12)
+    with pytest.raises(ValueError, match="from 1 to 7"):
+        stream.level(8)

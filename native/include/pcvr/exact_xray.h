@@ -20,6 +20,9 @@ namespace pcvr {
 struct WeightedGrid {
     const Grid* grid;
     double density_scale;
+    /// The grid is this level of detail of another (GridStream::level): its footprints are widened as
+    /// Grid::level's are, and renders choose levels of it no further.
+    int level = 0;
 };
 
 /// Returns a ceil(height / step) x ceil(width / step) row-major image.
