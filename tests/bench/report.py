@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import analysis_report
+import big_volume_bench
 import evidence_report
 import magnification_curve
 import minification_bench
@@ -548,6 +549,7 @@ def write(results: dict, output: Path) -> None:
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += viewport_bench.section(results.get("viewport"))
     lines += minification_bench.section(results.get("minification"))
+    lines += big_volume_bench.section(results.get("big_volume"))
     lines += magnification_curve.section(results.get("magnification_curve"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))

@@ -15,6 +15,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
 | zoomed out  | minification_bench.py | time and error against magnification from 1/16 to 8, every method |
 | magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective |
+| big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -444,6 +445,8 @@ def parse_args(argv=None):
                    help="skip the rendered viewport's speed")
     p.add_argument("--no-magnification-curve", dest="magnification_curve", action="store_false",
                    help="skip pcvr's time over magnification")
+    p.add_argument("--no-big-volume", dest="big_volume", action="store_false",
+                   help="skip the big volume's memory and time, read whole and streamed")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.
@@ -534,6 +537,11 @@ def main(argv=None) -> int:
         import magnification_curve
         log("X-ray speed over magnification")
         results["magnification_curve"] = magnification_curve.run(args.quick, log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
+    if args.big_volume:
+        import big_volume_bench
+        log("big volumes")
+        results["big_volume"] = big_volume_bench.run(args.quick, log)
         results_path.write_text(json.dumps(results, indent=1, default=float))
     for n in args.sizes if args.throughput else []:
         for kind in args.kinds:
