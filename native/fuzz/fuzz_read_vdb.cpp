@@ -1,6 +1,6 @@
 /// @file fuzz_read_vdb.cpp
 /// @brief libFuzzer target: any bytes as a .vdb file, through list_grids, read_vdb, the block view
-/// and a small render of what was read.
+/// and a small render of what was read, and through stream_vdb a batch per region.
 ///
 /// Only pcvr errors (pcvr::Error) may come out: a crash, a sanitizer report, a hang, a leak or any
 /// other exception is a finding. The seed corpus is written by native/fuzz/make_corpus.py.
@@ -13,6 +13,7 @@
 #include "fuzz_scene.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
+#include "pcvr/grid_stream.h"
 
 namespace {
 
@@ -48,6 +49,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         if (grid.active_voxel_count() <= pcvr::fuzz::kMaxRenderedVoxels) {
             (void)grid.blocks().size();
             pcvr::fuzz::render_framed(grid);
+        }
+    } catch (const pcvr::Error&) {
+    }
+    try {
+        // Every leaf decoded from the offsets the layout walk recorded; the batches must hold exactly
+        // the voxels the topology counts.
+        const auto stream = pcvr::GridStream::open(path, "", 1);
+        if (stream->active_voxel_count() <= pcvr::fuzz::kMaxRenderedVoxels) {
+            uint64_t voxels = 0;
+            stream->for_each_batch(1, [&](const pcvr::GridStream::Batch& batch) {
+                (void)batch.grid.blocks().size();
+                voxels = batch.voxels_done;
+            });
+            if (voxels != stream->active_voxel_count()) __builtin_trap();
         }
     } catch (const pcvr::Error&) {
     }
