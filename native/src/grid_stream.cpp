@@ -39,10 +39,10 @@ struct FileIdentity {
     bool operator==(const FileIdentity& o) const { return size == o.size && modified == o.modified; }
 };
 
-/// A 128^3 region with leaves: its node in the topology and where its first leaf's record starts.
+/// A 128^3 region with leaves: its node in the topology and its first leaf in the file's leaf order.
 struct Region {
     const LowerT* node;
-    int64_t position;
+    size_t first_leaf;
     uint64_t leaves;
 };
 
@@ -58,6 +58,7 @@ struct GridStream::Impl {
     uint64_t active_voxels = 0;
     std::array<int32_t, 6> bbox{};
     std::vector<Region> regions;     ///< in the file's (and the tree's) leaf order
+    std::vector<int64_t> leaf_positions;  ///< where each leaf's record starts, in that order
     std::mutex mutex;                ///< one stream: one batch walk at a time
     std::mutex range_mutex;
     std::optional<std::pair<float, float>> value_range;  ///< once value_range() has read it
@@ -81,20 +82,21 @@ struct GridStream::Impl {
         return voxels;
     }
 
-    /// Read region `r`'s leaves into `batch`; returns their active voxels.
-    uint64_t add_region(const Region& r, vdb::FloatTree& batch) {
+    /// Read the leaves of regions [first, last) into `batch`, on all threads; returns their active voxels.
+    uint64_t add_regions(size_t first, size_t last, vdb::FloatTree& batch) {
         std::vector<std::unique_ptr<LeafT>> leaves;
-        leaves.reserve(r.leaves);
         uint64_t voxels = 0;
-        for (auto src = r.node->cbeginChildOn(); src; ++src) {
-            auto leaf = std::make_unique<LeafT>(vdb::PartialCreate(), src->origin(), topology->background());
-            leaf->setValueMask(src->getValueMask());
-            voxels += src->onVoxelCount();
-            leaves.push_back(std::move(leaf));
-        }
+        for (size_t r = first; r < last; ++r)
+            for (auto src = regions[r].node->cbeginChildOn(); src; ++src) {
+                auto leaf = std::make_unique<LeafT>(vdb::PartialCreate(), src->origin(), topology->background());
+                leaf->setValueMask(src->getValueMask());
+                voxels += src->onVoxelCount();
+                leaves.push_back(std::move(leaf));
+            }
         std::vector<LeafT*> targets;
         for (auto& leaf : leaves) targets.push_back(leaf.get());
-        reader->read_leaves(targets, r.position, half);
+        const int64_t* positions = leaf_positions.data() + regions[first].first_leaf;
+        reader->read_leaves_parallel(targets, positions, half);
         for (auto& leaf : leaves) batch.addLeaf(leaf.release());
         return voxels;
     }
@@ -131,10 +133,11 @@ std::shared_ptr<GridStream> GridStream::open(const std::string& path, const std:
             for (auto lower = upper->cbeginChildOn(); lower; ++lower) {
                 const uint64_t leaves = lower->getChildMask().countOn();
                 if (leaves == 0) continue;
-                impl->regions.push_back({&*lower, topology.leaf_positions[leaf], leaves});
+                impl->regions.push_back({&*lower, leaf, leaves});
                 leaf += leaves;
             }
         const Mat4 index_to_world = impl->file_index_to_world;
+        impl->leaf_positions = std::move(topology.leaf_positions);
         return std::make_shared<GridStream>(std::move(impl), index_to_world, batch_bytes);
     });
 }
@@ -185,12 +188,13 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
         uint64_t bytes = 0;
         guard_read(s.path, [&] {
             if (first) voxels_done += s.add_tiles(batch->tree());
+            const size_t first_region = next;
             for (; next < s.regions.size(); ++next) {
                 const uint64_t region_bytes = s.regions[next].leaves * kLeafBytes;
                 if (bytes > 0 && bytes + region_bytes > batch_bytes) break;
-                voxels_done += s.add_region(s.regions[next], batch->tree());
                 bytes += region_bytes;
             }
+            if (next > first_region) voxels_done += s.add_regions(first_region, next, batch->tree());
         });
         batch->setName(s.name);
         const Grid grid(std::make_shared<Grid::Data>(std::move(batch), s.path), index_to_world, s.name);

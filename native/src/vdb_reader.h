@@ -20,6 +20,8 @@
 #include <openvdb/io/GridDescriptor.h>
 #include <openvdb/io/io.h>
 #include <openvdb/openvdb.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <array>
 #include <cerrno>
@@ -225,11 +227,22 @@ public:
     }
 
     /// Fill the values of `leaves` (consecutive in the tree's leaf order, their value masks set by
-    /// read_topology) from their records, the first at `position`. Not thread-safe: one stream.
-    template <typename LeafRange>
-    void read_leaves(const LeafRange& leaves, int64_t position, bool half) {
-        is_.seekg(position);
-        for (auto* leaf : leaves) leaf->readBuffers(is_, half);
+    /// read_topology) from their records at `positions`, on all threads: a run of leaves a task, each
+    /// through a stream of its own tagged as the Reader's, with its own copy of the stream metadata
+    /// (OpenVDB counts the leaves it reads in it). The Reader's own stream is not moved.
+    template <typename Leaf>
+    void read_leaves_parallel(const std::vector<Leaf*>& leaves, const int64_t* positions, bool half) const {
+        constexpr size_t kLeavesPerTask = 64;  // 128 KiB of values: a file open is noise beside it
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), kLeavesPerTask),
+                          [&](const tbb::blocked_range<size_t>& run) {
+            std::ifstream in(path_, std::ios::in | std::ios::binary);
+            if (!in) throw VdbReadError("cannot open " + vdb_reader::quoted(path_) + ": " + std::strerror(errno));
+            in.copyfmt(is_);  // versions, compression, background, and throwing on a short read
+            auto meta = std::make_shared<vdb::io::StreamMetadata>(*stream_meta_);
+            vdb::io::setStreamMetadataPtr(in, meta, /*transfer=*/false);
+            in.seekg(positions[run.begin()]);
+            for (size_t i = run.begin(); i != run.end(); ++i) leaves[i]->readBuffers(in, half);
+        });
     }
 
     /// Metadata and class of a grid, without its voxels.
