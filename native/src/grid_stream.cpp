@@ -206,7 +206,7 @@ void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(c
     impl_->for_each_batch(batch_bytes, index_to_world_, visit);
 }
 
-Grid GridStream::level(int k) const {
+Grid GridStream::level(int k, const RenderControl* control) const {
     if (k < 1 || k > kMaxLevel)
         throw InvalidArgument("grid '" + impl_->name + "': a stream's level must be from 1 to " + std::to_string(kMaxLevel));
     std::shared_ptr<Grid::Data> data;
@@ -218,6 +218,7 @@ Grid GridStream::level(int k) const {
             // voxels there: merging the active voxels makes the whole level.
             vdb::FloatGrid::Ptr merged = impl_->empty_batch();
             impl_->for_each_batch(kDefaultBatchBytes, impl_->file_index_to_world, [&](const Batch& batch) {
+                if (control) control->throw_if_cancelled();
                 vdb::FloatGrid::Ptr part = batch.grid.level(k).data()->vdb->deepCopy();
                 merged->tree().merge(part->tree(), vdb::MERGE_ACTIVE_STATES);
             });

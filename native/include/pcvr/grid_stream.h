@@ -22,6 +22,7 @@
 
 #include "pcvr/grid.h"
 #include "pcvr/math.h"
+#include "pcvr/render_control.h"
 
 namespace pcvr {
 
@@ -63,8 +64,9 @@ public:
     static constexpr int kMaxLevel = 7;
     /// Level of detail k, 1 <= k <= kMaxLevel (Grid::level's voxels), made by reading every batch once and
     /// then kept with the stream (and the streams with_index_to_world makes): zoomed-out views render it
-    /// from memory. It takes value_bytes() / 8^k or so.
-    Grid level(int k) const;
+    /// from memory. It takes value_bytes() / 8^k or so. `control` may cancel the making (between batches);
+    /// nothing is kept then.
+    Grid level(int k, const RenderControl* control = nullptr) const;
 
     /// Bytes of voxel values a batch holds when no memory limit says otherwise: more saves nothing (a
     /// batch's fixed cost in a render, its post-convolution, is a few milliseconds).
