@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import image_io, presets, register, unregister
+from . import engine, image_io, presets, register, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -78,6 +78,9 @@ def make_parser():
     render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
     render.add_argument("--gain", type=float, help="X-ray gain of the Combined pass")
+    render.add_argument("--stream-above", type=int, metavar="MIB",
+                        help="X-ray: read volumes of more MiB than this from their files a part at a time "
+                             "(default: above a quarter of the memory available)")
     render.add_argument("--frame", type=int,
                         help="frame to render; for a numbered .vdb, the number of the file (default: INPUT's)")
     render.add_argument("--magnification", type=float,
@@ -152,6 +155,9 @@ def render(args):
         except RuntimeError as ex:
             print(f"pcvr: nothing to write: {ex}", file=sys.stderr)
             return 1
+        last = engine.last_render.get(scene.session_uid)
+        if last is not None:
+            print(f"pcvr: {engine.status_line(*last)}")
         print(f"pcvr: wrote {args.output}")
         return status
     finally:
@@ -226,7 +232,7 @@ def _apply_options(scene, args):
     if args.post_filter is not None:
         setattr(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter",
                 POST_FILTERS[args.post_filter])
-    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff"):
+    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff", "stream_above"):
         if getattr(args, option) is not None:
             setattr(settings, option, getattr(args, option))
     if args.stride is not None:

@@ -132,6 +132,12 @@ class PreparedScene:
     def density_scales(self):
         return [volume.inputs.density_scale for volume in self.volumes]
 
+    @property
+    def streamed(self):
+        """How many volumes are read from their files while rendering (X-ray of big volumes)."""
+        import pcvr_native
+        return sum(isinstance(volume.grid, pcvr_native.GridStream) for volume in self.volumes)
+
 
 def _grid(volume, stream_above=None):
     """A VolumeInputs' grid: a pcvr_native.GridStream when its file's values take more than `stream_above`
@@ -438,8 +444,10 @@ def render(engine, depsgraph):
         return
 
     _write_result(engine, depsgraph, view, finish(prepared, display, raw))
+    if prepared.streamed:
+        stats["streamed"] = prepared.streamed
     last_render[depsgraph.scene.session_uid] = (inputs.mode, stats)
-    engine.update_stats("", format_stats(stats) if inputs.mode == 'XRAY' else format_sheet_stats(stats))
+    engine.update_stats("", status_line(inputs.mode, stats))
 
 
 def _report_errors(engine, errors):
@@ -515,8 +523,18 @@ def format_stats(stats):
     low, high = stats["magnification"], stats["magnification_max"]
     magnification = f"{low:.2f}" if high - low < 0.005 else f"{low:.2f}-{high:.2f}"
     strides = format_strides(stats["strides"])
+    streamed = ""
+    if stats.get("streamed"):
+        count, batches = stats["streamed"], stats["batches"]
+        streamed = (f" | Streamed {count} volume{'s' if count > 1 else ''} from "
+                    f"{'their files' if count > 1 else 'its file'} in {batches} batch{'es' if batches > 1 else ''}")
     return (f"Voxels {stats['voxels']:,} | Magnification {magnification} px/voxel | Stride {strides} | "
-            f"Time {stats['seconds']:.2f} s")
+            f"Time {stats['seconds']:.2f} s{streamed}")
+
+
+def status_line(mode, stats):
+    """The status bar's line after a render in `mode` with the native statistics `stats`."""
+    return format_stats(stats) if mode == 'XRAY' else format_sheet_stats(stats)
 
 
 def format_sheet_stats(stats):

@@ -128,3 +128,17 @@ def test_shaded_arguments(tmp_path, box_vdb):
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"), copy=True)
     run = pcvr(tmp_path / "scene.blend", "-o", tmp_path / "out.exr", "--light-direction", 0, 0, -1)
     assert run.returncode == 2 and "--light-direction" in run.stderr
+
+
+def test_stream_above_reads_a_big_vdb_from_its_file(tmp_path):
+    """--stream-above: a volume of more MiB is streamed (the status line says so), with the same image."""
+    i = np.indices((96, 96, 96), dtype=np.float32) / 95 * 2 - 1
+    filepath = bs.write_vdb(tmp_path / "field.vdb", np.exp(-3 * (i ** 2).sum(axis=0)).astype(np.float32))
+    streamed = pcvr(filepath, "-o", tmp_path / "streamed.exr", "--magnification", 1, "--stream-above", 1)
+    whole = pcvr(filepath, "-o", tmp_path / "whole.exr", "--magnification", 1, "--stream-above", 4)
+    check(streamed)
+    check(whole)
+    assert "Streamed 1 volume from its file in 1 batch" in streamed.stdout
+    assert "Streamed" not in whole.stdout and "pcvr: Voxels 884,736" in whole.stdout
+    integral = {name: image_io.read_passes(str(tmp_path / f"{name}.exr"))[""][:, :, 4] for name in ("streamed", "whole")}
+    np.testing.assert_allclose(integral["streamed"], integral["whole"], rtol=0, atol=1e-6 * integral["whole"].max())

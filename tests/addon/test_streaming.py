@@ -30,6 +30,8 @@ def test_a_volume_above_the_threshold_renders_streamed_with_the_same_image(big_v
     scene.pcvr.stream_above = 1  # MiB
     streamed = bs.xray(bs.render(scene))
     assert cached_kinds() == ["GridStream"]
+    mode, stats = engine.last_render[scene.session_uid]
+    assert engine.status_line(mode, stats).endswith("| Streamed 1 volume from its file in 1 batch")
     scene.pcvr.stream_above = 4
     whole = bs.xray(bs.render(scene))
     assert cached_kinds() == ["Grid", "GridStream"]
