@@ -121,6 +121,11 @@ nb::object to_dense(const Grid& g, float fill) {
     return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<3>>(data, {dims[0], dims[1], dims[2]}, owner));
 }
 
+/// An inclusive index box as ((i0, j0, k0), (i1, j1, k1)).
+nb::tuple bbox_tuple(const std::array<int32_t, 6>& b) {
+    return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
+}
+
 std::string grid_repr(const Grid& g) {
     std::ostringstream s;
     const auto b = g.index_bbox();
@@ -175,13 +180,8 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("index_to_world", [](const Grid& g) { return mat4_to_numpy(g.index_to_world()); },
                      "(4, 4) float64 array: world = M @ [i, j, k, 1], voxel centres at integer indices.")
         .def_prop_ro("active_voxel_count", &Grid::active_voxel_count)
-        .def_prop_ro(
-            "index_bbox",
-            [](const Grid& g) {
-                const auto b = g.index_bbox();
-                return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
-            },
-            "Inclusive index bounds of the active voxels: ((i0, j0, k0), (i1, j1, k1)); zeros when empty.")
+        .def_prop_ro("index_bbox", [](const Grid& g) { return bbox_tuple(g.index_bbox()); },
+                     "Inclusive index bounds of the active voxels: ((i0, j0, k0), (i1, j1, k1)); zeros when empty.")
         .def_prop_ro(
             "value_range",
             [](const Grid& g) {
@@ -235,13 +235,8 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("index_to_world", [](const GridStream& s) { return mat4_to_numpy(s.index_to_world()); })
         .def_prop_ro("background", &GridStream::background)
         .def_prop_ro("active_voxel_count", &GridStream::active_voxel_count)
-        .def_prop_ro(
-            "index_bbox",
-            [](const GridStream& s) {
-                const auto b = s.index_bbox();
-                return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
-            },
-            "Inclusive index bounds of the active voxels, as Grid.index_bbox.")
+        .def_prop_ro("index_bbox", [](const GridStream& s) { return bbox_tuple(s.index_bbox()); },
+                     "Inclusive index bounds of the active voxels, as Grid.index_bbox.")
         .def(
             "with_index_to_world",
             [](const GridStream& s, nb::handle matrix) { return s.with_index_to_world(grid_matrix(matrix, "index_to_world")); },

@@ -18,7 +18,6 @@ once the file is open, the render's peak above it, and the wall times.
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import json
 import os
@@ -143,6 +142,5 @@ def section(results) -> list[str]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true")
-    print("\n".join(section(run(parser.parse_args().quick, lambda msg: print(msg, file=sys.stderr)))))
+    import standalone
+    standalone.main(__doc__, run, section)

@@ -21,7 +21,6 @@ import argparse
 import os
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +29,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import datasets  # noqa: E402
-from timing import cpu_seconds  # noqa: E402
+from timing import cpu_seconds, wall_seconds  # noqa: E402
 import views  # noqa: E402
 
 DATASETS = ("blobs", "ct")
@@ -62,16 +61,6 @@ def lattice(values, xf):
     return pn.Grid.from_dense(sparse, xf)
 
 
-def wall_seconds_all_cores(render, reps: int) -> float:
-    render()
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        render()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
-
-
 def run(quick: bool, log) -> dict:
     import pcvr_native as pn
     size = 64 if quick else SIZE
@@ -97,7 +86,7 @@ def run(quick: bool, log) -> dict:
                              "strides": list(stats["strides"]), "taps_per_voxel": stats.get("taps", 0) / max(1, stats["voxels"])})
             log(f"  {key} m={m:g}: ortho {1e3 * rows[-2]['cpu_s']:.1f} ms, perspective {1e3 * rows[-1]['cpu_s']:.1f} ms")
         largest = views.camera(views.oblique(values.shape, xf, mags[-1]))
-        all_cores = wall_seconds_all_cores(lambda: pn.render_xray(grid, largest, "pcvr"), 1 if quick else REPS_ALL_CORES)
+        all_cores = wall_seconds(lambda: pn.render_xray(grid, largest, "pcvr"), 1 if quick else REPS_ALL_CORES)
         out["datasets"][key] = {"name": NAMES[key], "active_voxels": active, "rows": rows,
                                 "all_cores": {"magnification": mags[-1], "wall_s": all_cores, "cores": os.cpu_count(),
                                               "mvoxels_per_s": active / all_cores / 1e6}}

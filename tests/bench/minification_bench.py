@@ -16,7 +16,6 @@ tests/native/test_xray_minification.py, in its oblique view.
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import os
 import sys
@@ -81,6 +80,5 @@ def section(results) -> list[str]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true")
-    print("\n".join(section(run(parser.parse_args().quick, lambda msg: print(msg, file=sys.stderr)))))
+    import standalone
+    standalone.main(__doc__, run, section)
