@@ -190,10 +190,18 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("background", &Grid::background,
                      "The value of inactive voxels; shaded and MIP renders reconstruct towards it beyond the active ones.")
         .def_prop_ro("name", &Grid::name)
-        .def("level", &Grid::level, "k"_a,
+        .def("level",
+             [](const Grid& g, int k, const std::string& inactive) {
+                 if (inactive != "zero" && inactive != "background")
+                     throw InvalidArgument("Grid.level: inactive must be 'zero' (as the X-ray sees them) or 'background' "
+                                           "(as shaded rendering and MIP do)");
+                 return g.level(k, inactive == "zero" ? LevelFill::Zero : LevelFill::Background);
+             },
+             "k"_a, "inactive"_a = "zero",
              "Level of detail k (0: this grid): each voxel the mean of 2 x 2 x 2 voxels of the level before, inactive "
-             "ones counting as nothing, at their centre (index_to_world scaled by 2 per level and moved by half a voxel). "
-             "Cached with the voxels.")
+             "ones counting as nothing ('zero': the X-ray's levels) or as the grid's background ('background': the "
+             "levels render_shaded and render_mip draw from), at their centre (index_to_world scaled by 2 per level and "
+             "moved by half a voxel). Cached with the voxels.")
         .def_prop_ro(
             "source_path",
             [](const Grid& g) -> std::optional<std::string> {

@@ -45,10 +45,10 @@ inline double level_kernel_variance(double variance, int level) {
     return (variance + (voxels2 - 1.0) / 12.0) / voxels2;
 }
 
-/// The coarsest level whose voxels project to at most kLevelPixelsPerVoxel pixels in every direction
+/// The coarsest level whose voxels project to at most `pixels_per_voxel` pixels in every direction
 /// at every corner of the grid's active box (0 when a corner lies behind a perspective eye), and no
 /// coarser than two voxels across the box.
-inline int automatic_level(const Grid& grid, const Camera& camera) {
+inline int automatic_level(const Grid& grid, const Camera& camera, double pixels_per_voxel = kLevelPixelsPerVoxel) {
     if (grid.active_voxel_count() == 0) return 0;
     const ViewProjection view(camera, grid.index_to_world());
     const auto box = grid.index_bbox();
@@ -65,7 +65,7 @@ inline int automatic_level(const Grid& grid, const Camera& camera) {
     const int extent = std::max({box[3] - box[0], box[4] - box[1], box[5] - box[2]}) + 1;
     int level = 0;
     // The tolerance keeps an exact 1/64 (computed as 0.01562500001) at level 1.
-    while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= kLevelPixelsPerVoxel * (1 + 1e-6)) ++level;
+    while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= pixels_per_voxel * (1 + 1e-6)) ++level;
     return level;
 }
 

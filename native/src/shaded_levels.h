@@ -1,0 +1,67 @@
+/// @file shaded_levels.h
+/// @brief The levels of detail a shaded or MIP render draws its volumes from (ShadedParams::level).
+///
+/// Shaded rendering and MIP see the density beyond the active voxels as the grid's background (air at
+/// -1000 in a CT scan), so their levels average inactive voxels as the background
+/// (Grid::level(k, LevelFill::Background)), where the X-ray's count them as nothing: a CT scan's skin
+/// averaged with 0 would turn into soft tissue. A level stands in for its grid with the same kernel in
+/// its own index units, and the sheets are spaced in its voxels. A transfer function's default unit is
+/// its grid's voxel spacing; that is taken from level 0, so that a level changes the opacities only
+/// through the densities it averages.
+#pragma once
+
+#include <algorithm>
+#include <vector>
+
+#include "level_of_detail.h"
+#include "pcvr/shaded.h"
+
+namespace pcvr {
+
+/// Automatic levels keep the coarse voxels at most this many pixels wide (where they are most
+/// magnified). See docs/how-it-works.md, "Levels of detail in shaded rendering" for the measurements.
+constexpr double kShadedLevelPixelsPerVoxel = 1.0 / 4.0;
+
+/// The smallest distance between neighbouring voxels in world units (a transfer function's default unit).
+inline double smallest_voxel_spacing(const Grid& grid) {
+    const Mat4& m = grid.index_to_world();
+    return std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
+}
+
+/// The volumes of a render at their levels of detail, their transfer functions' units resolved. Holds what they point to: not copyable.
+class LevelledVolumes {
+public:
+    /// `level` >= 0 for every grid, -1 for each grid's automatic level.
+    LevelledVolumes(const std::vector<ShadedVolume>& volumes, const Camera& camera, int level) {
+        grids_.reserve(volumes.size());  // volumes_ point into both
+        transfer_functions_.reserve(volumes.size());
+        for (const ShadedVolume& v : volumes) {
+            const int k = level >= 0 ? level : automatic_level(*v.grid, camera, kShadedLevelPixelsPerVoxel);
+            level_ = std::max(level_, k);
+            grids_.push_back(v.grid->level(k, LevelFill::Background));
+            ShadedVolume at_level = v;
+            at_level.grid = &grids_.back();
+            if (v.transfer_function) {
+                transfer_functions_.push_back(*v.transfer_function);
+                if (!(transfer_functions_.back().unit_distance > 0))
+                    transfer_functions_.back().unit_distance = smallest_voxel_spacing(*v.grid);
+                at_level.transfer_function = &transfer_functions_.back();
+            }
+            volumes_.push_back(at_level);
+        }
+    }
+    LevelledVolumes(const LevelledVolumes&) = delete;
+    LevelledVolumes& operator=(const LevelledVolumes&) = delete;
+
+    const std::vector<ShadedVolume>& volumes() const { return volumes_; }
+    /// The coarsest level of any grid.
+    int level() const { return level_; }
+
+private:
+    std::vector<Grid> grids_;
+    std::vector<TransferFunction> transfer_functions_;
+    std::vector<ShadedVolume> volumes_;
+    int level_ = 0;
+};
+
+}  // namespace pcvr
