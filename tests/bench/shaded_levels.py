@@ -31,7 +31,7 @@ from pcvr_native import phantoms  # noqa: E402
 
 VIEW = (0.3, -0.5, -0.8)
 SUN = pn.Light.sun(direction=(-0.5, -0.2, -0.8))
-MAGNIFICATIONS = (1 / 2, 1 / 4, 1 / 8, 1 / 16, 1 / 32)
+MAGNIFICATIONS = (1 / 2, 1 / 4, 1 / 8, 1 / 16, 1 / 32, 1 / 64)
 LEVELS = (0, 1, 2, 3)
 # Level 0 rendered at this many times the pixels each way and box-averaged is the pixel means: what a
 # minified image should show (level 0 at the image's own pixels samples the volume at their centres).
