@@ -365,7 +365,8 @@ def render_viewport_step(prepared, view, step, cancel):
 
     scaled = view.scaled(step.scale)
     level = viewport_step_level(prepared, view, step)
-    # Native sheets are spaced in voxels of the level rendered; never closer than the settings ask.
+    # Native sheets are spaced in voxels of the level rendered: as far apart in level-0 voxels as the step says,
+    # but never closer than one voxel of the level.
     spacing = step.sheet_spacing if level is None else max(1.0, step.sheet_spacing / 2 ** level)
     try:
         return render_raw(prepared, scaled, Control(cancel=cancel), sheet_spacing_factor=spacing, level=level)

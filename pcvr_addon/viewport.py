@@ -16,14 +16,14 @@ the latest image.
 
 Steps go from coarse to fine: each renders the region at 1/scale of its size in both directions (shaded and MIP
 also with `sheet_spacing` times the sheet spacing; X-ray and shaded, below full resolution, from the coarsest
-level of detail whose voxels project to at most LEVEL_PIXELS of the step's pixels). A restart begins with the finest step last measured to take
-at most FIRST_IMAGE_SECONDS in the same mode (the coarsest while none is known), then refines, leaving out a step
-that took more than half as long as the next finer one (it would delay that image more than it shows earlier),
-and stops after the finest step. A change cancels the running render through the native cancel callback, except
-the first image of a restart (quick, or the coarsest there is): while the view moves every frame, the first image
-must be allowed to finish, or no image would ever be shown (tests/bench/viewport_bench.py, shaded CT phantom at 60
-view changes a second on a busy 2-core machine: no image at all while first images were cancelled too, 8 a second
-since they finish).
+level of detail whose voxels project to at most LEVEL_PIXELS of the step's pixels). A restart begins with the
+finest step last measured to take at most FIRST_IMAGE_SECONDS in the same mode (the coarsest while none is
+known), then refines, leaving out a step that took more than half as long as the next finer one (it would delay
+that image more than it shows earlier), and stops after the finest step. A change cancels the running render
+through the native cancel callback, except the first image of a restart (quick, or the coarsest there is): while
+the view moves every frame, the first image must be allowed to finish, or no image would ever be shown
+(tests/bench/viewport_bench.py, shaded CT phantom at 60 view changes a second on a busy 2-core machine: no image
+at all while first images were cancelled too, 8 a second since they finish).
 """
 
 import math

@@ -2,11 +2,12 @@
 """Levels of detail in shaded rendering and MIP: image error and time per level and magnification.
 
 For each volume (the CT phantom with a bone-like transfer function; Gaussian blobs with a translucent
-one), orthographic views along an oblique direction at magnifications 1/2 to 1/32, render_shaded and
+one), orthographic views along an oblique direction at magnifications 1/2 to 1/64, render_shaded and
 render_mip at levels 0 to 3 with the sheets one voxel of the level apart ("level voxels") and one voxel
 of level 0 apart ("level-0 voxels"), against level 0, against level 0's pixel means (rendered at 4 x 4
-times the pixels and box-averaged) and against method="raycast" at level 0 (steps of 0.1 voxel). Errors: PSNR (dB, peak 1) and relative RMSE of premultiplied RGBA, and for MIP the relative
-RMSE of the maxima; time: CPU seconds of one thread (tests/bench/timing.py).
+times the pixels and box-averaged) and against method="raycast" at level 0 (steps of 0.1 voxel). Errors:
+PSNR (dB, peak 1) and relative RMSE of premultiplied RGBA, and for MIP the relative RMSE of the maxima above the
+background; time: CPU seconds of one thread (tests/bench/timing.py).
 
     python tests/bench/shaded_levels.py [--quick] [--no-raycast]     # prints the tables
 """
@@ -23,6 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
+from level_scenes import TRANSLUCENT, pixel_means, scattered_blobs  # noqa: E402
 from timing import cpu_seconds  # noqa: E402
 from xray_helpers import frame_ortho, rel_rmse  # noqa: E402
 
@@ -50,21 +52,8 @@ def ct(n):
 
 
 def blobs(n):
-    """Gaussian blobs of 3 to 12 voxels' radius, translucent."""
-    rng = np.random.default_rng(7)
-    spec = [(tuple(rng.uniform(0.25 * n, 0.75 * n, 3)), float(rng.uniform(0.03, 0.12) * n), float(rng.uniform(0.4, 1.0)))
-            for _ in range(8)]
-    ph = phantoms.gaussian_blobs(n, spec)
-    grid = pn.Grid.from_dense(ph.values, ph.index_to_world)
-    tf = pn.TransferFunction(density=[0.0, 0.2, 0.5, 1.0],
-                             rgba=[[0, 0, 0, 0], [0.2, 0.4, 0.9, 0.05], [0.9, 0.6, 0.2, 0.3], [1, 1, 1, 0.8]])
-    return grid, tf
-
-
-def box_average(image, factor):
-    """Each factor x factor block of `image` averaged: the pixel means of a supersampled render."""
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    return np.asarray(image, np.float64).reshape(h, factor, w, factor, -1).mean(axis=(1, 3))
+    """Gaussian blobs of 4 to 15 voxels' radius (at 128^3), translucent."""
+    return scattered_blobs(n), TRANSLUCENT
 
 
 def psnr(a, b):
@@ -82,8 +71,8 @@ def measure(name, grid, tf, reps, raycast, log):
             grid, cam, level=level, sheet_spacing=spacing, threads=1, stats=stats)
         ref = shaded(0, 1.0)
         mip_ref = mip(0, 1.0) - grid.background
-        fine = pn.Camera(cam.world_to_camera, cam.projection, SUPERSAMPLING * cam.width, SUPERSAMPLING * cam.height)
-        means = box_average(pn.render_shaded(grid, fine, tf, lights=[SUN], threads=1), SUPERSAMPLING)
+        means = pixel_means(lambda camera: pn.render_shaded(grid, camera, tf, lights=[SUN], threads=1), cam,
+                            SUPERSAMPLING)
         truth = shaded(0, 0.1, "raycast") if raycast else None
         for level in LEVELS:
             for unit, spacing in (("level", 1.0), ("level 0", 2.0 ** -level)):

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import pcvr_native as pn
-from pcvr_native import phantoms
 
+from level_scenes import TRANSLUCENT, pixel_means, scattered_blobs
 from shaded_scenes import AIR, SUN, TISSUE_AND_BONE, VIEW, camera, heads_in_air, psnr
 
 
@@ -91,21 +91,9 @@ def test_the_transfer_functions_unit_stays_level_0s_voxel():
         np.testing.assert_allclose(alphas[k][centre], alphas[0][centre], atol=2e-3, err_msg=f"level {k}")
 
 
-def blobs(n=64):
-    rng = np.random.default_rng(7)
-    spec = [(tuple(rng.uniform(0.25 * n, 0.75 * n, 3)), float(rng.uniform(0.03, 0.12) * n), float(rng.uniform(0.4, 1.0)))
-            for _ in range(8)]
-    ph = phantoms.gaussian_blobs(n, spec)
-    return pn.Grid.from_dense(ph.values, ph.index_to_world)
-
-
-TRANSLUCENT = pn.TransferFunction(density=[0.0, 0.2, 0.5, 1.0],
-                                  rgba=[[0, 0, 0, 0], [0.2, 0.4, 0.9, 0.05], [0.9, 0.6, 0.2, 0.3], [1, 1, 1, 0.8]])
-
-
 @pytest.fixture(scope="module")
 def cloud():
-    return blobs()
+    return scattered_blobs(64)
 
 
 @pytest.mark.parametrize("level", [1, 2])
@@ -127,11 +115,6 @@ def test_a_level_visits_an_eighth_of_the_voxels_of_the_one_before(cloud, level):
         assert counts[name, 0] / 8 ** level <= counts[name, level] <= 1.05 * counts[name, 0] / 8 ** level
 
 
-def box_average(image, factor):
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    return np.asarray(image, np.float64).reshape(h, factor, w, factor, -1).mean(axis=(1, 3))
-
-
 # Measured on these blobs (tests/bench/shaded_levels.py --quick), PSNR of RGBA: level 1 at magnification
 # 1/16 is 55.2 dB from level 0 (1.8% relative RMSE) and 31.8 dB from level 0's pixel means, as level 0 itself
 # (31.8 dB: at 1/16 both sample the volume at the pixels' centres, and neither averages over a pixel); level 2,
@@ -143,8 +126,7 @@ ZOOMED_OUT = {1: (52.0, 28.8), 2: (41.0, 29.9)}
 @pytest.mark.parametrize("level", [1, 2])
 def test_zoomed_out_a_level_looks_like_level_0(cloud, level):
     cam = camera(cloud, "ortho", 1 / 16, direction=VIEW)
-    fine = pn.Camera(cam.world_to_camera, cam.projection, 4 * cam.width, 4 * cam.height)
-    means = box_average(pn.render_shaded(cloud, fine, TRANSLUCENT, lights=[SUN]), 4)
+    means = pixel_means(lambda camera: pn.render_shaded(cloud, camera, TRANSLUCENT, lights=[SUN]), cam)
     level_0 = pn.render_shaded(cloud, cam, TRANSLUCENT, lights=[SUN])
     image = pn.render_shaded(cloud, cam, TRANSLUCENT, lights=[SUN], level=level)
     against_level_0, against_means = ZOOMED_OUT[level]
