@@ -385,7 +385,7 @@ def viewport_step_level(prepared, view, step):
                             for grid in prepared.grids)
         return most_magnified, fewest_across
 
-    return viewport.step_level(step, prepared.inputs.mode, grids_in_view) if prepared.grids else None
+    return viewport.step_level(step, grids_in_view) if prepared.grids else None
 
 
 def viewport_pixels(prepared, display, raw):

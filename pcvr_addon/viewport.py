@@ -15,8 +15,8 @@ the latest image.
 | nothing that shows (selecting an object)                | -                                   | -                | -      |
 
 Steps go from coarse to fine: each renders the region at 1/scale of its size in both directions (shaded and MIP
-also with `sheet_spacing` times the sheet spacing; X-ray and shaded, below full resolution, from the coarsest
-level of detail whose voxels project to at most LEVEL_PIXELS of the step's pixels). A restart begins with the
+also with `sheet_spacing` times the sheet spacing; below full resolution, from the coarsest level of detail
+whose voxels project to at most LEVEL_PIXELS of the step's pixels). A restart begins with the
 finest step last measured to take at most FIRST_IMAGE_SECONDS in the same mode (the coarsest while none is
 known), then refines, leaving out a step that took more than half as long as the next finer one (it would delay
 that image more than it shows earlier), and stops after the finest step. A change cancels the running render
@@ -48,25 +48,22 @@ class Step:
 # The sheet spacing grows with the pixels, so that a coarse shaded image costs fewer sheets too.
 STEPS = (Step(8, 4.0), Step(4, 2.0), Step(2), Step(1))
 
-# A step coarser than full resolution renders from the coarsest level of detail (Grid.level) whose voxels
-# project to at most this many of its pixels where the grids are most magnified. Measured on the benchmark's
-# CT phantom (4 views, against the full-resolution image averaged to the step's pixels): at the 1/8 step
-# level 1's voxels span up to 0.73 pixel and its shaded image is 1.4 dB nearer than level 0's (31.3 against
-# 29.9 dB, whose 4x sheet spacing costs more) in 11 instead of 56 ms, its X-ray 1.4% off instead of 0.4% in
-# 5 instead of 22 ms; voxels of 1.45 pixels (level 2 at 1/8, level 1 at 1/4) lost 0.7 and 2.3 dB shaded,
-# 11% and 5% in the X-ray.
+# A step coarser than full resolution renders from the coarsest level of detail (Grid.level; for MIP, of maxima)
+# whose voxels project to at most this many of its pixels where the grids are most magnified. Measured on the
+# benchmark's CT phantom (4 views, against the full-resolution image averaged to the step's pixels): at the 1/8
+# step level 1's voxels span up to 0.73 pixel; its shaded image is 1.4 dB nearer than level 0's (31.3 against
+# 29.9 dB, whose 4x sheet spacing costs more) in 11 instead of 56 ms, its MIP 13% off instead of 22% in 10
+# instead of 50 ms, its X-ray 1.4% off instead of 0.4% in 5 instead of 22 ms; voxels of 1.45 pixels (level 2 at
+# 1/8, level 1 at 1/4) lost 0.7 and 2.3 dB shaded, were 22% and 10% off in MIP (level 0: 22% and 5.5%) and 11%
+# and 5% in the X-ray.
 LEVEL_PIXELS = 1.0
 
-# Modes whose coarse steps take coarser levels. Not MIP: a level's voxels are means, which lower the maxima
-# (at the 1/8 step level 1 was 33% from the full-resolution image, level 0 22%, and visibly greyer).
-LEVELLED_MODES = ('XRAY', 'SHADED')
 
-
-def step_level(step, mode, grids_in_view):
-    """The level of detail `step` renders from in `mode`, or None for the render settings' own (full
-    resolution, and MIP). `grids_in_view()` -> (pixels per voxel of the step's image where the grids are most
+def step_level(step, grids_in_view):
+    """The level of detail `step` renders from, or None at full resolution (the render settings' own level, as
+    F12 renders). `grids_in_view()` -> (pixels per voxel of the step's image where the grids are most
     magnified, the fewest voxels any grid spans): levels stop at two voxels across, as automatic ones do."""
-    if step.scale == 1 or mode not in LEVELLED_MODES:
+    if step.scale == 1:
         return None
     pixels_per_voxel, voxels_across = grids_in_view()
     level = 0

@@ -267,7 +267,7 @@ void bind_shaded(nb::module_& m) {
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
           "inf where it never did. transfer_functions and shading: one for every grid, or one per grid.\n"
-          "level: the level of detail (Grid.level(k, inactive='background')) every grid is rendered from, sheets\n"
+          "level: the level of detail (Grid.level(k, 'mean_over_background')) every grid is rendered from, sheets\n"
           "sheet_spacing of its voxels apart; 'auto': each grid's coarsest level whose voxels project small enough\n"
           "to leave the image as level 0's; stats['level'] says which.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
@@ -277,7 +277,7 @@ void bind_shaded(nb::module_& m) {
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
           "reconstructed density along each ray, never below the largest grid background\n"
           "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.\n"
-          "level: as in render_shaded.");
+          "level: as in render_shaded, from levels of maxima (Grid.level(k, 'max_over_background')).");
 }
 
 }  // namespace pcvr::python

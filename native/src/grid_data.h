@@ -39,8 +39,8 @@ struct Grid::Data {
     std::atomic<bool> ranges_ready{false};
     std::vector<BlockValueRange> ranges;
     std::mutex coarser_mutex;
-    /// The next level of detail, built by the first Grid::level(k > 0) of each LevelFill (indexed by it).
-    std::array<std::shared_ptr<Data>, 2> coarser;
+    /// The next level of detail, built by the first Grid::level(k > 0) of each LevelReduction (indexed by it).
+    std::array<std::shared_ptr<Data>, 3> coarser;
 
     Data(openvdb::FloatGrid::ConstPtr grid, std::string path);
 };

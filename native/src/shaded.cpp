@@ -370,7 +370,7 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
     }
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    const LevelledVolumes levelled(volumes, camera, params.level);
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MeanOverBackground);
     return run<RgbaImage>(levelled.volumes(), camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
         s.level = levelled.level();
         float* depth = nullptr;
@@ -397,7 +397,7 @@ MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& came
     validate(volumes, params, false);
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    const LevelledVolumes levelled(volumes, camera, params.level);
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MaxOverBackground);
     return run<MipImage>(levelled.volumes(), camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
         s.level = levelled.level();
         // Tiles no voxel reaches are not walked.

@@ -149,19 +149,17 @@ def test_coarse_images_come_first_and_show_the_same_volume(blob_scene, engine, d
 
 def test_step_levels_keep_voxels_within_a_pixel_of_the_step():
     """viewport.step_level: the coarsest level whose voxels span at most LEVEL_PIXELS of the step's pixels, at
-    most down to two voxels across; full resolution and MIP keep the render settings' own (None)."""
+    most down to two voxels across; full resolution keeps the render settings' own (None)."""
     coarse, full = viewport.STEPS[0], viewport.STEPS[-1]
 
-    def level(step, mode, pixels_per_voxel, voxels_across=128):
-        return viewport.step_level(step, mode, lambda: (pixels_per_voxel, voxels_across))
+    def level(step, pixels_per_voxel, voxels_across=128):
+        return viewport.step_level(step, lambda: (pixels_per_voxel, voxels_across))
 
     assert viewport.LEVEL_PIXELS == 1.0
-    assert [level(coarse, 'SHADED', m) for m in (2.0, 1.0, 0.6, 0.5, 0.3, 0.25, 0.01)] == [0, 0, 0, 1, 1, 2, 6]
-    assert level(coarse, 'XRAY', 0.36) == 1
-    assert level(coarse, 'SHADED', 0.01, voxels_across=16) == 3     # 2 voxels of level 3 across
-    assert level(coarse, 'SHADED', 0.0) == 0                        # nothing in view
-    assert level(full, 'SHADED', 0.01) is None and level(full, 'XRAY', 0.01) is None
-    assert level(coarse, 'MIP', 0.01) is None
+    assert [level(coarse, m) for m in (2.0, 1.0, 0.6, 0.5, 0.3, 0.25, 0.01)] == [0, 0, 0, 1, 1, 2, 6]
+    assert level(coarse, 0.01, voxels_across=16) == 3     # 2 voxels of level 3 across
+    assert level(coarse, 0.0) == 0                        # nothing in view
+    assert level(full, 0.01) is None
 
 
 def record_levels(monkeypatch):
@@ -179,18 +177,18 @@ def record_levels(monkeypatch):
     return rendered
 
 
-@pytest.mark.parametrize("mode, levels", [('XRAY', [2, 1, 0, 0]), ('SHADED', [2, 1, 0, 0]), ('MIP', [0, 0, 0, 0])])
+@pytest.mark.parametrize("mode", ['XRAY', 'SHADED', 'MIP'])
 def test_coarse_steps_render_from_coarser_levels_and_full_resolution_from_level_0(blob_scene, engine, draws,
-                                                                                  monkeypatch, mode, levels):
+                                                                                  monkeypatch, mode):
     """Zoomed out to 1.5 pixels per voxel at full resolution: the 1/8 step sees 0.19 pixel per voxel and takes
-    level 2 (0.75 pixel), 1/4 level 1, 1/2 (0.75 pixel) and full resolution level 0; MIP always level 0."""
+    level 2 (0.75 pixel), 1/4 level 1, 1/2 (0.75 pixel) and full resolution level 0."""
     scene, camera, volume = blob_scene
     camera.data.ortho_scale = 8.0
     scene.pcvr.mode = mode
     ls.set_ramp(volume)
     rendered = record_levels(monkeypatch)
     engine.settle(vs.camera_context(camera, *SIZE))
-    assert rendered == [(SIZE[0] // scale, level) for scale, level in zip((8, 4, 2, 1), levels)]
+    assert rendered == [(SIZE[0] // scale, level) for scale, level in zip((8, 4, 2, 1), (2, 1, 0, 0))]
 
 
 def test_a_property_change_renders_again_once(blob_scene, engine, draws):

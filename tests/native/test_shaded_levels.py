@@ -1,9 +1,10 @@
 """Levels of detail in shaded rendering and MIP (render_shaded / render_mip `level=`, src/shaded_levels.h).
 
-Their levels average inactive voxels as the grid's background, which is what the sheets reconstruct towards
-beyond the active voxels (the X-ray's levels count them as 0); the transfer function's default unit stays level
-0's voxel spacing; a level visits about 1/8 of the voxels of the one before; and zoomed out, where voxels are far
-smaller than pixels, a level's image stays near level 0's pixel means.
+Their levels count inactive voxels as the grid's background, which is what the sheets reconstruct towards
+beyond the active voxels (the X-ray's levels count them as 0), shaded rendering's as means and MIP's as
+maxima; the transfer function's default unit stays level 0's voxel spacing; a level visits about 1/8 of the
+voxels of the one before; and zoomed out, where voxels are far smaller than pixels, a level's image stays near
+level 0's pixel means.
 """
 
 from __future__ import annotations
@@ -13,41 +14,49 @@ import pytest
 
 import pcvr_native as pn
 
+from conftest import rel_rmse
 from level_scenes import TRANSLUCENT, pixel_means, scattered_blobs
-from shaded_scenes import AIR, SUN, TISSUE_AND_BONE, VIEW, camera, heads_in_air, psnr
+from shaded_scenes import AIR, SUN, TISSUE_AND_BONE, VIEW, camera, ct_volume, heads_in_air, psnr
 
 
-def test_a_shaded_level_averages_inactive_voxels_as_the_background():
-    """Level 1 of a 4^3 grid in air: each voxel the mean of its 2^3, inactive ones counting as -1000 (and as 0
-    in the X-ray's level); a 2^3 of air only stays inactive; the background is kept."""
+def test_levels_average_or_take_the_largest_with_inactive_voxels_as_the_background():
+    """Level 1 of a 4^3 grid in air: each voxel the mean of its 2^3 with inactive ones counting as -1000
+    (render_shaded's levels) or as 0 (the X-ray's), or their largest with inactive ones counting as -1000
+    (render_mip's); a 2^3 of air only stays inactive; the background is kept."""
     values = np.full((4, 4, 4), AIR, dtype=np.float32)
     values[0, 0, 0], values[1, 1, 0] = 600.0, -200.0   # two of the first 2^3
-    values[2:, 2:, 2:] = 40.0                           # all of the last
+    values[2:, 2:, 2:] = -1200.0                         # all of the last, below the background
+    values[3, 3, 3] = -1100.0
     grid = pn.Grid.from_dense(values, np.eye(4), background=AIR)
-    shaded, xray = grid.level(1, inactive="background"), grid.level(1)
-    assert shaded.background == xray.background == AIR
-    assert shaded.active_voxel_count == xray.active_voxel_count == 2
+    shaded, xray, mip = (grid.level(1, reduction) for reduction in
+                         ("mean_over_background", "mean_over_zero", "max_over_background"))
+    assert shaded.background == xray.background == mip.background == AIR
+    assert shaded.active_voxel_count == xray.active_voxel_count == mip.active_voxel_count == 2
     expected = np.full((2, 2, 2), np.nan)
+    expected[1, 1, 1] = (7 * -1200.0 - 1100.0) / 8
     expected[0, 0, 0] = (600.0 - 200.0 + 6 * AIR) / 8
-    expected[1, 1, 1] = 40.0
     np.testing.assert_allclose(shaded.to_dense(fill=np.nan), expected, rtol=1e-6)
     expected[0, 0, 0] = (600.0 - 200.0) / 8
     np.testing.assert_allclose(xray.to_dense(fill=np.nan), expected, rtol=1e-6)
-    np.testing.assert_allclose(np.asarray(shaded.index_to_world), np.asarray(xray.index_to_world))
-    # Level 2 is level 1's level: one voxel, the mean of the whole grid with its air.
-    np.testing.assert_allclose(grid.level(2, inactive="background").to_dense(), [[[values.mean()]]], rtol=1e-6)
+    expected[0, 0, 0], expected[1, 1, 1] = 600.0, -1100.0   # the air around the first counts, not around the last
+    np.testing.assert_allclose(mip.to_dense(fill=np.nan), expected, rtol=1e-6)
+    for level in (shaded, mip):
+        np.testing.assert_allclose(np.asarray(level.index_to_world), np.asarray(xray.index_to_world))
+    # Level 2 is level 1's level: one voxel standing for the whole grid with its air.
+    np.testing.assert_allclose(grid.level(2, "mean_over_background").to_dense(), [[[values.mean()]]], rtol=1e-6)
+    np.testing.assert_allclose(grid.level(2, "max_over_background").to_dense(), [[[600.0]]])
 
 
-def test_over_a_background_of_zero_both_kinds_of_level_are_the_same():
+def test_over_a_background_of_zero_both_means_are_the_same():
     values = np.random.default_rng(3).uniform(0.0, 1.0, (8, 8, 8)).astype(np.float32)
     values[values < 0.5] = 0.0
     grid = pn.Grid.from_dense(values, np.eye(4))
-    np.testing.assert_array_equal(grid.level(1, inactive="background").to_dense(), grid.level(1).to_dense())
+    np.testing.assert_array_equal(grid.level(1, "mean_over_background").to_dense(), grid.level(1).to_dense())
 
 
-def test_a_level_kind_must_be_named():
-    with pytest.raises(ValueError, match="inactive"):
-        pn.Grid.from_dense(np.ones((2, 2, 2), np.float32), np.eye(4)).level(1, inactive="air")
+def test_a_reduction_must_be_named():
+    with pytest.raises(ValueError, match="reduction"):
+        pn.Grid.from_dense(np.ones((2, 2, 2), np.float32), np.eye(4)).level(1, "median")
 
 
 # -------------------------------------------------------------------------------------------------
@@ -94,6 +103,22 @@ def test_the_transfer_functions_unit_stays_level_0s_voxel():
 @pytest.fixture(scope="module")
 def cloud():
     return scattered_blobs(64)
+
+
+@pytest.mark.parametrize("level", [1, 2])
+def test_mip_levels_keep_thin_bright_structures(level):
+    """MIP draws from levels of maxima: the CT phantom's skull, one voxel thick at 64^3, keeps its brightest
+    value at levels 1 and 2 (measured 0.928 and 0.945 against level 0's 0.927), where levels of means, shaded
+    rendering's, lose a third and more of it (0.63 and 0.40); the image stays nearer level 0's (relative RMSE
+    21% and 42% against 37% and 59%)."""
+    grid = ct_volume(64)
+    cam = camera(grid, "ortho", 1 / 2)
+    level_0 = pn.render_mip(grid, cam)
+    maxima = pn.render_mip(grid, cam, level=level)
+    means = pn.render_mip(grid.level(level, "mean_over_background"), cam)
+    assert maxima.max() == pytest.approx(level_0.max(), rel=0.05)
+    assert means.max() < 0.7 * level_0.max()
+    assert rel_rmse(maxima, level_0) < rel_rmse(means, level_0) - 0.1
 
 
 @pytest.mark.parametrize("level", [1, 2])

@@ -64,10 +64,10 @@ struct ShadedParams {
     int pixel_step = 1;           ///< raycast only: render every step-th pixel in each direction
     bool cull_transparent = true; ///< skip blocks the transfer function makes invisible (exact; off to compare)
     bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
-    /// Level of detail (Grid::level, inactive voxels counting as the background) every grid is rendered
-    /// from, by every method; -1: each grid's coarsest level whose voxels project small enough that the
-    /// image stays near level 0's (src/shaded_levels.h). Sheets are `sheet_spacing` voxels of the level
-    /// apart. 0 (the grids themselves) by default.
+    /// Level of detail (Grid::level, inactive voxels counting as the background: means for shaded
+    /// rendering, maxima for MIP) every grid is rendered from, by every method; -1: each grid's coarsest
+    /// level whose voxels project small enough that the image stays near level 0's (src/shaded_levels.h).
+    /// Sheets are `sheet_spacing` voxels of the level apart. 0 (the grids themselves) by default.
     int level = 0;
 };
 
