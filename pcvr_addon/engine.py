@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import cache, camera, scene_inputs, transfer_function, volumes
+from . import cache, camera, scene_inputs, transfer_function, viewport, volumes
 
 # Depth where a ray meets nothing opaque enough: what Cycles and Workbench write for the background.
 BACKGROUND_DEPTH = 1e10
@@ -242,7 +242,12 @@ def _zeros(view, channels=None):
     return np.zeros((view.height, view.width) + ((channels,) if channels else ()), dtype=np.float32)
 
 
-def _xray_integral(prepared, view, control, stats):
+def _level_argument(level):
+    """The native renderers' `level` keyword: none for their own default."""
+    return {} if level is None else {"level": level}
+
+
+def _xray_integral(prepared, view, control, stats, level=None):
     import pcvr_native
 
     if not prepared.volumes:
@@ -252,14 +257,14 @@ def _xray_integral(prepared, view, control, stats):
         prepared.grids, native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
         stride=settings.stride, density_scale=prepared.density_scales, stats=stats,
-        **control.arguments(prepared.inputs.threads))
+        **_level_argument(level), **control.arguments(prepared.inputs.threads))
 
 
-def _render_xray(prepared, view, control, stats, sheets):
-    return {"integral": _xray_integral(prepared, view, control, stats)}
+def _render_xray(prepared, view, control, stats, sheets, level):
+    return {"integral": _xray_integral(prepared, view, control, stats, level)}
 
 
-def _render_shaded(prepared, view, control, stats, sheets):
+def _render_shaded(prepared, view, control, stats, sheets, level):
     import pcvr_native
 
     with_depth = prepared.inputs.with_depth
@@ -270,12 +275,12 @@ def _render_shaded(prepared, view, control, stats, sheets):
     result = pcvr_native.render_shaded(
         prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shadings,
         stats=stats, density_scale=prepared.density_scales, return_depth=with_depth,
-        **dataclasses.asdict(sheets), **control.arguments(prepared.inputs.threads))
+        **dataclasses.asdict(sheets), **_level_argument(level), **control.arguments(prepared.inputs.threads))
     rgba, depth = result if with_depth else (result, None)
     return {"rgba": rgba, "depth": depth}
 
 
-def _render_mip(prepared, view, control, stats, sheets):
+def _render_mip(prepared, view, control, stats, sheets, level):
     import pcvr_native
 
     maxima = []
@@ -283,7 +288,8 @@ def _render_mip(prepared, view, control, stats, sheets):
         volume_stats = {}
         maxima.append(pcvr_native.render_mip(
             volume.grid, native_camera(view), density_scale=volume.inputs.density_scale, stats=volume_stats,
-            **sheets.mip_arguments(), **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
+            **sheets.mip_arguments(), **_level_argument(level),
+            **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
         _add_stats(stats, volume_stats)
     return {"maxima": maxima, "shape": (view.height, view.width)}
 
@@ -300,16 +306,17 @@ RENDERERS = {
 }
 
 
-def render_raw(prepared, view, control=None, stats=None, sheet_spacing_factor=1.0):
+def render_raw(prepared, view, control=None, stats=None, sheet_spacing_factor=1.0, level=None):
     """The native results of a PreparedScene seen by `view` (a CameraView): {"integral"}, {"rgba", "depth"} or
     {"maxima"}, and the integral too where the XRay pass is on. `sheet_spacing_factor` times the sheet spacing
-    of shaded and MIP modes (the viewport's coarse images). Raises pcvr_native.RenderCancelled."""
+    of shaded and MIP modes, `level` the level of detail (None: the native renderers' default), for the
+    viewport's coarse images. Raises pcvr_native.RenderCancelled."""
     control = Control() if control is None else control
     stats = {} if stats is None else stats
     inputs = prepared.inputs.with_sheet_spacing(sheet_spacing_factor)
-    raw = RENDERERS[inputs.mode](prepared, view, control, stats, inputs.sheets)
+    raw = RENDERERS[inputs.mode](prepared, view, control, stats, inputs.sheets, level)
     if inputs.xray is not None and "integral" not in raw:
-        raw["integral"] = _xray_integral(prepared, view, control, {})
+        raw["integral"] = _xray_integral(prepared, view, control, {}, level)
     return raw
 
 
@@ -395,15 +402,34 @@ def finish(prepared, display, raw):
 # The viewport's stages (viewport.ProgressiveRenderer runs them on its worker thread)
 
 def render_viewport_step(prepared, view, step, cancel):
-    """render_raw of a viewport.Step: at 1/step.scale of the view's pixels and step.sheet_spacing times the
-    sheet spacing. None when `cancel` (a threading.Event) stopped it."""
+    """render_raw of a viewport.Step: at 1/step.scale of the view's pixels, from the level of detail
+    viewport.step_level picks, with step.sheet_spacing times the sheet spacing in voxels of level 0. None when
+    `cancel` (a threading.Event) stopped it."""
     import pcvr_native
 
+    scaled = view.scaled(step.scale)
+    level = viewport_step_level(prepared, view, step)
+    # Native sheets are spaced in voxels of the level rendered: as far apart in level-0 voxels as the step says,
+    # but never closer than one voxel of the level.
+    spacing = step.sheet_spacing if level is None else max(1.0, step.sheet_spacing / 2 ** level)
     try:
-        return render_raw(prepared, view.scaled(step.scale), Control(cancel=cancel),
-                          sheet_spacing_factor=step.sheet_spacing)
+        return render_raw(prepared, scaled, Control(cancel=cancel), sheet_spacing_factor=spacing, level=level)
     except pcvr_native.RenderCancelled:
         return None
+
+
+def viewport_step_level(prepared, view, step):
+    """viewport.step_level of the grids as the step's image of `view` shows them."""
+    import pcvr_native
+
+    def grids_in_view():
+        camera = native_camera(view.scaled(step.scale))
+        most_magnified = max(pcvr_native.effective_magnification(grid, camera)[1] for grid in prepared.grids)
+        fewest_across = min(int(np.max(np.subtract(grid.index_bbox[1], grid.index_bbox[0]))) + 1
+                            for grid in prepared.grids)
+        return most_magnified, fewest_across
+
+    return viewport.step_level(step, grids_in_view) if prepared.grids else None
 
 
 def viewport_pixels(prepared, display, raw):

@@ -192,10 +192,20 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("background", &Grid::background,
                      "The value of inactive voxels; shaded and MIP renders reconstruct towards it beyond the active ones.")
         .def_prop_ro("name", &Grid::name)
-        .def("level", &Grid::level, "k"_a,
-             "Level of detail k (0: this grid): each voxel the mean of 2 x 2 x 2 voxels of the level before, inactive "
-             "ones counting as nothing, at their centre (index_to_world scaled by 2 per level and moved by half a voxel). "
-             "Cached with the voxels.")
+        .def("level",
+             [](const Grid& g, int k, const std::string& reduction) {
+                 if (reduction == "mean_over_zero") return g.level(k, LevelReduction::MeanOverZero);
+                 if (reduction == "mean_over_background") return g.level(k, LevelReduction::MeanOverBackground);
+                 if (reduction == "max_over_background") return g.level(k, LevelReduction::MaxOverBackground);
+                 throw InvalidArgument("Grid.level: reduction must be 'mean_over_zero' (the X-ray's levels), "
+                                       "'mean_over_background' (render_shaded's) or 'max_over_background' (render_mip's)");
+             },
+             "k"_a, "reduction"_a = "mean_over_zero",
+             "Level of detail k (0: this grid): each voxel stands for 2 x 2 x 2 voxels of the level before, at their "
+             "centre (index_to_world scaled by 2 per level and moved by half a voxel), and is active where any of them "
+             "is: their mean with inactive ones counting as 0 ('mean_over_zero': the X-ray's levels, which keep line "
+             "integrals) or as the background ('mean_over_background': render_shaded's), or their largest value with "
+             "inactive ones counting as the background ('max_over_background': render_mip's). Cached with the voxels.")
         .def_prop_ro(
             "source_path",
             [](const Grid& g) -> std::optional<std::string> {

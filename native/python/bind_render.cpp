@@ -64,12 +64,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
     params.pixel_step = pixel_step;
     params.footprint_tolerance = footprint_tolerance;
     params.antialias = antialias;
-    if (nb::isinstance<nb::str>(level) && nb::cast<std::string>(level) == "auto")
-        params.level = -1;
-    else if (nb::isinstance<nb::int_>(level) && nb::cast<int64_t>(level) >= 0 && nb::cast<int64_t>(level) <= 30)
-        params.level = int(nb::cast<int64_t>(level));
-    else
-        throw InvalidArgument("render_xray: level must be 'auto' or a level of detail from 0 (the grid itself) to 30");
+    params.level = level_from_python(level, "render_xray");
     if (memory_limit && *memory_limit == 0) throw InvalidArgument("memory_limit must be a positive number of bytes, or None");
     params.memory_limit = memory_limit.value_or(0);
 
@@ -158,6 +153,11 @@ void bind_render(nb::module_& m) {
               return effective_magnification(grid, camera);
           },
           "grid"_a, "camera"_a, "(min, max) pixels per voxel over the grid's blocks in view; (0, 0) when none is.");
+    m.def("effective_magnification",
+          [](const GridStream& stream, const Camera& camera) { return effective_magnification(stream, camera); },
+          "grid"_a, "camera"_a,
+          "A GridStream's (min, max) pixels per voxel over the corners of its active box (its blocks are in its "
+          "file); (0, 0) when empty or when a corner is behind the eye.");
     m.def("automatic_stride",
           [](const Grid& grid, const Camera& camera) {
               nb::gil_scoped_release release;

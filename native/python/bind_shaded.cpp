@@ -66,7 +66,8 @@ struct CallParts {
 
 CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* function, const std::string& method,
                      const std::string& splat_kernel, const std::string& post_filter, int stride, double sheet_spacing,
-                     double opacity_cutoff, int threads, int tile_size, int pixel_step, int samples_per_sheet, bool cull_transparent) {
+                     double opacity_cutoff, int threads, int tile_size, int pixel_step, int samples_per_sheet, bool cull_transparent,
+                     nb::handle level) {
     CallParts parts;
     parts.grids = grids_from_python(grid_arg, function);
     parts.scales = scales_from_python(density_scale, parts.grids.size(), function);
@@ -82,6 +83,7 @@ CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* 
     p.pixel_step = pixel_step;
     p.samples_per_sheet = samples_per_sheet;
     p.cull_transparent = cull_transparent;
+    p.level = level_from_python(level, function);
     return parts;
 }
 
@@ -101,6 +103,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["tile_sheets_composited"] = s.tile_sheets_composited;
     stats["tile_sheets_skipped"] = s.tile_sheets_skipped;
     stats["strides"] = strides;
+    stats["level"] = s.level;
     stats["seconds"] = s.seconds;
     stats["seconds_plan"] = s.seconds_plan;
     stats["seconds_splat"] = s.seconds_splat;
@@ -123,9 +126,10 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             const std::string& splat_kernel, const std::string& post_filter, int stride,
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                            int samples_per_sheet, bool cull_transparent, bool return_depth) {
+                            int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
-                                 sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent);
+                                 sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
+                                 level);
     std::vector<TransferFunction> tfs;
     if (nb::isinstance<TransferFunction>(transfer_functions)) {
         tfs.assign(parts.grids.size(), nb::cast<TransferFunction>(transfer_functions));
@@ -169,9 +173,10 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
 
 nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
                          const std::string& post_filter, int stride, double sheet_spacing, int threads, nb::handle progress,
-                         nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step) {
+                         nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
+                         nb::handle level) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_mip", method, splat_kernel, post_filter, stride,
-                                 sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false);
+                                 sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false, level);
     std::vector<ShadedVolume> volumes;
     for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], nullptr, parts.scales[i]});
     RenderControl control;
@@ -257,18 +262,22 @@ void bind_shaded(nb::module_& m) {
           "splat_kernel"_a = "gauss1.4", "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0,
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
-          "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false,
+          "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
-          "inf where it never did. transfer_functions and shading: one for every grid, or one per grid.");
+          "inf where it never did. transfer_functions and shading: one for every grid, or one per grid.\n"
+          "level: the level of detail (Grid.level(k, 'mean_over_background')) every grid is rendered from, sheets\n"
+          "sheet_spacing of its voxels apart; 'auto': each grid's coarsest level whose voxels project small enough\n"
+          "to leave the image as level 0's; stats['level'] says which.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
-          "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
+          "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1, "level"_a = 0,
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
           "reconstructed density along each ray, never below the largest grid background\n"
-          "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.");
+          "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.\n"
+          "level: as in render_shaded, from levels of maxima (Grid.level(k, 'max_over_background')).");
 }
 
 }  // namespace pcvr::python

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "pcvr/errors.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
 
@@ -51,6 +52,14 @@ inline std::vector<double> scales_from_python(nb::handle scales, size_t count, c
     if (out.size() != count)
         throw nb::value_error((std::string(function) + ": density_scale must be one number or one per grid").c_str());
     return out;
+}
+
+/// `level` is "auto" (-1) or a level of detail from 0 to 30.
+inline int level_from_python(nb::handle level, const char* function) {
+    if (nb::isinstance<nb::str>(level) && nb::cast<std::string>(level) == "auto") return -1;
+    if (nb::isinstance<nb::int_>(level) && nb::cast<int64_t>(level) >= 0 && nb::cast<int64_t>(level) <= 30)
+        return int(nb::cast<int64_t>(level));
+    throw InvalidArgument(std::string(function) + ": level must be 'auto' or a level of detail from 0 (the grid itself) to 30");
 }
 
 inline bool cancel_requested(nb::handle cancel) {

@@ -332,45 +332,82 @@ const std::vector<BlockValueRange>& Grid::block_value_ranges() const {
 
 namespace {
 
-/// The next level of detail's voxels (see Grid::level): each active voxel adds an eighth of its value
-/// to the voxel of half its index (rounded down), in float (at most eight terms each).
-vdb::FloatGrid::Ptr halve(const std::vector<VoxelBlock>& blocks, float background) {
+/// The next level of detail's mean voxels (see Grid::level): each active voxel adds an eighth of its
+/// departure from `inactive` (what the inactive ones count as) to the voxel of half its index (rounded
+/// down), in float (at most eight terms each), and the coarse voxels get `inactive` back. Voxels equal
+/// to `inactive` change nothing and are left out.
+vdb::FloatGrid::Ptr halve_by_mean(const std::vector<VoxelBlock>& blocks, float inactive, float background) {
     auto coarse = vdb::FloatGrid::create(background);
     auto acc = coarse->getAccessor();
     for (const VoxelBlock& block : blocks)
         for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
             const float v = block.value(offset);
-            if (!block.active(offset) || v == 0.0f || !std::isfinite(v)) continue;
+            if (!block.active(offset) || v == inactive || !std::isfinite(v)) continue;
             const vdb::Coord at((block.origin[0] + (offset >> 6)) >> 1, (block.origin[1] + ((offset >> 3) & 7)) >> 1,
                                 (block.origin[2] + (offset & 7)) >> 1);
-            acc.setValue(at, (acc.isValueOn(at) ? acc.getValue(at) : 0.0f) + 0.125f * v);
+            acc.setValue(at, (acc.isValueOn(at) ? acc.getValue(at) : 0.0f) + 0.125f * (v - inactive));
+        }
+    if (inactive != 0.0f)
+        for (auto leaf = coarse->tree().beginLeaf(); leaf; ++leaf)
+            for (auto voxel = leaf->beginValueOn(); voxel; ++voxel) voxel.setValue(*voxel + inactive);
+    return coarse;
+}
+
+/// The next level of detail's largest voxels (see Grid::level): each active voxel raises the voxel of
+/// half its index to its value, and a coarse voxel with an inactive one among its 2^3 (looked up in
+/// `fine`) to the background.
+vdb::FloatGrid::Ptr halve_by_max(const std::vector<VoxelBlock>& blocks, const vdb::FloatTree& fine, float background) {
+    auto coarse = vdb::FloatGrid::create(background);
+    auto acc = coarse->getAccessor();
+    for (const VoxelBlock& block : blocks)
+        for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
+            const float v = block.value(offset);
+            if (!block.active(offset) || !std::isfinite(v)) continue;
+            const vdb::Coord at((block.origin[0] + (offset >> 6)) >> 1, (block.origin[1] + ((offset >> 3) & 7)) >> 1,
+                                (block.origin[2] + (offset & 7)) >> 1);
+            acc.setValue(at, acc.isValueOn(at) ? std::max(acc.getValue(at), v) : v);
+        }
+    vdb::tree::ValueAccessor<const vdb::FloatTree> children(fine);
+    for (auto leaf = coarse->tree().beginLeaf(); leaf; ++leaf)
+        for (auto voxel = leaf->beginValueOn(); voxel; ++voxel) {
+            const vdb::Coord first = voxel.getCoord() << 1;
+            bool all_active = true;
+            for (int child = 0; child < 8 && all_active; ++child)
+                all_active = children.isValueOn(first.offsetBy(child >> 2, (child >> 1) & 1, child & 1));
+            if (!all_active) voxel.setValue(std::max(*voxel, background));
         }
     return coarse;
 }
 
 }  // namespace
 
-Grid Grid::level(int k) const {
+Grid Grid::level(int k, LevelReduction reduction) const {
     if (k < 0) throw InvalidArgument("grid '" + name_ + "': level must be 0 (the grid itself) or more");
     if (k == 0) return *this;
+    // Over a background of 0 the two means are the same voxels: build and cache them once.
+    if (reduction == LevelReduction::MeanOverBackground && background() == 0.0f) reduction = LevelReduction::MeanOverZero;
     std::shared_ptr<Data> next;
     {
         std::lock_guard<std::mutex> lock(data_->coarser_mutex);
-        if (!data_->coarser) {
-            auto grid = halve(blocks(), background());
+        std::shared_ptr<Data>& coarser = data_->coarser[size_t(reduction)];
+        if (!coarser) {
+            auto grid = reduction == LevelReduction::MaxOverBackground
+                            ? halve_by_max(blocks(), data_->vdb->tree(), background())
+                            : halve_by_mean(blocks(), reduction == LevelReduction::MeanOverBackground ? background() : 0.0f,
+                                            background());
             grid->setName(name_);
             grid->setGridClass(vdb::GRID_FOG_VOLUME);
-            data_->coarser = std::make_shared<Data>(std::move(grid), std::string());
+            coarser = std::make_shared<Data>(std::move(grid), std::string());
         }
-        next = data_->coarser;
+        next = coarser;
     }
-    // Coarse index I sits at fine index 2 I + 1/2, the centre of the voxels it averages.
+    // Coarse index I sits at fine index 2 I + 1/2, the centre of the voxels it stands for.
     Mat4 halving;
     for (int r = 0; r < 3; ++r) {
         halving.m[r][r] = 2.0;
         halving.m[r][3] = 0.5;
     }
-    return Grid(std::move(next), index_to_world_ * halving, name_).level(k - 1);
+    return Grid(std::move(next), index_to_world_ * halving, name_).level(k - 1, reduction);
 }
 
 const std::vector<VoxelBlock>& Grid::blocks() const {

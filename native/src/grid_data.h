@@ -7,6 +7,7 @@
 
 #include <openvdb/openvdb.h>
 
+#include <array>
 #include <atomic>
 #include <mutex>
 #include <string>
@@ -38,7 +39,8 @@ struct Grid::Data {
     std::atomic<bool> ranges_ready{false};
     std::vector<BlockValueRange> ranges;
     std::mutex coarser_mutex;
-    std::shared_ptr<Data> coarser;  ///< the next level of detail, built by the first Grid::level(k > 0)
+    /// The next level of detail, built by the first Grid::level(k > 0) of each LevelReduction (indexed by it).
+    std::array<std::shared_ptr<Data>, 3> coarser;
 
     Data(openvdb::FloatGrid::ConstPtr grid, std::string path);
 };

@@ -28,6 +28,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <optional>
+#include <utility>
 
 #include "pcvr/camera.h"
 #include "pcvr/grid.h"
@@ -46,31 +49,44 @@ inline double level_kernel_variance(double variance, int level) {
     return (variance + (voxels2 - 1.0) / 12.0) / voxels2;
 }
 
-/// The coarsest level whose voxels project to at most kLevelPixelsPerVoxel pixels in every direction
-/// at every corner of the active index box `box` (0 when a corner lies behind a perspective eye), and
-/// no coarser than two voxels across the box.
-inline int automatic_level(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera) {
+/// The fewest and most pixels per voxel (along the voxel's most magnified direction) at the corners of
+/// the active index box `box`; nullopt when a corner lies behind a perspective eye.
+inline std::optional<std::pair<double, double>> corner_pixels_per_voxel(const std::array<int32_t, 6>& box,
+                                                                        const Mat4& index_to_world, const Camera& camera) {
     const ViewProjection view(camera, index_to_world);
-    double most_pixels = 0;  // pixels per voxel in the most magnified direction, over the corners
+    double fewest = std::numeric_limits<double>::infinity(), most = 0;
     for (int corner = 0; corner < 8; ++corner) {
         const Vec3 p{double(box[(corner & 1) ? 3 : 0]), double(box[(corner & 2) ? 4 : 1]), double(box[(corner & 4) ? 5 : 2])};
         Footprint f;
-        if (!view.footprint_unclipped(p, f)) return 0;
+        if (!view.footprint_unclipped(p, f)) return std::nullopt;
         const double half_trace = 0.5 * (f.qxx + f.qyy);
         const double smallest = half_trace - std::sqrt(0.25 * (f.qxx - f.qyy) * (f.qxx - f.qyy) + f.qxy * f.qxy);
-        if (!(smallest > 0)) return 0;
-        most_pixels = std::max(most_pixels, 1.0 / std::sqrt(smallest));
+        if (!(smallest > 0)) return std::nullopt;
+        const double pixels = 1.0 / std::sqrt(smallest);
+        fewest = std::min(fewest, pixels);
+        most = std::max(most, pixels);
     }
+    return std::pair<double, double>{fewest, most};
+}
+
+/// The coarsest level whose voxels project to at most `pixels_per_voxel` pixels in every direction
+/// at every corner of the active index box `box` (0 when a corner lies behind a perspective eye), and
+/// no coarser than two voxels across the box.
+inline int automatic_level(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera,
+                           double pixels_per_voxel = kLevelPixelsPerVoxel) {
+    const auto corners = corner_pixels_per_voxel(box, index_to_world, camera);
+    if (!corners) return 0;
+    const double most_pixels = corners->second;
     const int extent = std::max({box[3] - box[0], box[4] - box[1], box[5] - box[2]}) + 1;
     int level = 0;
     // The tolerance keeps an exact 1/64 (computed as 0.01562500001) at level 1.
-    while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= kLevelPixelsPerVoxel * (1 + 1e-6)) ++level;
+    while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= pixels_per_voxel * (1 + 1e-6)) ++level;
     return level;
 }
 
-inline int automatic_level(const Grid& grid, const Camera& camera) {
+inline int automatic_level(const Grid& grid, const Camera& camera, double pixels_per_voxel = kLevelPixelsPerVoxel) {
     if (grid.active_voxel_count() == 0) return 0;
-    return automatic_level(grid.index_bbox(), grid.index_to_world(), camera);
+    return automatic_level(grid.index_bbox(), grid.index_to_world(), camera, pixels_per_voxel);
 }
 
 }  // namespace pcvr

@@ -17,6 +17,7 @@
 #include "pcvr/post_convolution.h"
 #include "pcvr/raycast_reference.h"
 #include "pcvr/slab_footprint.h"
+#include "shaded_levels.h"
 #include "sheet_walk.h"
 #include "slab_splat.h"
 #include "tile_set.h"
@@ -91,6 +92,7 @@ void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& para
     if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
     if (params.tile_size < 0) throw InvalidArgument("tile_size must be 0 (automatic) or a positive number of pixels");
     if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+    if (params.level < -1) throw InvalidArgument("level must be -1 (automatic) or a level of detail from 0");
     if (params.samples_per_sheet < 1 || params.samples_per_sheet > 64)
         throw InvalidArgument("samples_per_sheet must be 1 to 64");
     if (params.pixel_step > 1 && params.method != ShadedMethod::Raycast)
@@ -114,12 +116,6 @@ std::pair<double, double> clip_depths(const Camera& camera) {
     auto depth_of = [&](const Vec3& p) { return -(w2c.m[2][0] * p.x + w2c.m[2][1] * p.y + w2c.m[2][2] * p.z + w2c.m[2][3]); };
     const Ray r = camera.pixel_ray(0.5 * (camera.width() - 1), 0.5 * (camera.height() - 1));
     return {depth_of(r.origin), depth_of(r.origin + r.direction)};
-}
-
-/// The smallest distance between neighbouring voxels in world units (a transfer function's default unit).
-double smallest_voxel_spacing(const Grid& grid) {
-    const Mat4& m = grid.index_to_world();
-    return std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
 }
 
 /// How wide a neighbourhood of blocks decides whether a block can be culled as transparent, and how
@@ -246,9 +242,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         const ClassificationTable* classification = nullptr;
         const Shader* shader = nullptr;
         if (!mip) {
-            const TransferFunction& tf = *volume.transfer_function;
-            classifications.push_back(
-                std::make_unique<ClassificationTable>(tf, tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid)));
+            const TransferFunction& tf = *volume.transfer_function;  // its unit resolved by LevelledVolumes
+            classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
             classification = classifications.back().get();
             shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0));
             shader = shaders.back().get();
@@ -375,7 +370,9 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
     }
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    return run<RgbaImage>(volumes, camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MeanOverBackground);
+    return run<RgbaImage>(levelled.volumes(), camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
+        s.level = levelled.level();
         float* depth = nullptr;
         if (params.depth) {
             image.depth = ZeroedBuffer<float>(size_t(image.width) * image.height);
@@ -383,9 +380,9 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
             depth = image.depth.data();
         }
         if (params.method == ShadedMethod::Raycast)
-            raycast_shaded(volumes, camera, lighting, params, control, image.pixels.data(), depth);
+            raycast_shaded(levelled.volumes(), camera, lighting, params, control, image.pixels.data(), depth);
         else
-            render_sheets(volumes, camera, &lighting, params, control, s, image.pixels.data(), depth);
+            render_sheets(levelled.volumes(), camera, &lighting, params, control, s, image.pixels.data(), depth);
     });
 }
 
@@ -400,13 +397,15 @@ MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& came
     validate(volumes, params, false);
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
-    return run<MipImage>(volumes, camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MaxOverBackground);
+    return run<MipImage>(levelled.volumes(), camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
+        s.level = levelled.level();
         // Tiles no voxel reaches are not walked.
         std::fill(image.pixels.begin(), image.pixels.end(), float(mip_background(volumes)));
         if (params.method == ShadedMethod::Raycast)
-            raycast_mip(volumes, camera, params, control, image.pixels.data());
+            raycast_mip(levelled.volumes(), camera, params, control, image.pixels.data());
         else
-            render_sheets(volumes, camera, nullptr, params, control, s, image.pixels.data(), nullptr);
+            render_sheets(levelled.volumes(), camera, nullptr, params, control, s, image.pixels.data(), nullptr);
     });
 }
 

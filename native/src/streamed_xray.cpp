@@ -113,4 +113,9 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     return image;
 }
 
+std::pair<double, double> effective_magnification(const GridStream& stream, const Camera& camera) {
+    if (stream.active_voxel_count() == 0) return {0.0, 0.0};
+    return corner_pixels_per_voxel(stream.index_bbox(), stream.index_to_world(), camera).value_or(std::pair<double, double>{0.0, 0.0});
+}
+
 }  // namespace pcvr

@@ -147,6 +147,74 @@ def test_coarse_images_come_first_and_show_the_same_volume(blob_scene, engine, d
         assert total == pytest.approx(full, rel=0.01), f"1/{scale}"
 
 
+def test_step_levels_keep_voxels_within_a_pixel_of_the_step():
+    """viewport.step_level: the coarsest level whose voxels span at most LEVEL_PIXELS of the step's pixels, at
+    most down to two voxels across; full resolution keeps the render settings' own (None)."""
+    coarse, full = viewport.STEPS[0], viewport.STEPS[-1]
+
+    def level(step, pixels_per_voxel, voxels_across=128):
+        return viewport.step_level(step, lambda: (pixels_per_voxel, voxels_across))
+
+    assert viewport.LEVEL_PIXELS == 1.0
+    assert [level(coarse, m) for m in (2.0, 1.0, 0.6, 0.5, 0.3, 0.25, 0.01)] == [0, 0, 0, 1, 1, 2, 6]
+    assert level(coarse, 0.01, voxels_across=16) == 3     # 2 voxels of level 3 across
+    assert level(coarse, 0.0) == 0                        # nothing in view
+    assert level(full, 0.01) is None
+
+
+def record_levels(monkeypatch):
+    """Record the (image width, level rendered) of every native render: returns the list it appends to."""
+    import pcvr_native
+
+    rendered = []
+    for name in ("render_xray", "render_shaded", "render_mip"):
+        def recorded(grids, camera, *args, native=getattr(pcvr_native, name), **kwargs):
+            kwargs["stats"] = {} if kwargs.get("stats") is None else kwargs["stats"]
+            result = native(grids, camera, *args, **kwargs)
+            rendered.append((camera.width, kwargs["stats"]["level"]))
+            return result
+        monkeypatch.setattr(pcvr_native, name, recorded)
+    return rendered
+
+
+@pytest.mark.parametrize("mode", ['XRAY', 'SHADED', 'MIP'])
+def test_coarse_steps_render_from_coarser_levels_and_full_resolution_from_level_0(blob_scene, engine, draws,
+                                                                                  monkeypatch, mode):
+    """Zoomed out to 1.5 pixels per voxel at full resolution: the 1/8 step sees 0.19 pixel per voxel and takes
+    level 2 (0.75 pixel), 1/4 level 1, 1/2 (0.75 pixel) and full resolution level 0."""
+    scene, camera, volume = blob_scene
+    camera.data.ortho_scale = 8.0
+    scene.pcvr.mode = mode
+    ls.set_ramp(volume)
+    rendered = record_levels(monkeypatch)
+    engine.settle(vs.camera_context(camera, *SIZE))
+    assert rendered == [(SIZE[0] // scale, level) for scale, level in zip((8, 4, 2, 1), (2, 1, 0, 0))]
+
+
+def test_a_streamed_volume_takes_the_coarse_levels_a_volume_read_whole_does(tmp_path, engine, draws, monkeypatch):
+    """X-ray of a volume above Stream Above: the steps ask for the same levels (from its box's corners, its
+    blocks being in the file), and the coarse ones render the stream's kept levels."""
+    scene = bs.setup(*SIZE)
+    camera = bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=16.0)
+    i = np.indices((96, 96, 96), dtype=np.float32) / 95 * 2 - 1
+    bs.add_volume("Field", bs.write_vdb(tmp_path / "field.vdb", np.exp(-3 * (i ** 2).sum(axis=0)).astype(np.float32),
+                                        bs.centred(1 / 60, 96)))
+    rendered = record_levels(monkeypatch)
+    scene.pcvr.stream_above = 4
+    engine.settle(vs.camera_context(camera, *SIZE))
+    whole = list(rendered)
+    rendered.clear()
+    cache.grids.clear()
+    scene.pcvr.stream_above = 1
+    fresh = vs.StandInEngine()  # no step timed yet: it starts from the coarsest step too
+    try:
+        fresh.settle(vs.camera_context(camera, *SIZE))
+    finally:
+        fresh.free()
+    assert [type(grid).__name__ for grid in cache.grids.cached()] == ["GridStream"]
+    assert rendered == whole and whole[0][1] >= 1
+
+
 def test_a_property_change_renders_again_once(blob_scene, engine, draws):
     scene, camera, _volume = blob_scene
     context = vs.camera_context(camera, *SIZE)

@@ -12,10 +12,12 @@ viewport.ProgressiveRenderer that schedules them on its worker thread), without 
 |             | the first view, before any timing is known, left out)                                      |
 | motion      | the view moved 60 times a second for MOTION_SECONDS: images shown per second while moving   |
 
-    python tests/bench/viewport_bench.py [--quick]     # prints the tables
+    python tests/bench/viewport_bench.py [--quick] [--modes SHADED]     # prints the tables
 
 The renderer's steps render at 1/8, 1/4, 1/2 and full resolution (shaded also with 4 and 2 times the sheet
-spacing at 1/8 and 1/4); it starts a change with the finest step measured to take at most 50 ms.
+spacing at 1/8 and 1/4, and below full resolution from the coarsest level of detail whose voxels project to at
+most a pixel of the step's image: viewport.step_level); it starts a change with the finest step measured to take
+at most 50 ms.
 """
 
 from __future__ import annotations
@@ -114,7 +116,8 @@ def time_steps(prepared, display, views):
             engine.viewport_pixels(prepared, display, raw)
             seconds.append(time.perf_counter() - start)
         scaled = views[0].scaled(step.scale)
-        rows.append({"scale": step.scale, "sheet_spacing": step.sheet_spacing, "width": scaled.width,
+        level = engine.viewport_step_level(prepared, views[0], step)
+        rows.append({"scale": step.scale, "sheet_spacing": step.sheet_spacing, "level": level, "width": scaled.width,
                      "height": scaled.height, "median_s": statistics.median(seconds), "min_s": min(seconds)})
     return rows
 
@@ -182,8 +185,11 @@ def motion(inputs, display, views, seconds=MOTION_SECONDS, hz=MOTION_HZ):
     return {"images_per_s": shown / seconds, "changes": k, "cancelled": cancelled}
 
 
-def run(quick=False, log=lambda message: None):
-    """Every measurement for X-ray and shaded: a dict for results.json."""
+MODES = ('XRAY', 'SHADED')
+
+
+def run(quick=False, log=lambda message: None, modes=MODES):
+    """Every measurement for `modes` (X-ray and shaded): a dict for results.json."""
     from pcvr_addon import engine
 
     n = 64 if quick else 128
@@ -192,7 +198,7 @@ def run(quick=False, log=lambda message: None):
     results = {"n": n, "active_voxels": grid.active_voxel_count, "region": REGION, "modes": {},
                "date": datetime.datetime.now().astimezone().isoformat(timespec="minutes"),
                "load_before": os.getloadavg()[0]}
-    for mode in ('XRAY', 'SHADED'):
+    for mode in modes:
         inputs, display = inputs_for(mode, grid)
         prepared = engine.prepare(inputs)
         log(f"viewport {mode}: steps")
@@ -223,12 +229,13 @@ def section(results):
              f"without Blender's window and the GPU upload. Medians; measured {results['date']} on all cores, load average {results['load_before']:.1f} "
              f"before and {results['load_after']:.1f} after (the machine is shared: on an idle one every time is "
              "smaller).", "",
-             "| mode | step | image | sheet spacing | ms | images/s |", "|---|---|---|---|---|---|"]
+             "| mode | step | image | sheet spacing | level of detail | ms | images/s |", "|---|---|---|---|---|---|---|"]
     for mode, entry in results["modes"].items():
         for row in entry["steps"]:
             spacing = f"{row['sheet_spacing']:g}x" if mode != 'XRAY' else "-"
+            level = "as set" if row.get("level") is None else row["level"]
             lines.append(f"| {names[mode]} | 1/{row['scale']} | {row['width']} x {row['height']} | {spacing} | "
-                         f"{_ms(row['median_s'])} | {1 / row['median_s']:.1f} |")
+                         f"{level} | {_ms(row['median_s'])} | {1 / row['median_s']:.1f} |")
     lines += ["", "From a view change to the images it brings (the renderer chooses the first step from the "
               "timings it has measured; while the view moves 60 times a second, each first image finishes before "
               "the next change is taken up):", "",
@@ -245,8 +252,14 @@ def section(results):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="the 64^3 phantom, fewer views")
+    parser.add_argument("--modes", nargs="+", choices=MODES, default=MODES, help="measure only these modes")
+    parser.add_argument("--no-levels", action="store_true",
+                        help="coarse steps at level 0 (as before they took coarser levels), to compare")
     args = parser.parse_args(argv)
-    results = run(args.quick, log=lambda message: print(message, file=sys.stderr))
+    if args.no_levels:
+        from pcvr_addon import viewport
+        viewport.LEVEL_PIXELS = 0.0
+    results = run(args.quick, log=lambda message: print(message, file=sys.stderr), modes=tuple(args.modes))
     print("\n".join(section(results)))
     return 0
 

@@ -36,6 +36,26 @@ def blob_volume(n: int = 24) -> pn.Grid:
     return pn.Grid.from_dense(ph.values, ph.index_to_world)
 
 
+AIR = -1000.0
+# Soft tissue (-100 to 100 HU) red and translucent, bone (from 600 HU) white; air and fat clear.
+TISSUE_AND_BONE = pn.TransferFunction(
+    density=[-3000, -300, -100, 100, 200, 600, 800, 3000],
+    rgba=[[0.8, 0.2, 0.1, 0]] * 2 + [[0.8, 0.2, 0.1, 0.3]] * 2 + [[1, 1, 1, 0]] * 2 + [[1, 1, 1, 0.9]] * 2)
+
+
+def heads_in_air(n: int = 32) -> tuple[pn.Grid, pn.Grid]:
+    """A ball of soft tissue (40 HU, radius 9/32 of n) with a bone core (700 HU, 5/32 of n) in air, in Hounsfield
+    units: air inactive at the background -1000 (sparse), and air active at -1000.001 (dense)."""
+    i, j, k = np.mgrid[:n, :n, :n]
+    c = (n - 1) / 2
+    r = np.sqrt((i - c) ** 2 + (j - c) ** 2 + (k - c) ** 2)
+    hu = np.where(r < 9 * n / 32, 40.0, AIR).astype(np.float32)
+    hu[r < 5 * n / 32] = 700.0
+    sparse = pn.Grid.from_dense(hu, np.eye(4), background=AIR)
+    dense = pn.Grid.from_dense(np.where(hu == AIR, np.float32(AIR - 0.001), hu), np.eye(4), background=AIR)
+    return sparse, dense
+
+
 def bone_tf(unit_distance=None) -> pn.TransferFunction:
     """Transparent below 0.3, a reddish translucent ramp, opaque white at the skull's 1.0."""
     return pn.TransferFunction(density=[0.0, 0.3, 0.6, 1.0],

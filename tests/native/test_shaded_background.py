@@ -14,26 +14,14 @@ import pytest
 
 import pcvr_native as pn
 
-from shaded_scenes import SUN, camera, psnr
-
-AIR = -1000.0
-# Soft tissue (-100 to 100 HU) red and translucent, bone (from 600 HU) white; air and fat clear.
-TISSUE_AND_BONE = pn.TransferFunction(
-    density=[-3000, -300, -100, 100, 200, 600, 800, 3000],
-    rgba=[[0.8, 0.2, 0.1, 0]] * 2 + [[0.8, 0.2, 0.1, 0.3]] * 2 + [[1, 1, 1, 0]] * 2 + [[1, 1, 1, 0.9]] * 2)
+from shaded_scenes import AIR, SUN, TISSUE_AND_BONE, camera, heads_in_air, psnr
 
 
 @pytest.fixture(scope="module")
 def heads():
     """A ball of soft tissue (40 HU) with a bone core (700 HU) in air: sparse and dense."""
-    n = 32
-    i, j, k = np.mgrid[:n, :n, :n]
-    r = np.sqrt((i - 15.5) ** 2 + (j - 15.5) ** 2 + (k - 15.5) ** 2)
-    hu = np.where(r < 9, 40.0, AIR).astype(np.float32)
-    hu[r < 5] = 700.0
-    sparse = pn.Grid.from_dense(hu, np.eye(4), background=AIR)
-    dense = pn.Grid.from_dense(np.where(hu == AIR, np.float32(AIR - 0.001), hu), np.eye(4), background=AIR)
-    assert sparse.background == AIR and sparse.active_voxel_count < dense.active_voxel_count == n ** 3
+    sparse, dense = heads_in_air(32)
+    assert sparse.background == AIR and sparse.active_voxel_count < dense.active_voxel_count == 32 ** 3
     return sparse, dense
 
 

@@ -45,6 +45,13 @@ struct BlockValueRange {
     float wide_min = 0, wide_max = 0;
 };
 
+/// How Grid::level combines 2^3 voxels into one, each kind kept for the renderer that sees the volume so.
+enum class LevelReduction {
+    MeanOverZero,        ///< the mean, inactive voxels counting as 0: the X-ray's levels, which keep line integrals
+    MeanOverBackground,  ///< the mean, inactive voxels counting as the background: shaded rendering's
+    MaxOverBackground,   ///< the largest, inactive voxels counting as the background: MIP's, which keep maxima
+};
+
 /// Codec for Grid::write_vdb. Blosc is OpenVDB's default and the fastest; zip suits readers built
 /// without blosc; none is largest.
 enum class VdbCompression { Blosc, Zip, None };
@@ -77,13 +84,16 @@ public:
     const std::vector<VoxelBlock>& blocks() const;
     /// One range per block of blocks(); built on first use, then cached (thread-safe).
     const std::vector<BlockValueRange>& block_value_ranges() const;
-    /// Level of detail `k` (0: this grid): voxel I of level k + 1 is the mean of the 2^3 voxels
-    /// 2I .. 2I + 1 of level k, inactive ones counting as nothing (as the X-ray sees them), so each level
-    /// holds the same line integrals' mass; its index_to_world is this grid's times 2^k, moved by half a
-    /// voxel of each level, so that every level's voxel centres sit at the centroids of the voxels they
-    /// average. Built on first use, then cached with the voxels (thread-safe; copies and
-    /// with_index_to_world share them).
-    Grid level(int k) const;
+    /// Level of detail `k` (0: this grid): voxel I of level k + 1 combines the 2^3 voxels 2I .. 2I + 1
+    /// of level k as `reduction` says: their mean with inactive ones counting as nothing (as the X-ray
+    /// sees them, so each level holds the same line integrals' mass) or as the background (as shaded
+    /// rendering sees them: the density averaged, air included), or their largest value, inactive ones
+    /// counting as the background (as MIP sees them). A voxel is active where any of its 2^3 is. Its
+    /// index_to_world is this grid's times 2^k, moved by half a voxel of each level, so that every
+    /// level's voxel centres sit at the centroids of the voxels they stand for; its background is this
+    /// grid's. Built on first use, then cached with the voxels (thread-safe; copies and
+    /// with_index_to_world share them; over a background of 0 both means are the same levels).
+    Grid level(int k, LevelReduction reduction = LevelReduction::MeanOverZero) const;
 
     /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
     /// so a failed write never leaves a half-written file. Throws Error with the path on failure.

@@ -64,6 +64,11 @@ struct ShadedParams {
     int pixel_step = 1;           ///< raycast only: render every step-th pixel in each direction
     bool cull_transparent = true; ///< skip blocks the transfer function makes invisible (exact; off to compare)
     bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
+    /// Level of detail (Grid::level, inactive voxels counting as the background: means for shaded
+    /// rendering, maxima for MIP) every grid is rendered from, by every method; -1: each grid's coarsest
+    /// level whose voxels project small enough that the image stays near level 0's (src/shaded_levels.h).
+    /// Sheets are `sheet_spacing` voxels of the level apart. 0 (the grids themselves) by default.
+    int level = 0;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -95,6 +100,7 @@ struct ShadedStats {
     uint64_t tile_sheets_composited = 0;
     uint64_t tile_sheets_skipped = 0; ///< (tile, sheet) pairs between a tile's first and last sheet that no splat touched
     std::vector<int> strides;         ///< per grid
+    int level = 0;                    ///< the coarsest level of detail a grid was rendered from
     double seconds = 0;
     double seconds_plan = 0;          ///< thread seconds per stage
     double seconds_splat = 0;

@@ -89,5 +89,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
 
 /// Smallest and largest pixels per voxel over the grid's blocks in view (0, 0 when nothing is in view).
 std::pair<double, double> effective_magnification(const Grid& grid, const Camera& camera);
+/// The same for a streamed grid, whose values (and so blocks) are in its file: over its active box's corners.
+std::pair<double, double> effective_magnification(const GridStream& stream, const Camera& camera);
 
 }  // namespace pcvr
