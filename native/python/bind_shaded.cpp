@@ -142,9 +142,11 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     if (!lights.is_none())
         for (nb::handle item : lights) lighting.lights.push_back(nb::cast<Light>(item));
     lighting.ambient = vec3_from_python(ambient, "ambient");
-    // One material for every grid, or one each.
+    // One material for every grid (None: the default Shading), or one each.
     std::vector<Shading> materials;
-    if (nb::isinstance<Shading>(shading)) {
+    if (shading.is_none()) {
+        lighting.material = Shading{};
+    } else if (nb::isinstance<Shading>(shading)) {
         lighting.material = nb::cast<Shading>(shading);
     } else {
         for (nb::handle item : shading) materials.push_back(nb::cast<Shading>(item));
@@ -258,7 +260,7 @@ void bind_shaded(nb::module_& m) {
         });
 
     m.def("render_shaded", &render_shaded_py, "grids"_a, "camera"_a, "transfer_functions"_a, "lights"_a = nb::tuple(),
-          "ambient"_a = nb::make_tuple(0.1, 0.1, 0.1), "shading"_a = Shading{}, "method"_a = "pcvr",
+          "ambient"_a = nb::make_tuple(0.1, 0.1, 0.1), "shading"_a = nb::none(), "method"_a = "pcvr",
           "splat_kernel"_a = "gauss1.4", "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0,
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
@@ -266,7 +268,8 @@ void bind_shaded(nb::module_& m) {
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
-          "inf where it never did. transfer_functions and shading: one for every grid, or one per grid.\n"
+          "inf where it never did. transfer_functions and shading: one for every grid, or one per grid (shading\n"
+          "None: Shading()'s defaults).\n"
           "level: the level of detail (Grid.level(k, 'mean_over_background')) every grid is rendered from, sheets\n"
           "sheet_spacing of its voxels apart; 'auto': each grid's coarsest level whose voxels project small enough\n"
           "to leave the image as level 0's; stats['level'] says which.");
