@@ -121,6 +121,14 @@ nb::object to_dense(const Grid& g, float fill) {
     return nb::cast(nb::ndarray<nb::numpy, float, nb::ndim<3>>(data, {dims[0], dims[1], dims[2]}, owner));
 }
 
+LevelReduction level_reduction_from_name(const std::string& name, const std::string& function) {
+    if (name == "mean_over_zero") return LevelReduction::MeanOverZero;
+    if (name == "mean_over_background") return LevelReduction::MeanOverBackground;
+    if (name == "max_over_background") return LevelReduction::MaxOverBackground;
+    throw InvalidArgument(function + ": reduction must be 'mean_over_zero' (the X-ray's levels), "
+                                     "'mean_over_background' (render_shaded's) or 'max_over_background' (render_mip's)");
+}
+
 /// An inclusive index box as ((i0, j0, k0), (i1, j1, k1)).
 nb::tuple bbox_tuple(const std::array<int32_t, 6>& b) {
     return nb::make_tuple(nb::make_tuple(b[0], b[1], b[2]), nb::make_tuple(b[3], b[4], b[5]));
@@ -194,11 +202,7 @@ void bind_grid(nb::module_& m) {
         .def_prop_ro("name", &Grid::name)
         .def("level",
              [](const Grid& g, int k, const std::string& reduction) {
-                 if (reduction == "mean_over_zero") return g.level(k, LevelReduction::MeanOverZero);
-                 if (reduction == "mean_over_background") return g.level(k, LevelReduction::MeanOverBackground);
-                 if (reduction == "max_over_background") return g.level(k, LevelReduction::MaxOverBackground);
-                 throw InvalidArgument("Grid.level: reduction must be 'mean_over_zero' (the X-ray's levels), "
-                                       "'mean_over_background' (render_shaded's) or 'max_over_background' (render_mip's)");
+                 return g.level(k, level_reduction_from_name(reduction, "Grid.level"));
              },
              "k"_a, "reduction"_a = "mean_over_zero",
              "Level of detail k (0: this grid): each voxel stands for 2 x 2 x 2 voxels of the level before, at their "
@@ -268,14 +272,15 @@ void bind_grid(nb::module_& m) {
         })
         .def(
             "level",
-            [](const GridStream& s, int k) {
+            [](const GridStream& s, int k, const std::string& reduction) {
+                const LevelReduction r = level_reduction_from_name(reduction, "GridStream.level");
                 nb::gil_scoped_release release;  // the first call for a level reads the file
-                return s.level(k);
+                return s.level(k, r);
             },
-            "k"_a,
-            "Level of detail k, 1 <= k <= 7, as Grid.level(k) of the grid read whole: made by reading every batch "
-            "once, then kept with the stream. render_xray renders a zoomed-out view of a stream from it when it "
-            "takes no more than a batch.")
+            "k"_a, "reduction"_a = "mean_over_zero",
+            "Level of detail k, 1 <= k <= 7, as Grid.level(k, reduction) of the grid read whole: made by reading "
+            "every batch once, then kept with the stream. render_xray renders a zoomed-out view of a stream from "
+            "it when it takes no more than a batch; render_shaded and render_mip take it as a grid.")
         .def_prop_ro("leaf_count", &GridStream::leaf_count)
         .def_prop_ro("value_bytes", &GridStream::value_bytes, "Bytes the voxel values would take read whole.")
         .def("__repr__", [](const GridStream& s) {

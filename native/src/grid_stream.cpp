@@ -5,6 +5,7 @@
 #include "grid_data.h"
 #include "vdb_reader.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -39,11 +40,21 @@ struct FileIdentity {
     bool operator==(const FileIdentity& o) const { return size == o.size && modified == o.modified; }
 };
 
-/// A 128^3 region with leaves: its node in the topology and its first leaf in the file's leaf order.
+/// An active tile above the leaves: a constant 8^3 (level 1), 128^3 (2) or 4096^3 (3) block.
+struct Tile {
+    vdb::Index level;
+    vdb::Coord origin;
+    float value;
+};
+
+/// A 128^3 region: a lower internal node, its first leaf in the file's leaf order and its active
+/// tiles; or one tile that spans a region or more. A batch takes whole regions, so a level-k voxel
+/// (k <= 7) never has its voxels in two batches.
 struct Region {
-    const LowerT* node;
-    size_t first_leaf;
-    uint64_t leaves;
+    const LowerT* node = nullptr;  ///< null for a region that is one tile
+    size_t first_leaf = 0;
+    uint64_t leaves = 0;
+    std::vector<Tile> tiles;
 };
 
 }  // namespace
@@ -63,40 +74,37 @@ struct GridStream::Impl {
     std::mutex range_mutex;
     std::optional<std::pair<float, float>> value_range;  ///< once value_range() has read it
     std::mutex levels_mutex;
-    std::map<int, std::shared_ptr<Grid::Data>> levels;   ///< those level() has made
+    std::map<std::pair<int, LevelReduction>, std::shared_ptr<Grid::Data>> levels;  ///< those level() has made
 
     void for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world, const std::function<void(const Batch&)>& visit);
 
     /// An empty float grid with the stream's background, for a batch.
     vdb::FloatGrid::Ptr empty_batch() const { return vdb::FloatGrid::create(topology->background()); }
 
-    /// Copy the active tiles (constant regions above the leaves) into `batch`; returns their voxels.
-    uint64_t add_tiles(vdb::FloatTree& batch) const {
-        uint64_t voxels = 0;
-        auto it = topology->tree().cbeginValueOn();
-        it.setMaxDepth(vdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1);
-        for (; it; ++it) {
-            batch.addTile(it.getLevel(), it.getCoord(), *it, true);
-            voxels += it.getVoxelCount();
-        }
-        return voxels;
-    }
-
-    /// Read the leaves of regions [first, last) into `batch`, on all threads; returns their active voxels.
+    /// Read regions [first, last) into `batch`, their leaves on all threads; returns their active voxels.
     uint64_t add_regions(size_t first, size_t last, vdb::FloatTree& batch) {
         std::vector<std::unique_ptr<LeafT>> leaves;
         uint64_t voxels = 0;
-        for (size_t r = first; r < last; ++r)
+        for (size_t r = first; r < last; ++r) {
+            for (const Tile& tile : regions[r].tiles) {
+                batch.addTile(tile.level, tile.origin, tile.value, true);
+                voxels += uint64_t(1) << (3 * (tile.level == 1 ? 3 : tile.level == 2 ? 7 : 12));
+            }
+            if (!regions[r].node) continue;
             for (auto src = regions[r].node->cbeginChildOn(); src; ++src) {
                 auto leaf = std::make_unique<LeafT>(vdb::PartialCreate(), src->origin(), topology->background());
                 leaf->setValueMask(src->getValueMask());
                 voxels += src->onVoxelCount();
                 leaves.push_back(std::move(leaf));
             }
+        }
         std::vector<LeafT*> targets;
         for (auto& leaf : leaves) targets.push_back(leaf.get());
-        const int64_t* positions = leaf_positions.data() + regions[first].first_leaf;
-        reader->read_leaves_parallel(targets, positions, half);
+        // Regions with leaves hold consecutive leaves: the batch's first leaf starts the run.
+        const auto with_leaves = std::find_if(regions.begin() + first, regions.begin() + last,
+                                              [](const Region& r) { return r.leaves > 0; });
+        if (with_leaves != regions.begin() + last)
+            reader->read_leaves_parallel(targets, leaf_positions.data() + with_leaves->first_leaf, half);
         for (auto& leaf : leaves) batch.addLeaf(leaf.release());
         return voxels;
     }
@@ -129,13 +137,19 @@ std::shared_ptr<GridStream> GridStream::open(const std::string& path, const std:
         // Regions in the order readBuffers (and so the file) visits leaves: the root's children by
         // origin, then each internal node's children by index.
         size_t leaf = 0;
-        for (auto upper = tree.root().cbeginChildOn(); upper; ++upper)
+        for (auto upper = tree.root().cbeginChildOn(); upper; ++upper) {
             for (auto lower = upper->cbeginChildOn(); lower; ++lower) {
-                const uint64_t leaves = lower->getChildMask().countOn();
-                if (leaves == 0) continue;
-                impl->regions.push_back({&*lower, leaf, leaves});
-                leaf += leaves;
+                Region region{&*lower, leaf, lower->getChildMask().countOn(), {}};
+                for (auto tile = lower->cbeginValueOn(); tile; ++tile) region.tiles.push_back({1, tile.getCoord(), *tile});
+                if (region.leaves == 0 && region.tiles.empty()) continue;
+                leaf += region.leaves;
+                impl->regions.push_back(std::move(region));
             }
+            for (auto tile = upper->cbeginValueOn(); tile; ++tile)
+                impl->regions.push_back({nullptr, 0, 0, {{2, tile.getCoord(), *tile}}});
+        }
+        for (auto tile = tree.root().cbeginValueOn(); tile; ++tile)
+            impl->regions.push_back({nullptr, 0, 0, {{3, tile.getCoord(), *tile}}});
         const Mat4 index_to_world = impl->file_index_to_world;
         impl->leaf_positions = std::move(topology.leaf_positions);
         return std::make_shared<GridStream>(std::move(impl), index_to_world, batch_bytes);
@@ -182,12 +196,11 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
     });
     uint64_t voxels_done = 0;
     size_t next = 0;
-    // Tiles ride with the first batch; an empty grid still makes one (empty) batch.
+    // An empty grid still makes one (empty) batch.
     for (bool first = true; first || next < s.regions.size(); first = false) {
         vdb::FloatGrid::Ptr batch = s.empty_batch();
         uint64_t bytes = 0;
         guard_read(s.path, [&] {
-            if (first) voxels_done += s.add_tiles(batch->tree());
             const size_t first_region = next;
             for (; next < s.regions.size(); ++next) {
                 const uint64_t region_bytes = s.regions[next].leaves * kLeafBytes;
@@ -206,20 +219,20 @@ void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(c
     impl_->for_each_batch(batch_bytes, index_to_world_, visit);
 }
 
-Grid GridStream::level(int k, const RenderControl* control) const {
+Grid GridStream::level(int k, LevelReduction reduction, const RenderControl* control) const {
     if (k < 1 || k > kMaxLevel)
         throw InvalidArgument("grid '" + impl_->name + "': a stream's level must be from 1 to " + std::to_string(kMaxLevel));
     std::shared_ptr<Grid::Data> data;
     {
         std::lock_guard<std::mutex> lock(impl_->levels_mutex);
-        auto& cached = impl_->levels[k];
+        auto& cached = impl_->levels[{k, reduction}];
         if (!cached) {
             // Each batch's level holds the level's voxels over the batch's regions, and no other batch has
             // voxels there: merging the active voxels makes the whole level.
             vdb::FloatGrid::Ptr merged = impl_->empty_batch();
             impl_->for_each_batch(kDefaultBatchBytes, impl_->file_index_to_world, [&](const Batch& batch) {
                 if (control) control->throw_if_cancelled();
-                vdb::FloatGrid::Ptr part = batch.grid.level(k).data()->vdb->deepCopy();
+                vdb::FloatGrid::Ptr part = batch.grid.level(k, reduction).data()->vdb->deepCopy();
                 merged->tree().merge(part->tree(), vdb::MERGE_ACTIVE_STATES);
             });
             merged->setName(impl_->name);

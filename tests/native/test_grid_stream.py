@@ -219,12 +219,34 @@ def test_a_zoomed_out_stream_renders_its_level_from_memory(files, tmp_path):
         pn.render_xray(stream, cam, level=0)
 
 
-def test_a_stream_level_is_the_grid_level(files):
+REDUCTIONS = ["mean_over_zero", "mean_over_background", "max_over_background"]
+
+
+@pytest.mark.parametrize("reduction", REDUCTIONS)
+def test_a_stream_level_is_the_grid_level(files, reduction):
     """Level k of a stream, made batch by batch, holds the voxels of Grid.level(k), placed alike."""
     path = str(files / "field.vdb")
     grid, stream = pn.read_vdb(path), pn.stream_vdb(path, batch_bytes=1)
     for k in (1, 3, 7):
-        np.testing.assert_array_equal(stream.level(k).to_dense(), grid.level(k).to_dense())
-        np.testing.assert_allclose(stream.level(k).index_to_world, grid.level(k).index_to_world, rtol=1e-12)
+        np.testing.assert_array_equal(stream.level(k, reduction).to_dense(), grid.level(k, reduction).to_dense())
+        np.testing.assert_allclose(stream.level(k, reduction).index_to_world, grid.level(k, reduction).index_to_world,
+                                   rtol=1e-12)
     with pytest.raises(ValueError, match="from 1 to 7"):
         stream.level(8)
+
+
+@pytest.mark.parametrize("reduction", REDUCTIONS)
+def test_tiles_travel_with_their_region(tmp_path, reduction):
+    """A constant 8^3 tile and scattered leaves in the second of two regions, over a CT-like background of
+    -1000: a level voxel of level 4 or more covers both, and the stream's level is still the grid's (tiles
+    travel with the region they lie in)."""
+    values = sparse_volume(shape=(160, 36, 30), seed=7)
+    values[136:144, 8:16, 8:16] = 2.5  # aligned to the leaves: a tile, in the region from i = 128
+    values[values == 0] = -1000.0
+    path = str(tmp_path / "tiles.vdb")
+    pn.Grid.from_dense(values, affine_matrix(), background=-1000.0).write_vdb(path)
+    grid, stream = pn.read_vdb(path), pn.stream_vdb(path, batch_bytes=1)
+    assert stream.leaf_count < grid.block_count  # the tile is there
+    for k in (1, 4, 5):
+        np.testing.assert_array_equal(stream.level(k, reduction).to_dense(-1000.0),
+                                      grid.level(k, reduction).to_dense(-1000.0))

@@ -62,11 +62,11 @@ public:
     /// A level-k voxel stands for 2^k voxels each way: up to 2^7 it lies within one 128^3 region, so
     /// each batch makes its part of a level on its own.
     static constexpr int kMaxLevel = 7;
-    /// Level of detail k, 1 <= k <= kMaxLevel (Grid::level's voxels), made by reading every batch once and
-    /// then kept with the stream (and the streams with_index_to_world makes): zoomed-out views render it
-    /// from memory. It takes value_bytes() / 8^k or so. `control` may cancel the making (between batches);
-    /// nothing is kept then.
-    Grid level(int k, const RenderControl* control = nullptr) const;
+    /// Level of detail k, 1 <= k <= kMaxLevel (Grid::level(k, reduction)'s voxels), made by reading every
+    /// batch once and then kept with the stream (and the streams with_index_to_world makes): zoomed-out
+    /// views render it from memory. It takes value_bytes() / 8^k or so. `control` may cancel the making
+    /// (between batches); nothing is kept then.
+    Grid level(int k, LevelReduction reduction = LevelReduction::MeanOverZero, const RenderControl* control = nullptr) const;
 
     /// Bytes of voxel values a batch holds when no memory limit says otherwise: more saves nothing (a
     /// batch's fixed cost in a render, its post-convolution, is a few milliseconds).
