@@ -67,7 +67,7 @@ MiB = 1 << 20
 
 
 def stream_threshold(stream_above_mib):
-    """Bytes of voxel values above which an X-ray streams a volume (RenderInputs.stream_above_mib), or None."""
+    """Bytes of voxel values above which a volume is streamed (RenderInputs.stream_above_mib), or None."""
     import pcvr_native
 
     if stream_above_mib is None:
@@ -113,6 +113,19 @@ class LoadedVolume:
     index: int                          # in RenderInputs.volumes
     inputs: scene_inputs.VolumeInputs
     grid: object                        # pcvr_native.Grid in world space (X-ray: or a GridStream)
+    # Shaded and MIP of a volume too big to read whole: the GridStream its grid is level `level` of.
+    stream: object = None
+    level: int = 0
+
+    @property
+    def value_range(self):
+        """The densities of the volume itself (a coarse level's means span less)."""
+        return (self.stream or self.grid).value_range
+
+    @property
+    def xray_grid(self):
+        """What an X-ray of it renders: the stream where there is one (its levels keep line integrals)."""
+        return self.stream or self.grid
 
 
 @dataclass
@@ -123,10 +136,15 @@ class PreparedScene:
     volumes: list                       # LoadedVolume
     errors: list = field(default_factory=list)    # volumes that could not be read, one message each
     lighting: tuple = ()                # shaded: (transfer functions, lights, ambient, Shading)
+    warnings: list = field(default_factory=list)  # volumes rendered from a coarse level, one message each
 
     @property
     def grids(self):
         return [volume.grid for volume in self.volumes]
+
+    @property
+    def xray_grids(self):
+        return [volume.xray_grid for volume in self.volumes]
 
     @property
     def density_scales(self):
@@ -137,6 +155,19 @@ class PreparedScene:
         """How many volumes are read from their files while rendering (X-ray of big volumes)."""
         import pcvr_native
         return sum(isinstance(volume.grid, pcvr_native.GridStream) for volume in self.volumes)
+
+
+# The levels shaded and MIP modes draw a streamed volume from: means over the background (what they reconstruct
+# towards), and MIP's maxima (a mean is lower than the largest value it stands for).
+LEVEL_REDUCTIONS = {'SHADED': "mean_over_background", 'MIP': "max_over_background"}
+
+
+def fitting_level(value_bytes, budget):
+    """The finest level of detail (1 to 7) whose voxels take at most `budget` bytes."""
+    level = 1
+    while level < 7 and value_bytes >> (3 * level) > budget:
+        level += 1
+    return level
 
 
 def _grid(volume, stream_above=None):
@@ -160,7 +191,9 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
     """PreparedScene of RenderInputs. A volume that cannot be read is left out with a message in `errors`;
     `reading(name)` is told of each volume before it is read; a true `cancelled()` stops reading. Raises
     ValueError for a transfer function without a range."""
-    loaded, errors = [], []
+    import pcvr_native
+
+    loaded, errors, warnings = [], [], []
     stream_above = stream_threshold(inputs.stream_above_mib)
     for index, volume in enumerate(inputs.volumes):
         if cancelled():
@@ -168,11 +201,20 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         reading(volume.name)
         try:
             grid = _grid(volume, stream_above)
+            stream, level = None, 0
+            if isinstance(grid, pcvr_native.GridStream) and inputs.mode in LEVEL_REDUCTIONS:
+                # Shaded and MIP need every voxel at once: the finest level that fits stands in for the volume.
+                stream, level = grid, fitting_level(grid.value_bytes, stream_above)
+                grid = stream.level(level, LEVEL_REDUCTIONS[inputs.mode])
+                warnings.append(f"Volume object '{volume.name}': {stream.value_bytes / MiB:,.0f} MiB of voxels, more "
+                                f"than Stream Above: rendered from level {level} of detail (1/{2 ** level} of its "
+                                "resolution)")
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
             errors.append(f"Volume object '{volume.name}': {ex}")
             continue
-        loaded.append(LoadedVolume(index, volume, grid.with_index_to_world(volume.matrix @ grid.index_to_world)))
-    prepared = PreparedScene(inputs, loaded, errors)
+        placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
+        loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
+    prepared = PreparedScene(inputs, loaded, errors, warnings=warnings)
     if inputs.mode == 'SHADED' and loaded:
         prepared.lighting = _native_lighting(prepared)
     return prepared
@@ -180,7 +222,7 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
 
 def density_range(ramp, volume):
     """The densities a LoadedVolume's ramp (RampInputs) spans: (tf_min, tf_max), or its grid's."""
-    return transfer_function.density_range(ramp, volume.grid.value_range, volume.inputs.density_scale)
+    return transfer_function.density_range(ramp, volume.value_range, volume.inputs.density_scale)
 
 
 def control_points(ramp, volume):
@@ -199,7 +241,9 @@ def native_transfer_function(volume):
 
     ramp = volume.inputs.ramp
     points = control_points(ramp, volume)
-    unit_distance = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / ramp.opacity_scale
+    # The opacity's unit is the volume's own voxel, also where a coarser level stands in for it.
+    voxel = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / 2 ** volume.level
+    unit_distance = voxel / ramp.opacity_scale
     return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance)
 
 
@@ -254,7 +298,7 @@ def _xray_integral(prepared, view, control, stats, level=None):
         return _zeros(view)
     settings = prepared.inputs.xray
     return pcvr_native.render_xray(
-        prepared.grids, native_camera(view),
+        prepared.xray_grids, native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
         stride=settings.stride, density_scale=prepared.density_scales, stats=stats,
         **_level_argument(level), **control.arguments(prepared.inputs.threads))
@@ -455,6 +499,8 @@ def render(engine, depsgraph):
         _fail(engine, f"PCVR: {ex}")
         return
     _report_errors(engine, prepared.errors)
+    for message in prepared.warnings:
+        engine.report({'WARNING'}, message)
     if engine.test_break():
         return
 
@@ -472,6 +518,9 @@ def render(engine, depsgraph):
     _write_result(engine, depsgraph, view, finish(prepared, display, raw))
     if prepared.streamed:
         stats["streamed"] = prepared.streamed
+    stream_level = max((volume.level for volume in prepared.volumes), default=0)
+    if stream_level:
+        stats["level"] = stats.get("level", 0) + stream_level  # of the volume itself, not of its level
     last_render[depsgraph.scene.session_uid] = (inputs.mode, stats)
     engine.update_stats("", status_line(inputs.mode, stats))
 
@@ -569,8 +618,9 @@ def format_sheet_stats(stats):
         return "No volume in view"
     culled = stats["blocks_outside"] + stats["blocks_transparent"]
     strides = format_strides(stats["strides"])
+    level = f" | Level of detail {stats['level']}" if stats.get("level") else ""
     return (f"Voxels {stats['voxels']:,} | Culled blocks {culled:,} of {stats['blocks']:,} | "
-            f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s")
+            f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s{level}")
 
 
 def _share(part, whole):

@@ -190,9 +190,9 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
     stream_above: IntProperty(
         name="Stream Above",
-        description="X-ray: volumes whose voxels take more than this many MiB are read from their files a part "
-                    "at a time while rendering, so memory stays bounded whatever their size (0: above a quarter "
-                    "of the memory available)",
+        description="Volumes whose voxels take more than this many MiB are not read whole: X-ray reads them from "
+                    "their files a part at a time while rendering, shaded and maximum intensity render the finest "
+                    "level of detail that fits (0: above a quarter of the memory available)",
         min=0, soft_max=65536,
         default=0,
         update=tag_changed,

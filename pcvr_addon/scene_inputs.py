@@ -92,8 +92,8 @@ class RenderInputs:
     lights: tuple = ()                 # shaded mode: lighting.LightSpec
     world: tuple = (0.0, 0.0, 0.0)     # shaded mode: the ambient light
     with_depth: bool = False           # shaded mode with the Depth pass
-    # X-ray mode: volumes of more MiB than this are streamed from their files (0: above a quarter of the
-    # memory available; None: never, the other modes, which need every voxel at once).
+    # Volumes of more MiB than this are streamed from their files (0: above a quarter of the memory
+    # available; None: never): X-ray reads them a part at a time, shaded and MIP draw a coarser level.
     stream_above_mib: int | None = None
 
     def with_sheet_spacing(self, factor):
@@ -197,7 +197,7 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
         lights=tuple(lighting.scene_lights(depsgraph)) if shaded else (),
         world=world if shaded else (0.0, 0.0, 0.0),
         with_depth=shaded and not in_viewport and depsgraph.view_layer.use_pass_z,
-        stream_above_mib=settings.stream_above if mode == 'XRAY' else None,
+        stream_above_mib=settings.stream_above,
     )
     display = DisplayInputs(
         mode=mode,

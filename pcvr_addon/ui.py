@@ -80,7 +80,6 @@ class PCVR_RENDER_PT_memory(PCVRRenderPanel, Panel):
     bl_label = "Memory"
     bl_parent_id = "PCVR_RENDER_PT_pcvr"
     bl_options = {'DEFAULT_CLOSED'}
-    modes = {'XRAY'}  # shaded and MIP need every voxel at once
 
     def draw(self, context):
         layout = property_split(self.layout)
