@@ -16,6 +16,7 @@ import big_volume_bench
 import evidence_report
 import magnification_curve
 import minification_bench
+import shaded_levels
 import shaded_report
 import speed_of_light as sol
 import viewport_bench
@@ -549,6 +550,7 @@ def write(results: dict, output: Path) -> None:
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += viewport_bench.section(results.get("viewport"))
     lines += minification_bench.section(results.get("minification"))
+    lines += shaded_levels.section(results.get("shaded_levels"))
     lines += big_volume_bench.section(results.get("big_volume"))
     lines += magnification_curve.section(results.get("magnification_curve"))
     if not results["volumes"]:

@@ -16,6 +16,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | zoomed out  | minification_bench.py | time and error against magnification from 1/16 to 8, every method |
 | magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective |
 | big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
+| shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -447,6 +448,8 @@ def parse_args(argv=None):
                    help="skip pcvr's time over magnification")
     p.add_argument("--no-big-volume", dest="big_volume", action="store_false",
                    help="skip the big volume's memory and time, read whole and streamed")
+    p.add_argument("--no-shaded-levels", dest="shaded_levels", action="store_false",
+                   help="skip shaded and MIP error and time per level of detail")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.
@@ -537,6 +540,11 @@ def main(argv=None) -> int:
         import magnification_curve
         log("X-ray speed over magnification")
         results["magnification_curve"] = magnification_curve.run(args.quick, log)
+        results_path.write_text(json.dumps(results, indent=1, default=float))
+    if args.shaded_levels:
+        import shaded_levels
+        log("shaded and MIP levels of detail")
+        results["shaded_levels"] = shaded_levels.run(args.quick, log)
         results_path.write_text(json.dumps(results, indent=1, default=float))
     if args.big_volume:
         import big_volume_bench
