@@ -124,7 +124,7 @@ public:
             store8(e, edges);
             const int nodes = hi - lo + 1;
             const float total = e[nodes] - e[0];
-            const float8 next = __builtin_shuffle(edges, int8x{1, 2, 3, 4, 5, 6, 7, 7});
+            const float8 next = __builtin_shufflevector(edges, edges, 1, 2, 3, 4, 5, 6, 7, 7);  // gcc 12 and clang
             weights_ = select8(lane_index8() < float(nodes), (next - edges) * (total > 0 ? 1.0f / total : 0.0f), float8{});
             shared_edges_ = true;
             return;
