@@ -5,6 +5,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -96,13 +97,17 @@ void run_polled(Work&& work, RenderControl& control, nb::handle progress, nb::ha
                 done = true;
                 done_cv.notify_all();
             });
+            // Progress never goes back: a render made of several (a streamed grid's batches) moves from one
+            // part's span to the next while its phase restarts, and a poll may fall between the two.
+            double reported = 0.0;
             std::unique_lock<std::mutex> lock(mutex);
             while (!done_cv.wait_for(lock, kPollInterval, [&] { return done; })) {
                 lock.unlock();
                 {
                     nb::gil_scoped_acquire acquire;
                     try {
-                        if (!progress.is_none()) progress(control.fraction());
+                        reported = std::max(reported, control.fraction());
+                        if (!progress.is_none()) progress(reported);
                         if (!cancel.is_none() && cancel_requested(cancel)) control.request_cancel();
                     } catch (nb::python_error& e) {
                         // A failing callback stops the render; its exception is what the caller sees.

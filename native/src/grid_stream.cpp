@@ -45,6 +45,7 @@ struct Tile {
     vdb::Index level;
     vdb::Coord origin;
     float value;
+    uint64_t voxels;
 };
 
 /// A 128^3 region: a lower internal node, its first leaf in the file's leaf order and its active
@@ -88,7 +89,7 @@ struct GridStream::Impl {
         for (size_t r = first; r < last; ++r) {
             for (const Tile& tile : regions[r].tiles) {
                 batch.addTile(tile.level, tile.origin, tile.value, true);
-                voxels += uint64_t(1) << (3 * (tile.level == 1 ? 3 : tile.level == 2 ? 7 : 12));
+                voxels += tile.voxels;
             }
             if (!regions[r].node) continue;
             for (auto src = regions[r].node->cbeginChildOn(); src; ++src) {
@@ -140,16 +141,17 @@ std::shared_ptr<GridStream> GridStream::open(const std::string& path, const std:
         for (auto upper = tree.root().cbeginChildOn(); upper; ++upper) {
             for (auto lower = upper->cbeginChildOn(); lower; ++lower) {
                 Region region{&*lower, leaf, lower->getChildMask().countOn(), {}};
-                for (auto tile = lower->cbeginValueOn(); tile; ++tile) region.tiles.push_back({1, tile.getCoord(), *tile});
+                for (auto tile = lower->cbeginValueOn(); tile; ++tile)
+                    region.tiles.push_back({1, tile.getCoord(), *tile, LeafT::NUM_VOXELS});
                 if (region.leaves == 0 && region.tiles.empty()) continue;
                 leaf += region.leaves;
                 impl->regions.push_back(std::move(region));
             }
             for (auto tile = upper->cbeginValueOn(); tile; ++tile)
-                impl->regions.push_back({nullptr, 0, 0, {{2, tile.getCoord(), *tile}}});
+                impl->regions.push_back({nullptr, 0, 0, {{2, tile.getCoord(), *tile, LowerT::NUM_VOXELS}}});
         }
         for (auto tile = tree.root().cbeginValueOn(); tile; ++tile)
-            impl->regions.push_back({nullptr, 0, 0, {{3, tile.getCoord(), *tile}}});
+            impl->regions.push_back({nullptr, 0, 0, {{3, tile.getCoord(), *tile, UpperT::NUM_VOXELS}}});
         const Mat4 index_to_world = impl->file_index_to_world;
         impl->leaf_positions = std::move(topology.leaf_positions);
         return std::make_shared<GridStream>(std::move(impl), index_to_world, batch_bytes);
