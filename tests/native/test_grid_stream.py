@@ -14,6 +14,7 @@ import pytest
 import pcvr_native as pn
 
 from _io_helpers import HAVE_BPY, affine_matrix, describe, run_blender_openvdb, run_python, sparse_volume
+from sanitized import measures_memory
 from xray_helpers import frame_ortho, frame_perspective, rel_rmse
 
 MiB = 1 << 20
@@ -160,6 +161,7 @@ def test_grids_that_cannot_be_streamed_say_to_read_them_whole(tmp_path):
     np.testing.assert_array_equal(pn.render_xray(pn.stream_vdb(half), cam), pn.render_xray(pn.read_vdb(half), cam))
 
 
+@measures_memory
 def test_a_volume_bigger_than_the_memory_limit_renders_within_it(tmp_path):
     """A 256^3 volume (64 MiB of values) under a 32 MiB limit: the render's peak resident memory above
     what the process held with the stream open stays under the limit (measured 23 MiB: 16 MiB batches of

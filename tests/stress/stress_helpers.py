@@ -8,18 +8,12 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import pytest
 
 import pcvr_native as pn
 from pcvr_native import cameras
+from sanitized import measures_memory  # noqa: F401  (the stress tests take it from here)
 
 LONG = os.environ.get("PCVR_STRESS") == "long"
-
-# make sanitize runs these tests with AddressSanitizer preloaded, which reserves terabytes of
-# address space and holds freed memory in quarantine: resident sets and address-space limits
-# measure the sanitizer there, not the renderer.
-measures_memory = pytest.mark.skipif(os.environ.get("PCVR_SANITIZED") == "1",
-                                     reason="memory is not measurable under AddressSanitizer")
 
 SPLAT_METHODS = ("regular", "pcvr", "bilinear_spread")
 METHODS = ("exact",) + SPLAT_METHODS
