@@ -21,8 +21,10 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent))
+# Appended, not put first: make bench imports this beside minification_bench, whose test module must find
+# tests/native's conftest before tests/ (which also holds one).
+sys.path.append(str(HERE))
+sys.path.append(str(HERE.parent))
 
 from level_scenes import TRANSLUCENT, pixel_means, scattered_blobs  # noqa: E402
 from timing import cpu_seconds  # noqa: E402
