@@ -7,16 +7,23 @@ import statistics
 import time
 
 
-def median_seconds(render, reps: int, clock=time.thread_time) -> float:
-    """Median `clock` seconds over `reps` calls of `render`, after one call that warms block caches and
-    the first image's page faults."""
+def median_seconds(render, reps: int, clock=time.thread_time, pick=statistics.median) -> float:
+    """Median (or `pick`) of `clock` seconds over `reps` calls of `render`, after one call that warms block
+    caches and the first image's page faults."""
     render()
     times = []
     for _ in range(reps):
         t0 = clock()
         render()
         times.append(clock() - t0)
-    return statistics.median(times)
+    return pick(times)
+
+
+def least_cpu_seconds(render, reps: int) -> float:
+    """The least CPU seconds of the calling thread over `reps` calls of `render`, after a warm-up call: on a
+    shared machine other work only adds to a render's time (caches, memory bandwidth), so the least is the
+    nearest to the render's own work; for curves whose every point should measure the same thing."""
+    return median_seconds(render, reps, time.thread_time, pick=min)
 
 
 def cpu_seconds(render, reps: int) -> float:
