@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import gc
+import importlib
 import json
 import os
 import platform
@@ -75,6 +76,17 @@ METHODS = [
     ("bilinear_spread", "bilinear spread", "bilinear_spread", "bilinear"),
 ]
 METHOD_KEYS = [m[0] for m in METHODS]
+
+
+# The parts with a run(quick, log) of their own, in the order they run: (args flag and results key, module,
+# what the log says).
+STANDALONE_PARTS = [
+    ("viewport", "viewport_bench", "rendered viewport"),
+    ("minification", "minification_bench", "time and error against magnification"),
+    ("magnification_curve", "magnification_curve", "X-ray speed over magnification"),
+    ("shaded_levels", "shaded_levels", "shaded and MIP levels of detail"),
+    ("big_volume", "big_volume_bench", "big volumes"),
+]
 
 
 def log(msg: str) -> None:
@@ -526,31 +538,11 @@ def main(argv=None) -> int:
         f"load {results['load_before'][0]:.2f}")
 
     run_evidence(args, results, results_path, output)
-    if args.viewport:
-        import viewport_bench
-        log("rendered viewport")
-        results["viewport"] = viewport_bench.run(args.quick, log)
-        results_path.write_text(json.dumps(results, indent=1, default=float))
-    if args.minification:
-        import minification_bench
-        log("time and error against magnification")
-        results["minification"] = minification_bench.run(args.quick, log)
-        results_path.write_text(json.dumps(results, indent=1, default=float))
-    if args.magnification_curve:
-        import magnification_curve
-        log("X-ray speed over magnification")
-        results["magnification_curve"] = magnification_curve.run(args.quick, log)
-        results_path.write_text(json.dumps(results, indent=1, default=float))
-    if args.shaded_levels:
-        import shaded_levels
-        log("shaded and MIP levels of detail")
-        results["shaded_levels"] = shaded_levels.run(args.quick, log)
-        results_path.write_text(json.dumps(results, indent=1, default=float))
-    if args.big_volume:
-        import big_volume_bench
-        log("big volumes")
-        results["big_volume"] = big_volume_bench.run(args.quick, log)
-        results_path.write_text(json.dumps(results, indent=1, default=float))
+    for flag, module, what in STANDALONE_PARTS:
+        if getattr(args, flag):
+            log(what)
+            results[flag] = importlib.import_module(module).run(args.quick, log)
+            results_path.write_text(json.dumps(results, indent=1, default=float))
     for n in args.sizes if args.throughput else []:
         for kind in args.kinds:
             bench_volume(kind, n, args, workdir, results)
