@@ -401,13 +401,7 @@ Grid Grid::level(int k, LevelReduction reduction) const {
         }
         next = coarser;
     }
-    // Coarse index I sits at fine index 2 I + 1/2, the centre of the voxels it stands for.
-    Mat4 halving;
-    for (int r = 0; r < 3; ++r) {
-        halving.m[r][r] = 2.0;
-        halving.m[r][3] = 0.5;
-    }
-    return Grid(std::move(next), index_to_world_ * halving, name_).level(k - 1, reduction);
+    return Grid(std::move(next), index_to_world_ * level_to_fine_index(1), name_).level(k - 1, reduction);
 }
 
 const std::vector<VoxelBlock>& Grid::blocks() const {

@@ -190,7 +190,6 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
                                       const std::function<void(const Batch&)>& visit) {
     Impl& s = *this;
     std::lock_guard<std::mutex> lock(s.mutex);
-    const std::string context = "grid " + vdb_reader::quoted(s.name) + " in " + vdb_reader::quoted(s.path);
     guard_read(s.path, [&] {
         if (!(FileIdentity::of(s.path) == s.identity))
             throw VdbReadError("cannot read " + vdb_reader::quoted(s.path) + ": the file changed since " + vdb_reader::quoted(s.name) +
@@ -242,13 +241,7 @@ Grid GridStream::level(int k, LevelReduction reduction, const RenderControl* con
         }
         data = cached;
     }
-    // Level k's index I sits at fine index 2^k I + (2^k - 1) / 2, the centre of the voxels it averages.
-    Mat4 to_fine;
-    for (int r = 0; r < 3; ++r) {
-        to_fine.m[r][r] = std::ldexp(1.0, k);
-        to_fine.m[r][3] = 0.5 * (std::ldexp(1.0, k) - 1.0);
-    }
-    return Grid(std::move(data), index_to_world_ * to_fine, impl_->name);
+    return Grid(std::move(data), index_to_world_ * level_to_fine_index(k), impl_->name);
 }
 
 }  // namespace pcvr

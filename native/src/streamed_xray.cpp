@@ -22,11 +22,7 @@ void accumulate(XrayStats& total, const XrayStats& part) {
     total.batches += part.batches;
     total.level = std::max(total.level, part.level);
     total.memory_bytes = std::max(total.memory_bytes, part.memory_bytes);
-    if (part.max_magnification > 0) {
-        total.min_magnification = total.min_magnification > 0 ? std::min(total.min_magnification, part.min_magnification)
-                                                               : part.min_magnification;
-        total.max_magnification = std::max(total.max_magnification, part.max_magnification);
-    }
+    total.include_magnification(part.min_magnification, part.max_magnification);
     for (double stride : part.strides)
         if (std::find(total.strides.begin(), total.strides.end(), stride) == total.strides.end())
             total.strides.push_back(stride);

@@ -90,11 +90,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         BlockPlan plan = plan_blocks(levels.back().blocks(), view, plan_params, &control);
         stats.blocks_total += plan.blocks_total;
         stats.blocks_culled += plan.blocks_culled;
-        if (plan.max_magnification > 0) {
-            stats.min_magnification = stats.min_magnification > 0 ? std::min(stats.min_magnification, plan.min_magnification)
-                                                                   : plan.min_magnification;
-            stats.max_magnification = std::max(stats.max_magnification, plan.max_magnification);
-        }
+        stats.include_magnification(plan.min_magnification, plan.max_magnification);
         for (const auto& [stride, blocks] : plan.by_stride) {
             strides[stride] = true;
             planned_blocks += blocks.size();

@@ -52,6 +52,18 @@ enum class LevelReduction {
     MaxOverBackground,   ///< the largest, inactive voxels counting as the background: MIP's, which keep maxima
 };
 
+/// Level k's index coordinates to level 0's: index I of level k sits at 2^k I + (2^k - 1) / 2, the centre
+/// of the voxels it stands for (Grid::level's index_to_world is the grid's times this).
+inline Mat4 level_to_fine_index(int k) {
+    Mat4 m;
+    const double scale = double(uint64_t(1) << k);
+    for (int r = 0; r < 3; ++r) {
+        m.m[r][r] = scale;
+        m.m[r][3] = 0.5 * (scale - 1.0);
+    }
+    return m;
+}
+
 /// Codec for Grid::write_vdb. Blosc is OpenVDB's default and the fastest; zip suits readers built
 /// without blosc; none is largest.
 enum class VdbCompression { Blosc, Zip, None };

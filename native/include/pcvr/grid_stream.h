@@ -50,7 +50,7 @@ public:
     /// Bytes the leaves' values take in memory when read whole.
     uint64_t value_bytes() const;
     /// Minimum and maximum active value, as Grid::value_range: the file holds no such statistics, so
-    /// the first call reads every batch (kStreamBatchBytes at a time), later ones return it cached.
+    /// the first call reads every batch (kDefaultBatchBytes at a time), later ones return it cached.
     std::pair<float, float> value_range() const;
 
     /// One batch of the grid: its voxels as a Grid, and how many of the stream's active voxels the
@@ -75,7 +75,7 @@ public:
     /// Read the grid in batches of whole 128^3 regions whose leaf values take at most `batch_bytes`
     /// (a region alone may take more: up to 8 MiB), calling `visit` with each; a batch is freed when
     /// `visit` returns. Every active voxel is in exactly one batch; active tiles (constant regions) come
-    /// with the first. Throws VdbReadError naming the file if it changed or fails to read.
+    /// with the region they lie in. Throws VdbReadError naming the file if it changed or fails to read.
     void for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const;
 
     struct Impl;

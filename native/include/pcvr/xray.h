@@ -13,6 +13,7 @@
 /// camera's clip planes. Grids are summed, so overlapping volumes add.
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,13 @@ struct XrayStats {
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     uint64_t batches = 0;          ///< renders the streamed grids took (one per batch), and one for the others
     double seconds = 0;
+
+    /// Widen [min_magnification, max_magnification] by a plan's (lo, hi); (0, 0) is nothing in view.
+    void include_magnification(double lo, double hi) {
+        if (!(hi > 0)) return;
+        min_magnification = min_magnification > 0 ? std::min(min_magnification, lo) : lo;
+        max_magnification = std::max(max_magnification, hi);
+    }
 };
 
 struct XrayImage {
