@@ -9,15 +9,15 @@
 
 
 #include "bindings.h"
-#include "render_call.h"
-#include "pcvr/block_plan.h"
 #include "pcvr/camera.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
 #include "pcvr/grid_stream.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
+#include "pcvr/stride.h"
 #include "pcvr/xray.h"
+#include "render_call.h"
 
 namespace nb = nanobind;
 using namespace nb::literals;

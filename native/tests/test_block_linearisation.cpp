@@ -1,9 +1,9 @@
-// A perspective view's footprints linearised per voxel block (src/block_linearisation.h): the
+// A perspective view's footprints linearised per voxel block (src/splat/block_linearisation.h): the
 // model every voxel of a linearised block takes its footprint from, against the exact projection.
 #include <algorithm>
 #include <cmath>
 
-#include "block_linearisation.h"
+#include "splat/block_linearisation.h"
 #include "unit_test.h"
 
 using namespace pcvr;

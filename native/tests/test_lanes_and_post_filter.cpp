@@ -1,11 +1,11 @@
-// Vector helpers (pcvr/lanes.h) and the post filters' properties (pcvr/post_convolution.h).
+// Vector helpers (pcvr/lanes.h) and the post filters' properties (src/splat/post_convolution.h).
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 #include "pcvr/lanes.h"
-#include "pcvr/post_convolution.h"
-#include "pcvr/splat_grid.h"
+#include "splat/post_convolution.h"
+#include "splat/splat_grid.h"
 #include "unit_test.h"
 
 using namespace pcvr;

@@ -1,9 +1,9 @@
-// The depth profile D(s) behind every slab footprint (pcvr/slab_footprint.h).
+// The depth profile D(s) behind every slab footprint (src/splat/slab_footprint.h).
 #include <cmath>
 
 #include "pcvr/kernel.h"
 #include "pcvr/lanes.h"
-#include "pcvr/slab_footprint.h"
+#include "splat/slab_footprint.h"
 #include "unit_test.h"
 
 using namespace pcvr;

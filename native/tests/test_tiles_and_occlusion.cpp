@@ -1,11 +1,11 @@
-// Tiles, sheet rings and occlusion maps: the bookkeeping of the sheet walk (src/tile_set.h,
-// src/sheet_buffer.h, src/occlusion_map.h).
+// Tiles, sheet rings and occlusion maps: the bookkeeping of the sheet walk (src/view/tile_set.h,
+// src/shaded/sheet_buffer.h, src/shaded/occlusion_map.h).
 #include <random>
 
-#include "occlusion_map.h"
-#include "sheet_buffer.h"
-#include "tile_set.h"
+#include "shaded/occlusion_map.h"
+#include "shaded/sheet_buffer.h"
 #include "unit_test.h"
+#include "view/tile_set.h"
 
 using namespace pcvr;
 

@@ -3,7 +3,7 @@
 A numpy prototype of PCVR's X-ray path for orthographic views (the same camera as the benchmark's
 oblique m=4 view): every voxel's footprint (the Abel transform of its radial kernel) is sampled at
 its 4 x 4 nearest subgrid nodes (stride L = m, one node per voxel), and the subgrid is post-filtered
-to pixels with a separable filter normalised per phase, as native/src/post_convolution.cpp does. Its
+to pixels with a separable filter normalised per phase, as native/src/splat/post_convolution.cpp does. Its
 (gauss1.4, bilinear) images are checked against the native renderer's (``prototype_check``), so the
 other pairs are trusted to the same degree.
 

@@ -67,7 +67,7 @@ def section(results) -> list[str]:
              "orthographic view, from 16 voxels per pixel to 8 pixels per voxel (`tests/bench/minification_bench.py`). "
              "Below one pixel per voxel every footprint is integrated over each pixel's area (`native/src/"
              "pixel_prefilter.h`); `auto` renders from the coarsest level of detail whose voxels project to at most "
-             "1/32 pixel (`native/src/level_of_detail.h`), 1 and 2 force a level. The error is against the pixel means "
+             "1/32 pixel (`native/src/view/level_of_detail.h`), 1 and 2 force a level. The error is against the pixel means "
              f"of `exact`. Median CPU time of one thread; measured {results['date']}, load average {results['load']:.1f}.",
              "", "| magnification | image | method | level | ms | voxels splatted | error |", "|---|---|---|---|---|---|---|"]
     for r in results["rows"]:

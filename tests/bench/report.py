@@ -473,7 +473,7 @@ def limits_section(results: dict, sd: SolData) -> list[str]:
                          f"The C loops take one voxel at a time through a long dependent chain (position, floor, phase, "
                          f"blend, weights, accumulate); the renderer computes positions, phases and blend weights for "
                          f"eight voxels in one vector pass and then adds the windows, whose chains are short and "
-                         f"independent (`native/src/phase_splat.h`), and its time also covers planning, the "
+                         f"independent (`native/src/splat/phase_splat.h`), and its time also covers planning, the "
                          f"post-convolution and the image, which the C loops do not do.")
             bullets.append(text)
             b = sd.bounds(sol.pcvr_taps())

@@ -1,4 +1,4 @@
-"""Levels of detail (Grid.level, render_xray(level=...), src/level_of_detail.h): each level halves the
+"""Levels of detail (Grid.level, render_xray(level=...), src/view/level_of_detail.h): each level halves the
 resolution by averaging 2 x 2 x 2 voxels, lines up with the others, holds the same mass, and the
 automatic choice keeps zoomed-out images within 0.5% of the pixel means while visiting far fewer voxels.
 """
@@ -58,7 +58,7 @@ def test_every_level_holds_the_same_mass(cubic, level):
 
 # Measured: 1/128 picks level 2 (1,669 voxels instead of 100,553) at 0.03% from the pixel means, 1/64
 # level 1 (12,870) at 0.08%; 1/32 and closer take level 0 (level 1 there was 0.65% off: see
-# src/level_of_detail.h).
+# src/view/level_of_detail.h).
 @pytest.mark.parametrize("magnification, level", [(1 / 128, 2), (1 / 64, 1), (1 / 32, 0)])
 def test_automatic_levels_stay_within_half_a_percent(cubic, magnification, level):
     ph, grid = cubic

@@ -1,4 +1,4 @@
-"""Anti-aliased minification (src/pixel_prefilter.h): below one pixel per voxel every footprint is
+"""Anti-aliased minification (src/splat/pixel_prefilter.h): below one pixel per voxel every footprint is
 integrated over each pixel's area, so every method matches the pixel means of the line integral from
 magnification 1/64 to 64, and a one-pixel image is the mean of the whole view.
 

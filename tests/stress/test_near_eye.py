@@ -1,4 +1,4 @@
-"""The linearised footprint's error model (native/src/near_eye_splat.h), which decides which voxels
+"""The linearised footprint's error model (native/src/splat/near_eye_splat.h), which decides which voxels
 of a perspective view are splatted exactly per ray, checked against single voxels rendered by exact.
 
 Model, relative to a footprint's peak, for kernel radius R at depth d (index units), off-axis

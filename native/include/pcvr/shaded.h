@@ -66,7 +66,7 @@ struct ShadedParams {
     bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
     /// Level of detail (Grid::level, inactive voxels counting as the background: means for shaded
     /// rendering, maxima for MIP) every grid is rendered from, by every method; -1: each grid's coarsest
-    /// level whose voxels project small enough that the image stays near level 0's (src/shaded_levels.h).
+    /// level whose voxels project small enough that the image stays near level 0's (src/shaded/shaded_levels.h).
     /// Sheets are `sheet_spacing` voxels of the level apart. 0 (the grids themselves) by default.
     int level = 0;
 };

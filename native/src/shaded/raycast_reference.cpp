@@ -1,0 +1,255 @@
+#include "shaded/raycast_reference.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "pcvr/errors.h"
+#include "pcvr/kernel.h"
+#include "pcvr/transfer_function.h"
+#include "shaded/compositing.h"
+#include "shaded/sheet_walk.h"
+#include "shaded/slab_splat.h"
+
+namespace pcvr {
+
+namespace {
+
+/// Voxel values less the background by index coordinates, through a hash map of the grid's blocks.
+class VoxelLookup {
+public:
+    explicit VoxelLookup(const Grid& grid) : background_(grid.background()) {
+        for (const VoxelBlock& b : grid.blocks()) blocks_.emplace(key(b.origin[0], b.origin[1], b.origin[2]), &b);
+    }
+    /// The value of voxel (i, j, k) less the background, 0 when it is inactive or not finite.
+    double departure(int64_t i, int64_t j, int64_t k) const {
+        const int64_t bi = i & ~int64_t(7), bj = j & ~int64_t(7), bk = k & ~int64_t(7);
+        const auto it = blocks_.find(key(bi, bj, bk));
+        if (it == blocks_.end()) return 0.0;
+        const VoxelBlock& b = *it->second;
+        const int offset = int(((i - bi) << 6) | ((j - bj) << 3) | (k - bk));
+        const float v = b.value(offset);
+        const double d = double(v) - background_;
+        return b.active(offset) && std::isfinite(d) ? d : 0.0;
+    }
+    double background() const { return background_; }
+
+private:
+    static uint64_t key(int64_t i, int64_t j, int64_t k) {
+        return (uint64_t(i >> 3) & 0x1fffff) << 42 | (uint64_t(j >> 3) & 0x1fffff) << 21 | (uint64_t(k >> 3) & 0x1fffff);
+    }
+    std::unordered_map<uint64_t, const VoxelBlock*> blocks_;
+    double background_;
+};
+
+/// One grid as the ray caster sees it.
+struct RayGrid {
+    const Grid* grid;
+    Mat4 world_to_index;
+    VoxelLookup voxels;
+    double scale;
+    std::array<double, 6> box;  // index bounding box widened by the kernel radius
+    const ClassificationTable* classification;  // null for MIP
+    const Shader* shader;                       // null for MIP
+};
+
+struct DensitySample {
+    bool reached = false;  // some active voxel other than the background is within the kernel's reach
+    double density = 0;
+    Vec3 gradient;  // world space
+};
+
+/// The reconstructed density at world point x, and its gradient: the background plus the voxels'
+/// departures from it, as the splats reconstruct.
+DensitySample sample(const RayGrid& g, const Kernel& kernel, const Vec3& x) {
+    const Vec3 u = g.world_to_index.transform_point(x);
+    const double R = kernel.radius();
+    DensitySample out;
+    Vec3 gradient_index;
+    for (int64_t i = int64_t(std::ceil(u.x - R)); i <= int64_t(std::floor(u.x + R)); ++i)
+        for (int64_t j = int64_t(std::ceil(u.y - R)); j <= int64_t(std::floor(u.y + R)); ++j)
+            for (int64_t k = int64_t(std::ceil(u.z - R)); k <= int64_t(std::floor(u.z + R)); ++k) {
+                const Vec3 d = u - Vec3{double(i), double(j), double(k)};
+                const double r = length(d);
+                if (r >= R) continue;
+                const double v = g.voxels.departure(i, j, k);
+                if (v == 0.0) continue;
+                out.density += v * kernel.value(r);
+                if (r > 0) gradient_index = gradient_index + d * (v * kernel.derivative(r) / r);
+            }
+    out.reached = out.density != 0.0;
+    out.density = (out.density + (out.reached ? g.voxels.background() : 0.0)) * g.scale;
+    // d/dx of f(B x + b) is B^T grad_u f.
+    const Mat4& b = g.world_to_index;
+    out.gradient = Vec3{b.m[0][0] * gradient_index.x + b.m[1][0] * gradient_index.y + b.m[2][0] * gradient_index.z,
+                        b.m[0][1] * gradient_index.x + b.m[1][1] * gradient_index.y + b.m[2][1] * gradient_index.z,
+                        b.m[0][2] * gradient_index.x + b.m[1][2] * gradient_index.y + b.m[2][2] * gradient_index.z} *
+                   g.scale;
+    return out;
+}
+
+/// The depths [near, far] at which the ray point(z) = origin + z dir lies in a grid's widened box.
+bool ray_box_depths(const RayGrid& g, const Vec3& origin, const Vec3& dir, double& z0, double& z1) {
+    const Vec3 o = g.world_to_index.transform_point(origin), d = g.world_to_index.transform_vector(dir);
+    for (int a = 0; a < 3; ++a) {
+        const double lo = g.box[a], hi = g.box[a + 3];
+        if (d[a] == 0.0) {
+            if (o[a] < lo || o[a] > hi) return false;
+            continue;
+        }
+        double t0 = (lo - o[a]) / d[a], t1 = (hi - o[a]) / d[a];
+        if (t0 > t1) std::swap(t0, t1);
+        z0 = std::max(z0, t0);
+        z1 = std::min(z1, t1);
+    }
+    return z0 <= z1;
+}
+
+/// Calls fn(pixel_index, px, py) for the sampled pixels, in parallel over rows.
+template <class Fn>
+void for_each_pixel(const Camera& camera, int step, RenderControl& control, Fn&& fn) {
+    const int cols = (camera.width() + step - 1) / step, rows = (camera.height() + step - 1) / step;
+    control.begin_phase(uint64_t(rows), 0.0, 1.0);
+    tbb::parallel_for(0, rows, [&](int r) {
+        control.throw_if_cancelled();
+        for (int c = 0; c < cols; ++c) fn(size_t(r) * cols + c, double(c) * step, double(r) * step);
+        control.advance();
+    });
+    control.throw_if_cancelled();
+}
+
+/// What both modes share: the grids, the kernel, the sample spacing and the rays.
+struct Marcher {
+    Kernel kernel;
+    std::vector<ClassificationTable> tables;
+    std::vector<Shader> shaders;
+    std::vector<RayGrid> grids;
+    SheetGeometry geometry;
+    double near_depth, far_depth, step;
+
+    /// `lighting` null: MIP.
+    Marcher(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params, const Lighting* lighting)
+        : kernel(Kernel::from_name(params.splat_kernel)), geometry(camera) {
+        if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+        double spacing = INFINITY;
+        tables.reserve(volumes.size());  // grids point into both
+        shaders.reserve(volumes.size());
+        for (const ShadedVolume& v : volumes) {
+            const Grid& grid = *v.grid;
+            if (grid.active_voxel_count() == 0) continue;
+            const ViewProjection projection(camera, grid.index_to_world());
+            spacing = std::min(spacing, depth_per_voxel(projection, grid, false));
+            const Mat4 to_index = *grid.index_to_world().inverse();
+            const auto b = grid.index_bbox();
+            const double R = kernel.radius();
+            const ClassificationTable* table = nullptr;
+            const Shader* shader = nullptr;
+            if (lighting) {
+                const TransferFunction& tf = *v.transfer_function;
+                const Mat4& m = grid.index_to_world();
+                const double unit = tf.unit_distance > 0 ? tf.unit_distance
+                                                         : std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
+                tables.emplace_back(tf, unit);
+                table = &tables.back();
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0);
+                shader = &shaders.back();
+            }
+            grids.push_back({&grid, to_index, VoxelLookup(grid), v.density_scale,
+                             {b[0] - R, b[1] - R, b[2] - R, b[3] + R, b[4] + R, b[5] + R}, table, shader});
+        }
+        step = spacing * params.sheet_spacing;
+        const Mat4& w2c = camera.world_to_camera();
+        auto depth_of = [&](const Vec3& p) { return -(w2c.m[2][0] * p.x + w2c.m[2][1] * p.y + w2c.m[2][2] * p.z + w2c.m[2][3]); };
+        const Ray r = camera.pixel_ray(0.5 * (camera.width() - 1), 0.5 * (camera.height() - 1));
+        near_depth = depth_of(r.origin);
+        far_depth = depth_of(r.origin + r.direction);
+    }
+
+    /// Calls fn(point, depth) for the samples of the ray through (px, py) that lie in some grid's box,
+    /// front to back, until fn returns false.
+    template <class Fn>
+    void march(double px, double py, Fn&& fn) const {
+        const Vec3 origin = geometry.origin0 + geometry.origin_dx * px + geometry.origin_dy * py;
+        const Vec3 dir = geometry.direction(px, py);
+        double z0 = INFINITY, z1 = -INFINITY;
+        for (const RayGrid& g : grids) {
+            double a = near_depth, b = far_depth;
+            if (ray_box_depths(g, origin, dir, a, b)) z0 = std::min(z0, a), z1 = std::max(z1, b);
+        }
+        if (!(z0 <= z1)) return;
+        const int64_t k0 = std::max<int64_t>(0, sheet_floor((z0 - near_depth) / step - 0.5));
+        const int64_t k1 = -sheet_floor(-((z1 - near_depth) / step - 0.5));  // the ceiling
+        for (int64_t k = k0; k <= k1; ++k) {
+            const double z = near_depth + (double(k) + 0.5) * step;
+            if (z > far_depth) break;
+            if (!fn(origin + dir * z, z)) break;
+        }
+    }
+};
+
+Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+/// The direction of v in a length float holds (gradients of densities near 1e30 exceed it).
+Vec3 scale_free(const Vec3& v) {
+    const double largest = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    return largest > 0 ? v / largest : v;
+}
+
+}  // namespace
+
+void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
+                    const ShadedParams& params, RenderControl& control, float* rgba, float* depth) {
+    const Marcher m(volumes, camera, params, &lighting);
+    const float cutoff = float(params.opacity_cutoff);
+    for_each_pixel(camera, params.pixel_step, control, [&](size_t index, double px, double py) {
+        const Vec3 dir = m.geometry.direction(px, py);
+        const double length_per_step = m.step * length(dir);
+        const Vec3f to_eye = to_float(dir * (-1.0 / length(dir)));
+        Rgba acc;
+        float half_way = INFINITY;
+        m.march(px, py, [&](const Vec3& x, double z) {
+            double sigma_sum = 0;
+            Vec3 emission;
+            for (const RayGrid& g : m.grids) {
+                const DensitySample s = sample(g, m.kernel, x);
+                if (!s.reached) continue;
+                const ClassificationTable::Sample c = (*g.classification)(float(s.density));
+                if (!(c.extinction > 0)) continue;
+                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(scale_free(s.gradient)), to_eye,
+                                                  to_float(x - m.geometry.origin0));
+                sigma_sum += c.extinction;
+                emission = emission + Vec3{lit.x, lit.y, lit.z} * double(c.extinction);
+            }
+            if (sigma_sum > 0) {
+                const float alpha = slab_opacity(float(sigma_sum), float(length_per_step));
+                const float before = acc.a;
+                composite_behind(acc, float(emission.x / sigma_sum), float(emission.y / sigma_sum), float(emission.z / sigma_sum), alpha);
+                if (before < 0.5f && acc.a >= 0.5f) half_way = float(z);
+            }
+            return acc.a < cutoff;
+        });
+        float* out = rgba + 4 * index;
+        out[0] = acc.r, out[1] = acc.g, out[2] = acc.b, out[3] = acc.a;
+        if (depth) depth[index] = half_way;
+    });
+}
+
+void raycast_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
+                 RenderControl& control, float* out) {
+    const Marcher m(volumes, camera, params, nullptr);
+    for_each_pixel(camera, params.pixel_step, control, [&](size_t index, double px, double py) {
+        double maximum = mip_background(volumes);
+        m.march(px, py, [&](const Vec3& x, double) {
+            for (const RayGrid& g : m.grids) {
+                const DensitySample s = sample(g, m.kernel, x);
+                if (s.reached) maximum = std::max(maximum, s.density);
+            }
+            return true;
+        });
+        out[index] = float(maximum);
+    });
+}
+
+}  // namespace pcvr

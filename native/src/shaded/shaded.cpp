@@ -1,0 +1,412 @@
+#include "pcvr/shaded.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include "pcvr/errors.h"
+#include "pcvr/kernel.h"
+#include "shaded/raycast_reference.h"
+#include "shaded/shaded_levels.h"
+#include "shaded/sheet_walk.h"
+#include "shaded/slab_splat.h"
+#include "splat/post_convolution.h"
+#include "splat/slab_footprint.h"
+#include "view/block_plan.h"
+#include "view/tile_set.h"
+
+namespace pcvr {
+
+ShadedMethod shaded_method_from_name(const std::string& name) {
+    if (name == "regular") return ShadedMethod::Regular;
+    if (name == "pcvr") return ShadedMethod::Pcvr;
+    if (name == "bilinear_spread") return ShadedMethod::BilinearSpread;
+    if (name == "raycast") return ShadedMethod::Raycast;
+    throw InvalidArgument("unknown method '" + name + "' (expected regular, pcvr, bilinear_spread or raycast)");
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Kernels sum to one up to a ripple of about 0.5% (gauss1.4): value ranges are widened by twice that.
+constexpr double kRippleMargin = 0.01;
+/// Tiles are squares of 64 subgrid nodes (PCVR at magnification 4: 256 pixels), 128 to 256 pixels:
+/// several times a block's footprint, so that few voxels are splatted by more than one tile, and
+/// enough of them that threads share the work (a 1024 x 1024 image has 16 to 64).
+int automatic_tile_size(int smallest_stride) { return std::clamp(64 * smallest_stride, 128, 256); }
+
+/// The largest stride splatted: 256, the tile size and the image's smaller side. A sheet's gradient
+/// reads one node (a stride of pixels) beyond its tile, so each tile post-convolves its sheets a stride
+/// wider on every side: near an eye automatic strides reach 65536 and took 8 GB per tile, and a stride
+/// of 256 cost a 1-pixel tile or a 1-pixel-high image 500 times its pixels per sheet (both found by
+/// fuzz_shaded). Where magnification is that high, few voxels fill the image: a finer subgrid costs
+/// little, and it is at least as accurate.
+int most_stride(const Camera& camera, const ShadedParams& params) {
+    const int tile = params.tile_size > 0 ? params.tile_size : 256;
+    return std::max(1, std::min({256, tile, camera.width(), camera.height()}));
+}
+
+/// Moves the blocks of strides above `most` to it (their pixel bounds, from the larger stride's
+/// margin, still hold).
+void cap_strides(BlockPlan& plan, int most) {
+    for (auto beyond = plan.by_stride.upper_bound(most); beyond != plan.by_stride.end(); beyond = plan.by_stride.erase(beyond)) {
+        std::vector<PlannedBlock>& capped = plan.by_stride[most];
+        capped.insert(capped.end(), beyond->second.begin(), beyond->second.end());
+    }
+}
+
+/// Sheets hold densities times world lengths (a slab's) in float32, where voxels' contributions add
+/// up: beyond this they could leave its range (3.4e38) and turn into infinities and NaN.
+constexpr double kMostSheetValue = 1e36;
+
+/// Throws InvalidArgument where a grid's densities times its scale, or their integral over a slab,
+/// exceed kMostSheetValue.
+void check_density_range(const ShadedVolume& v, const ShadedParams& params) {
+    const Grid& grid = *v.grid;
+    const auto [lo, hi] = grid.value_range();
+    const double largest = std::max({std::abs(double(lo)), std::abs(double(hi)), std::abs(double(grid.background()))}) * v.density_scale;
+    const double slab = largest_singular_value(grid.index_to_world()) * params.sheet_spacing;  // world units, at most
+    if (largest <= kMostSheetValue && largest * std::max(1.0, slab) <= kMostSheetValue) return;
+    std::ostringstream msg;
+    msg << "grid '" << grid.name() << "': densities times density_scale reach " << largest << ", over slabs up to " << slab
+        << " world units thick, beyond " << kMostSheetValue << " (the sheets hold them in float32, whose range ends at "
+        << "3.4e38): scale the densities down with density_scale, and the transfer function's with them";
+    throw InvalidArgument(msg.str());
+}
+
+void validate(const std::vector<ShadedVolume>& volumes, const ShadedParams& params, bool need_transfer_functions) {
+    // Sheets (or steps) 1e-300 voxels apart, or 1e300 (their world spacing infinite), cannot work.
+    if (!(params.sheet_spacing >= 1e-6 && params.sheet_spacing <= 1e6))
+        throw InvalidArgument("sheet_spacing must be a number of voxels from 1e-6 to 1e6");
+    if (!(params.opacity_cutoff > 0 && params.opacity_cutoff <= 1))
+        throw InvalidArgument("opacity_cutoff must lie in (0, 1]");
+    if (params.stride < 0) throw InvalidArgument("stride must be 0 (automatic) or a positive number of pixels");
+    if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
+    if (params.tile_size < 0) throw InvalidArgument("tile_size must be 0 (automatic) or a positive number of pixels");
+    if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
+    if (params.level < -1) throw InvalidArgument("level must be -1 (automatic) or a level of detail from 0");
+    if (params.samples_per_sheet < 1 || params.samples_per_sheet > 64)
+        throw InvalidArgument("samples_per_sheet must be 1 to 64");
+    if (params.pixel_step > 1 && params.method != ShadedMethod::Raycast)
+        throw InvalidArgument("pixel_step is only supported by method 'raycast'");
+    for (size_t i = 0; i < volumes.size(); ++i) {
+        if (!volumes[i].grid) throw InvalidArgument("volume " + std::to_string(i) + " has no grid");
+        if (!(volumes[i].density_scale >= 0) || !std::isfinite(volumes[i].density_scale))
+            throw InvalidArgument("density_scale must be finite and >= 0");
+        check_density_range(volumes[i], params);
+        if (need_transfer_functions) {
+            if (!volumes[i].transfer_function)
+                throw InvalidArgument("grid '" + volumes[i].grid->name() + "' has no transfer function");
+            volumes[i].transfer_function->validate();
+        }
+    }
+}
+
+/// Depths of the near and far clip planes.
+std::pair<double, double> clip_depths(const Camera& camera) {
+    const Mat4& w2c = camera.world_to_camera();
+    auto depth_of = [&](const Vec3& p) { return -(w2c.m[2][0] * p.x + w2c.m[2][1] * p.y + w2c.m[2][2] * p.z + w2c.m[2][3]); };
+    const Ray r = camera.pixel_ray(0.5 * (camera.width() - 1), 0.5 * (camera.height() - 1));
+    return {depth_of(r.origin), depth_of(r.origin + r.direction)};
+}
+
+/// How wide a neighbourhood of blocks decides whether a block can be culled as transparent, and how
+/// far the post-filter can push a sample beyond its nodes' range.
+///
+/// Culling block b removes its voxels' contributions from the sheets, from nodes within the kernel
+/// radius R of its voxels, and so changes the value or the gradient of samples near it. Every such
+/// sample must stay transparent with and without b, so every voxel its value is made of must be in
+/// the range the transfer function is tested on: voxels within R + (what the sample's gradient
+/// reads) + R + (what its value reads) of b. Across the rays a value reads pixels up to f subgrid
+/// nodes away (f = 1 for the bilinear post filter, 2 for the four-tap ones; a node is at most a voxel
+/// wide), its gradient one node more: 2 f + 1. Along them, in sheet spacings: a sample on sheet s
+/// reads half a spacing, its gradient the sheets either side (1.5); a sample t of the way to s + 1
+/// reads sheets s and s + 1 (the clamped cubic stays in their range: max(0.5 + t, 1.5 - t)) and its
+/// gradient s - 1 to s + 2 (max(1.5 + t, 2.5 - t)), together 4 - 2 / samples_per_sheet at most. BlockValueRange holds
+/// the ranges within 8, 12 and 16 voxels. The post filter's negative lobes let a sample leave the
+/// range of its nodes.
+struct CullingReach {
+    int voxels = 0;         // which of BlockValueRange's ranges: within 8, 12 or 16 voxels; 0: cannot cull
+    double overshoot = 0;   // of the post filter
+};
+
+CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool post_convolved, double spacing_voxels,
+                           int samples_per_sheet) {
+    const double f = post_convolved ? filter.reach_nodes() : 0.0;
+    const double along = (samples_per_sheet > 1 ? 4.0 - 2.0 / samples_per_sheet : 2.0) * spacing_voxels;
+    const double reach = 2.0 * kernel.radius() + std::max(2.0 * f + 1.0, along);
+    CullingReach out;
+    for (int within : {8, 12, 16})
+        if (out.voxels == 0 && reach <= within) out.voxels = within;
+    out.overshoot = post_convolved ? filter.overshoot() : 0.0;
+    return out;
+}
+
+/// A block whose samples can only take densities the transfer function makes transparent. A sample
+/// is the background plus a weighted sum of values less the background, weights adding up to at most
+/// one: between the background and the values around the block.
+bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
+                 const ClassificationTable& table) {
+    const auto [lowest, highest] = reach.voxels == 8    ? std::pair{r.reach_min, r.reach_max}
+                                   : reach.voxels == 12 ? std::pair{r.mid_min, r.mid_max}
+                                                        : std::pair{r.wide_min, r.wide_max};
+    const double lo = std::min(0.0, (double(lowest) - background) * density_scale);
+    const double hi = std::max(0.0, (double(highest) - background) * density_scale);
+    const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
+    const double offset = background * density_scale;
+    return table.transparent(offset + lo - margin, offset + hi + margin);
+}
+
+/// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
+void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
+                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
+    const auto start = Clock::now();
+    const bool mip = lighting == nullptr;
+    const Kernel kernel = Kernel::from_name(params.splat_kernel);
+    const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
+    const FootprintTable table(kernel);
+    const DepthProfile profile(kernel);
+    const bool regular = params.method == ShadedMethod::Regular;
+    const bool spread = params.method == ShadedMethod::BilinearSpread;
+
+    // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis;
+    // planes for orthographic views, spheres around the eye for perspective ones.
+    const SheetGeometry geometry(camera);
+    SheetLattice sheets;
+    sheets.spherical = !camera.orthographic();
+    sheets.eye = geometry.origin0;
+    std::vector<ViewProjection> projections;
+    double spacing = INFINITY;
+    for (const ShadedVolume& v : volumes) {
+        projections.emplace_back(camera, v.grid->index_to_world());
+        if (v.grid->active_voxel_count() > 0)
+            spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid, sheets.spherical));
+    }
+    if (!std::isfinite(spacing)) return;  // nothing to render
+    const auto [near_depth, far_depth] = clip_depths(camera);
+    sheets.spacing = spacing * params.sheet_spacing;
+    // From one sheet in front of the near plane (samples between sheets cover the ray from there on,
+    // each counting for its share between the clip planes) to the far plane; along the rays through
+    // the image's corners for spheres.
+    double nearest = near_depth, farthest = far_depth;
+    if (sheets.spherical) {
+        nearest = near_depth * geometry.world_per_depth;
+        farthest = far_depth * geometry.longest_ray;
+    }
+    sheets.first_depth = nearest - sheets.spacing;
+    sheets.count = -sheet_floor(-(farthest - sheets.first_depth) / sheets.spacing);  // the ceiling
+
+    SlabSplatParams splat;
+    splat.kernel = &kernel;
+    splat.table = &table;
+    splat.profile = &profile;
+    splat.mode = spread ? SlabMode::BilinearSpread : SlabMode::Footprint;
+
+    // Each grid's blocks in view, with the stride of each: per block from its least magnified corner
+    // (perspective views make depth bands), or the one asked for.
+    std::vector<BlockPlan> plans;
+    const int largest_stride = most_stride(camera, params);
+    int smallest_stride = INT32_MAX;
+    for (size_t g = 0; g < volumes.size(); ++g) {
+        BlockPlanParams plan_params;
+        plan_params.kernel_radius = kernel.radius();
+        plan_params.fixed_stride = regular ? 1 : std::min(params.stride, largest_stride);
+        plan_params.nearest_stride = spread;
+        plan_params.clip_planes = false;
+        // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
+        plan_params.margin_nodes = regular ? 1 : 3;
+        plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
+        cap_strides(plans.back(), largest_stride);
+        for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, int(stride));
+    }
+    if (smallest_stride == INT32_MAX) smallest_stride = 1;
+
+    TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride));
+    SheetWalkSetup setup;
+    std::vector<std::unique_ptr<SlabView>> views;
+    std::vector<std::unique_ptr<ClassificationTable>> classifications;
+    std::vector<std::unique_ptr<Shader>> shaders;
+    for (size_t g = 0; g < volumes.size(); ++g) {
+        const ShadedVolume& volume = volumes[g];
+        const Grid& grid = *volume.grid;
+        const std::vector<VoxelBlock>& blocks = grid.blocks();
+        const BlockPlan& plan = plans[g];
+        const ClassificationTable* classification = nullptr;
+        const Shader* shader = nullptr;
+        if (!mip) {
+            const TransferFunction& tf = *volume.transfer_function;  // its unit resolved by LevelledVolumes
+            classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
+            classification = classifications.back().get();
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0));
+            shader = shaders.back().get();
+        }
+        const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);
+        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale)});
+        stats.blocks_total += plan.blocks_total;
+        stats.blocks_outside += plan.blocks_culled;
+        const std::vector<BlockValueRange>* ranges = mip || !params.cull_transparent ? nullptr : &grid.block_value_ranges();
+
+        // One layer per stride; its blocks in depth and under the transfer function, each listed in the
+        // tiles it reaches.
+        for (const auto& [whole_stride, list] : plan.by_stride) {
+            const int stride = int(whole_stride);  // the sheet renderer plans whole strides only
+            splat.stride = stride;
+            splat.density_scale = float(volume.density_scale);
+            splat.background = grid.background();
+            views.push_back(std::make_unique<SlabView>(grid, camera, sheets, splat));
+            const SlabView& view = *views.back();
+            const PostFilter filter(post_shape, stride);
+            const uint32_t layer = uint32_t(setup.layers.size());
+            setup.layers.push_back({&view, uint32_t(g), filter, !regular});
+            if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
+
+            const CullingReach culling =
+                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets.spherical),
+                              mip ? 1 : params.samples_per_sheet);
+            const Vec3& n = view.projection().depth_gradient();
+            const double reach = kernel.radius() * length(n);  // in depth, for the clip planes
+            const double span = VoxelBlock::kDim - 1;
+            const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
+            // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
+            // rounding, the post filter's reach and the gradient's stencil.
+            const double pixel_reach = regular ? 2.0 : double((filter.reach_nodes() + 1) * stride + finest);
+            for (const PlannedBlock& pb : list) {
+                const VoxelBlock& block = blocks[pb.index];
+                // Depth is affine: its extremes over the block are at the origin plus the negative
+                // (or positive) parts of the gradient.
+                const double nearest = view.origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+                if (nearest + depth_extent + reach < near_depth || nearest - reach > far_depth) {
+                    ++stats.blocks_outside;
+                    continue;
+                }
+                if (ranges && culling.voxels > 0 && transparent((*ranges)[pb.index], grid.background(), volume.density_scale, culling, *classification)) {
+                    ++stats.blocks_transparent;
+                    continue;
+                }
+                tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
+                          float(view.limit_scale(block)));
+                ++stats.blocks_listed;
+            }
+        }
+        control.throw_if_cancelled();
+    }
+    tiles.sort();
+    stats.tiles = tiles.size();
+    setup.tiles = &tiles;
+    setup.sheets = sheets;
+    setup.geometry = &geometry;
+    setup.mip = mip;
+    setup.opacity_cutoff = float(params.opacity_cutoff);
+    setup.samples_per_sheet = params.samples_per_sheet;
+    setup.width = camera.width();
+    setup.height = camera.height();
+    setup.near_depth = float(near_depth);
+    setup.far_depth = float(far_depth);
+    setup.mip_background = float(mip_background(volumes));
+    stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
+
+    control.begin_phase(tiles.size(), 0.02, 1.0);
+    tbb::enumerable_thread_specific<SheetWalker> walkers;
+    tbb::enumerable_thread_specific<WalkStats> walk_stats;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t) {
+            control.throw_if_cancelled();
+            walkers.local().render(setup, t, image, depth, walk_stats.local(), control);
+            control.advance();
+        }
+    });
+    control.throw_if_cancelled();
+    WalkStats total;
+    for (const WalkStats& w : walk_stats) total.add(w);
+    stats.voxels_splatted = total.voxels_splatted;
+    stats.voxels_occluded = total.voxels_occluded;
+    stats.tiles_terminated = total.tiles_terminated;
+    stats.tile_sheets_composited = total.tile_sheets_composited;
+    stats.tile_sheets_skipped = total.tile_sheets_skipped;
+    stats.sheets = total.last_sheet >= total.first_sheet ? uint64_t(total.last_sheet - total.first_sheet + 1) : 0;
+    stats.seconds_splat = total.seconds_splat;
+    stats.seconds_post_convolution = total.seconds_post_convolution;
+    stats.seconds_shading = total.seconds_shading;
+}
+
+template <class Image, class Render>
+Image run(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params, int channels,
+          ShadedStats* stats_out, Render&& render) {
+    const auto start = Clock::now();
+    Image out;
+    const int step = params.method == ShadedMethod::Raycast ? params.pixel_step : 1;
+    out.width = (camera.width() + step - 1) / step;
+    out.height = (camera.height() + step - 1) / step;
+    out.pixels = ZeroedBuffer<float>(size_t(out.width) * out.height * channels);
+    ShadedStats stats;
+    tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
+    arena.execute([&] { render(stats, out); });
+    stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    if (stats_out) *stats_out = std::move(stats);
+    return out;
+}
+
+}  // namespace
+
+RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
+                        const ShadedParams& params, RenderControl& control, ShadedStats* stats) {
+    validate(volumes, params, true);
+    lighting.validate();
+    for (const ShadedVolume& v : volumes) {
+        if (!v.material) continue;
+        try {
+            v.lit_by(lighting).validate();
+        } catch (const InvalidArgument& e) {
+            throw InvalidArgument("grid '" + v.grid->name() + "': " + e.what());
+        }
+    }
+    Kernel::from_name(params.splat_kernel);
+    post_filter_from_name(params.post_filter);
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MeanOverBackground);
+    return run<RgbaImage>(levelled.volumes(), camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
+        s.level = levelled.level();
+        float* depth = nullptr;
+        if (params.depth) {
+            image.depth = ZeroedBuffer<float>(size_t(image.width) * image.height);
+            std::fill(image.depth.begin(), image.depth.end(), INFINITY);
+            depth = image.depth.data();
+        }
+        if (params.method == ShadedMethod::Raycast)
+            raycast_shaded(levelled.volumes(), camera, lighting, params, control, image.pixels.data(), depth);
+        else
+            render_sheets(levelled.volumes(), camera, &lighting, params, control, s, image.pixels.data(), depth);
+    });
+}
+
+double mip_background(const std::vector<ShadedVolume>& volumes) {
+    double most = volumes.empty() ? 0.0 : -INFINITY;
+    for (const ShadedVolume& v : volumes) most = std::max(most, double(v.grid->background()) * v.density_scale);
+    return most;
+}
+
+MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
+                    RenderControl& control, ShadedStats* stats) {
+    validate(volumes, params, false);
+    Kernel::from_name(params.splat_kernel);
+    post_filter_from_name(params.post_filter);
+    const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MaxOverBackground);
+    return run<MipImage>(levelled.volumes(), camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
+        s.level = levelled.level();
+        // Tiles no voxel reaches are not walked.
+        std::fill(image.pixels.begin(), image.pixels.end(), float(mip_background(volumes)));
+        if (params.method == ShadedMethod::Raycast)
+            raycast_mip(levelled.volumes(), camera, params, control, image.pixels.data());
+        else
+            render_sheets(levelled.volumes(), camera, nullptr, params, control, s, image.pixels.data(), nullptr);
+    });
+}
+
+}  // namespace pcvr

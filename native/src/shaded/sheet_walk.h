@@ -1,0 +1,143 @@
+/// @file sheet_walk.h
+/// @brief One tile's front-to-back walk through its sheets: splat, post-convolve, classify, shade,
+/// composite, sheet after sheet, until the tile is done or opaque.
+///
+/// Before the samples from sheet s towards s + 1 are composited, every voxel whose kernel reaches sheet
+/// s + 2 has been splatted: voxels are taken from the tile's blocks in depth order, a block's voxels in
+/// the order of SlabView::depth_order, as the splat front moves on. Sheet s + 2 is then post-convolved
+/// to the tile's pixels plus a halo of one subgrid node (for the in-sheet gradient), and the samples
+/// are classified, shaded and composited into the tile: with samples_per_sheet > 1 the density along
+/// the ray is the Catmull-Rom cubic through sheets s - 1 to s + 2, so that a surface crossing the sheets
+/// is not cut into terraces. Only four post-convolved sheets and a ring of node sheets per grid are
+/// alive at a time. Runs of sheets that no splat reaches are jumped over. The occlusion map is rebuilt
+/// as pixels become opaque, and splats that can only reach opaque pixels are skipped; a tile whose
+/// every pixel is opaque stops.
+/// A SheetWalker holds one thread's scratch memory and is reused tile after tile.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "pcvr/render_control.h"
+#include "pcvr/shading.h"
+#include "pcvr/transfer_function.h"
+#include "shaded/compositing.h"
+#include "shaded/occlusion_map.h"
+#include "shaded/sheet_buffer.h"
+#include "shaded/slab_splat.h"
+#include "splat/post_convolution.h"
+#include "view/tile_set.h"
+
+namespace pcvr {
+
+/// World positions along pixel rays in terms of depth: point(px, py, z) = origin(px, py) + z dir(px, py),
+/// both affine in pixel coordinates (every pinhole and orthographic camera).
+struct SheetGeometry {
+    Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0 (the eye, in perspective)
+    Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
+    double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
+    double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
+
+    explicit SheetGeometry(const Camera& camera);
+    Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
+    Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
+};
+
+/// Eight pixels' samples on one sheet: world position relative to SheetGeometry::origin0, the world displacement per pixel right and
+/// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
+struct SampleFrames {
+    Vec3x8 position, per_pixel_x, per_pixel_y, along;
+    float8 depth;       ///< camera-space depth (the clip planes and the Depth pass use it)
+    float8 depth_rate;  ///< camera-space depth per unit of the sheet parameter
+};
+
+/// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
+/// world radius u around the eye.
+SampleFrames sample_frames(const SheetGeometry& geometry, bool spherical, float8 px, float py, double u);
+
+/// One grid as the walk sees it: what classifies its sheets, and the finest subgrid stride of its
+/// layers (the step of its in-sheet gradient).
+struct WalkGrid {
+    const ClassificationTable* classification;  ///< null for MIP
+    const Shader* shader;                       ///< null for MIP
+    int gradient_step;
+    float background;  ///< added to the sheets' densities (SlabSplatParams::background), scaled
+};
+
+/// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,
+/// magnified more, at a coarser stride (depth bands, as for X-ray); each layer has its own rings, and
+/// its sheets are post-convolved into the grid's pixel sheets, where the layers add up.
+struct WalkLayer {
+    const SlabView* view;
+    uint32_t grid;     ///< into SheetWalkSetup::grids
+    PostFilter filter; ///< at the view's stride
+    bool post_convolve;  ///< false (regular): the ring's nodes are the pixels
+};
+
+struct SheetWalkSetup {
+    std::vector<WalkGrid> grids;
+    std::vector<WalkLayer> layers;  ///< TileBlock::grid indexes these
+    const TileSet* tiles = nullptr;
+    SheetLattice sheets;
+    const SheetGeometry* geometry = nullptr;
+    bool mip = false;  ///< maximum intensity projection: no classification, no shading
+    float opacity_cutoff = 0.99f;
+    int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
+    int width = 0, height = 0;
+    float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
+    float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)
+
+    int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
+    /// True when every pixel's stretch of ray from u - half to u + half (sheet parameter) lies between
+    /// the clip planes, so that no sample needs its share.
+    bool within_clip_everywhere(double u, double half) const;
+    /// World length of the ray per unit of the sheet parameter: 1 on spheres; planes are orthographic,
+    /// where every ray is the same.
+    double ray_length_per_unit() const;
+    /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
+    /// spherical sheets cross the planes, and a sample half in front of the near plane counts half.
+    float8 clip_share(float8 depth, float8 half_extent) const {
+        const float8 covered = min8(depth + half_extent, broadcast8(far_depth)) - max8(depth - half_extent, broadcast8(near_depth));
+        return max8(broadcast8(0.0f), min8(broadcast8(1.0f), covered / (2.0f * half_extent)));
+    }
+};
+
+struct WalkStats {
+    uint64_t voxels_splatted = 0, voxels_occluded = 0;
+    uint64_t tiles_terminated = 0, tile_sheets_composited = 0, tile_sheets_skipped = 0;
+    double seconds_splat = 0, seconds_post_convolution = 0, seconds_shading = 0;
+    int64_t first_sheet = INT64_MAX, last_sheet = INT64_MIN;
+
+    void add(const WalkStats& o);
+};
+
+class SheetWalker {
+public:
+    SheetWalker();
+    ~SheetWalker();
+    /// Renders tile `tile` into `image`: RGBA (4 floats per pixel) for shaded renders, one float per
+    /// pixel for MIP; row-major over the whole image.
+    /// `depth` (optional, one float per pixel): where the opacity first reached one half.
+    void render(const SheetWalkSetup& setup, size_t tile, float* image, float* depth, WalkStats& stats, RenderControl& control);
+
+private:
+    struct GridState;
+    struct LayerState;
+    /// Classifies, shades and composites the sample t of the way from sheet s to s + 1 into the tile;
+    /// returns how many pixels became opaque.
+    size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
+    void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
+
+    std::vector<std::unique_ptr<GridState>> grids_;
+    std::vector<std::unique_ptr<LayerState>> layers_;
+    // The tile's accumulated colour and opacity (premultiplied), or its maximum density, one plane
+    // per channel, rows padded to whole vectors of eight pixels.
+    size_t row_pitch_ = 0;
+    std::vector<float> red_, green_, blue_, alpha_, depth_;
+    std::vector<float> maximum_;
+    std::vector<float> scratch_;
+};
+
+}  // namespace pcvr

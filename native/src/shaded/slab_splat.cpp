@@ -1,0 +1,499 @@
+#include "shaded/slab_splat.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+#include "pcvr/errors.h"
+#include "pcvr/lanes.h"
+#include "volume/block_voxels.h"
+
+namespace pcvr {
+
+
+namespace {
+
+constexpr int kBatch = 8;
+/// Sheets one kernel may span (its deposit keeps a pointer and a share per sheet on the stack): enough
+/// for voxels 30 times longer than wide seen along their short side at the default spacing.
+constexpr int kMostSlabs = 128;
+
+inline void add8(float* p, float8 v) { store8(p, load8(p) + v); }
+
+typedef float float4 __attribute__((vector_size(16)));
+inline float4 low4(float8 v) { return float4{v[0], v[1], v[2], v[3]}; }
+inline float4 high4(float8 v) { return float4{v[4], v[5], v[6], v[7]}; }
+inline void add4(float* p, float4 v) {
+    float4 x;
+    std::memcpy(&x, p, sizeof x);
+    x += v;
+    std::memcpy(p, &x, sizeof x);
+}
+
+/// Windows wider than this many nodes take the per-tap path.
+constexpr int kMostWindow = 16;
+
+
+/// The values of ranks [first, first + 8) (0 for ranks at or past `last`, inactive or non-finite voxels).
+/// Voxel values less the background, 0 for ranks beyond `last` and inactive voxels.
+float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full, float background) {
+    float8 v;
+    if (full && last - first >= kBatch) {
+        // Every rank a voxel: gather them (the order's offsets are valid past the block's end too).
+        int8x offsets;
+        std::memcpy(&offsets, order.offset.data() + first, sizeof offsets);
+        v = (block.values ? gather8(block.values, offsets) : broadcast8(block.constant)) - background;
+    } else {
+        for (int l = 0; l < kBatch; ++l) {
+            const int rank = first + l;
+            const int offset = order.offset[rank];
+            v[l] = rank < last && (full || block.active(offset)) ? block.value(offset) - background : 0.0f;
+        }
+    }
+    return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
+}
+
+uint32_t non_zero_lanes(float8 v) { return lane_mask(v != 0.0f); }
+
+}  // namespace
+
+/// Eight voxels projected onto a ring: everything the deposit needs, per lane, in ring node units.
+struct SlabBatch {
+    float cx[kBatch], cy[kBatch];                // centre
+    float qxx[kBatch], qxy[kBatch], qyy[kBatch];  // rho^2 per node offset
+    float ext_x[kBatch], ext_y[kBatch];          // half-widths of the ellipse's bounding box
+    float amp[kBatch];                           // value * density scale * world length per index length
+    float s0[kBatch];                            // s (index units along the ray) of the first slab's front, at the centre
+    float s_dx[kBatch], s_dy[kBatch];            // change of s per node offset
+    float s_step[kBatch];                        // s between consecutive slab boundaries
+    int64_t first_sheet[kBatch];
+    uint32_t live = 0;                           // lanes holding a voxel to splat
+    uint32_t aligned = 0;                        // lanes whose slab shares hold at every tap
+    float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
+};
+
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical) {
+    Footprint centre;
+    const auto [i0, j0, k0, i1, j1, k1] = grid.index_bbox();
+    const Vec3 middle{0.5 * (i0 + i1), 0.5 * (j0 + j1), 0.5 * (k0 + k1)};
+    // Behind the eye there is no central ray through the grid: fall back to the steepest direction.
+    if (!projection.footprint_unclipped(middle, centre))
+        return spherical ? largest_singular_value(grid.index_to_world()) : length(projection.depth_gradient());
+    return spherical ? centre.line_scale : centre.depth_per_index;
+}
+
+SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params)
+    : grid_(&grid), projection_(camera, grid.index_to_world()), sheets_(sheets), params_(params) {
+    if (!params.kernel || !params.table || !params.profile || params.stride < 1)
+        throw InvalidArgument("SlabView: kernel, footprint table, depth profile and a stride >= 1 are required");
+    const Vec3& n = projection_.depth_gradient();
+    index_to_camera_ = camera.world_to_camera() * grid.index_to_world();
+    const Mat4 camera_to_world = *camera.world_to_camera().inverse();
+    world_per_camera_ = length(camera_to_world.column(2));
+    // A kernel's reach in the sheet parameter: along the depth gradient for planes; for spheres the
+    // longest world length of an index-space radius (the largest singular value of the linear part).
+    depth_reach_ = params.kernel->radius() * (sheets.spherical ? largest_singular_value(grid.index_to_world()) : length(n));
+    slabs_per_voxel_ = int(std::ceil(2.0 * depth_reach_ / sheets.spacing - 1e-9)) + 1;
+    if (!(slabs_per_voxel_ <= kMostSlabs)) {
+        const double factor = 2.0 * depth_reach_ / (kMostSlabs - 1) / sheets.spacing;
+        throw InvalidArgument("sheet spacing too small for grid '" + grid.name() + "': its kernel would span " +
+                              std::to_string(slabs_per_voxel_) + " sheets (at most " + std::to_string(kMostSlabs) +
+                              "; its voxels are long in depth): make sheet_spacing at least " + std::to_string(factor) +
+                              " times larger");
+    }
+
+    // Depth order of a block's voxels: depth is affine in index space, so one order serves every block.
+    std::vector<int32_t> offsets(VoxelBlock::kSize);
+    std::iota(offsets.begin(), offsets.end(), 0);
+    auto depth_of = [&](int32_t o) { return dot(n, Vec3{double(o >> 6), double((o >> 3) & 7), double(o & 7)}); };
+    std::stable_sort(offsets.begin(), offsets.end(), [&](int32_t a, int32_t b) { return depth_of(a) < depth_of(b); });
+    const size_t padded = VoxelBlock::kSize + kBatch;
+    order_.offset.assign(padded, 0);
+    order_.i.assign(padded, 0.0f);
+    order_.j.assign(padded, 0.0f);
+    order_.k.assign(padded, 0.0f);
+    order_.depth.assign(padded, INFINITY);
+    for (int r = 0; r < VoxelBlock::kSize; ++r) {
+        const int32_t o = offsets[r];
+        order_.offset[r] = o;
+        order_.i[r] = float(o >> 6);
+        order_.j[r] = float((o >> 3) & 7);
+        order_.k[r] = float(o & 7);
+        order_.depth[r] = float(depth_of(o));
+    }
+
+    if (projection_.orthographic()) {
+        // Differences of exact projections, as the X-ray splat does; the shape in subgrid node units.
+        const double inv_stride = 1.0 / params.stride;
+        Footprint f0, fi, fj, fk;
+        projection_.footprint_unclipped({0, 0, 0}, f0);
+        projection_.footprint_unclipped({1, 0, 0}, fi);
+        projection_.footprint_unclipped({0, 1, 0}, fj);
+        projection_.footprint_unclipped({0, 0, 1}, fk);
+        node_gx_ = Vec3{fi.px - f0.px, fj.px - f0.px, fk.px - f0.px} * inv_stride;
+        node_gy_ = Vec3{fi.py - f0.py, fj.py - f0.py, fk.py - f0.py} * inv_stride;
+        node_x0_ = f0.px * inv_stride;
+        node_y0_ = f0.py * inv_stride;
+        shape_ = f0;
+        const double s2 = double(params.stride) * params.stride;
+        shape_.qxx *= s2;
+        shape_.qxy *= s2;
+        shape_.qyy *= s2;
+        shape_.depth_dx *= params.stride;
+        shape_.depth_dy *= params.stride;
+        // Smooth kernels' windows come whole from a phase table, as for X-ray; the box's rim would blur.
+        const double det = shape_.qxx * shape_.qyy - shape_.qxy * shape_.qxy;
+        const double radius = params.kernel->radius();
+        const double extent = std::max(radius * std::sqrt(shape_.qyy / det), radius * std::sqrt(shape_.qxx / det));
+        const int half_width = std::max(2, int(std::ceil(extent - 1e-4)));
+        if (params.mode == SlabMode::Footprint && params.kernel->smooth_footprint() && 2 * half_width <= kMostWindow)
+            window_ = std::make_unique<PhaseFootprintTable>(*params.kernel, shape_.qxx, shape_.qxy, shape_.qyy, half_width);
+    }
+}
+
+uint64_t SlabView::voxels_left(const VoxelBlock& block, int first) const {
+    if (all_active(block)) return uint64_t(VoxelBlock::kSize - first);
+    uint64_t n = 0;
+    for (int rank = first; rank < VoxelBlock::kSize; ++rank) n += block.active(order_.offset[rank]);
+    return n;
+}
+
+double SlabView::limit_scale(const VoxelBlock& block) const {
+    if (!sheets_.spherical) return 1.0;
+    // The block's voxel centres in camera space: their largest cosine to the axis is at most the
+    // largest depth over the hypotenuse with the smallest distance from the axis.
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
+                     double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))};
+        const Vec3 c = index_to_camera_.transform_point(p);
+        for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a]);
+    }
+    auto nearest_to_zero = [](double a, double b) { return a <= 0 && b >= 0 ? 0.0 : std::min(std::abs(a), std::abs(b)); };
+    const double off_axis = std::hypot(nearest_to_zero(lo[0], hi[0]), nearest_to_zero(lo[1], hi[1]));
+    const double deepest = std::max(-lo[2], 1e-300);  // depth = -z
+    return deepest / std::hypot(deepest, off_axis) / world_per_camera_;
+}
+
+double SlabView::front(const VoxelBlock& block) const {
+    const Vec3& n = projection_.depth_gradient();
+    const double span = VoxelBlock::kDim - 1;
+    const double nearest = origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+    // Spheres: a voxel's distance is its planar depth over its cosine to the axis, at least this.
+    return (sheets_.spherical ? std::max(0.0, nearest) / limit_scale(block) : nearest) - depth_reach_;
+}
+
+double SlabView::origin_depth(const VoxelBlock& block) const {
+    return projection_.depth(Vec3{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])});
+}
+
+namespace {
+
+/// What one voxel's deposit needs besides its projection: its slabs, the ring sheets they land in and
+/// each slab's share of the footprint at the centre (the whole footprint when `aligned`).
+struct LaneSlabs {
+    int first, count;            // slabs [first, count) of the voxel go into sheets[first..]
+    float* sheets[kMostSlabs];
+    float share[kMostSlabs];
+    bool aligned;                // the shares hold at every tap
+};
+
+/// Footprint weights (times amplitude) of eight taps at node offsets (dx, dy) from the centre, added to
+/// `row` of every slab's sheet: with the slab shares, or with D evaluated at each tap.
+template <class Add>
+inline void add_taps(const SlabBatch& b, int l, const DepthProfile& depth, const LaneSlabs& slabs, size_t row, float8 weight,
+                     float8 dx, float8 dy, Add add) {
+    if (slabs.aligned) {
+        for (int k = slabs.first; k < slabs.count; ++k) add(slabs.sheets[k] + row, weight * slabs.share[k]);
+        return;
+    }
+    const auto clamp_unit = [](float8 t) { return clamp8(t, -1.0f, 1.0f); };
+    const auto magnitude = [](float8 t) { return abs8(t); };
+    const float radius = depth.radius();
+    // Before the kernel's reach D is 0 and beyond it 1: slabs wholly outside take no polynomial, and
+    // once every tap is past the kernel the rest of the slabs get nothing.
+    auto D = [&](float8 s) {
+        if (!any8(s > -radius)) return broadcast8(0.0f);
+        if (!any8(s < radius)) return broadcast8(1.0f);
+        return depth(s, clamp_unit, magnitude);
+    };
+    float8 s = b.s0[l] + slabs.first * b.s_step[l] + b.s_dx[l] * dx + b.s_dy[l] * dy;
+    float8 front = D(s);
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        s += b.s_step[l];
+        const float8 back = D(s);
+        if (any8(back != front)) add(slabs.sheets[k] + row, weight * (back - front));
+        if (!any8(s < radius)) break;
+        front = back;
+    }
+}
+
+/// The footprint's taps row by row over `window` (ring nodes), eight at a time, weights from the
+/// footprint table: any footprint (perspective, box kernel, wide windows).
+void deposit_footprint(const SlabBatch& b, int l, const FootprintTable& table, const DepthProfile& depth,
+                       const LaneSlabs& slabs, const Box& window, size_t pitch) {
+    const float cx = b.cx[l], cy = b.cy[l];
+    const float qxx = b.qxx[l], qxy2 = 2.0f * b.qxy[l], qyy = b.qyy[l];
+    const float8 lanes = lane_index8();
+    const float8 scale = broadcast8(table.scale()), last_index = broadcast8(table.max_index());
+    for (int r = window.y0; r <= window.y1; ++r) {
+        const float dy = float(r) - cy;
+        for (int col = window.x0; col <= window.x1; col += kBatch) {
+            const float8 dx = (float(col) - cx) + lanes;
+            const int8x inside = lanes <= float(window.x1 - col);
+            const float8 rho2 = (qxx * dx + qxy2 * dy) * dx + qyy * dy * dy;
+            const int8x index = __builtin_convertvector(min8(max8(rho2 * scale, broadcast8(0.0f)), last_index), int8x);
+            const float8 weight = select8(inside, gather8(table.data(), index) * b.amp[l], broadcast8(0.0f));
+            add_taps(b, l, depth, slabs, size_t(r) * pitch + col, weight, dx, broadcast8(dy), add8);
+        }
+    }
+}
+
+/// An orthographic footprint's whole window from the phase table, its corner at ring node (col, row)
+/// and wholly inside the ring: no lookups per tap. PCVR's 4 x 4 window goes two rows per vector.
+void deposit_window(const SlabBatch& b, int l, const PhaseFootprintTable& table, const DepthProfile& depth,
+                    const LaneSlabs& slabs, int col, int row, size_t pitch) {
+    const float cx = b.cx[l], cy = b.cy[l];
+    const PhaseFootprintTable::Blend blend = table.blend(cx - std::floor(cx), cy - std::floor(cy));
+    const float amp = b.amp[l];
+    const float8 c0 = broadcast8(blend.coeff[0] * amp), c1 = broadcast8(blend.coeff[1] * amp);
+    const float8 c2 = broadcast8(blend.coeff[2] * amp), c3 = broadcast8(blend.coeff[3] * amp);
+    auto weights = [&](size_t t) {
+        return c0 * load8(blend.entry[0] + t) + c1 * load8(blend.entry[1] + t) + c2 * load8(blend.entry[2] + t) +
+               c3 * load8(blend.entry[3] + t);
+    };
+    const float8 lanes = lane_index8();
+    if (table.window() == 4) {
+        // Lanes 0-3: taps of one row, 4-7: of the next; each half goes into its own ring row.
+        const float8 column = (float(col) - cx) + select8(lanes < 4.0f, lanes, lanes - 4.0f);
+        const float8 half = select8(lanes < 4.0f, broadcast8(0.0f), broadcast8(1.0f));
+        for (int pair = 0; pair < 2; ++pair) {
+            const float8 dy = (float(row + 2 * pair) - cy) + half;
+            const size_t at = size_t(row + 2 * pair) * pitch + col;
+            add_taps(b, l, depth, slabs, at, weights(size_t(8 * pair)), column, dy, [pitch](float* p, float8 w) {
+                add4(p, low4(w));
+                add4(p + pitch, high4(w));
+            });
+        }
+        return;
+    }
+    const int window = table.window(), row_floats = table.pitch();
+    for (int j = 0; j < window; ++j) {
+        const float8 dy = broadcast8(float(row + j) - cy);
+        for (int i = 0; i < row_floats; i += kBatch)
+            add_taps(b, l, depth, slabs, size_t(row + j) * pitch + col + i, weights(size_t(j) * row_floats + i),
+                     (float(col + i) - cx) + lanes, dy, add8);
+    }
+}
+
+/// Westenberg-Roerdink: each slab's share of the footprint integral on the 2 x 2 nodes around the
+/// centre (corner (col, row)), clipped to `window`.
+void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, int row, const Box& window, size_t pitch) {
+    const float fx = b.cx[l] - float(col), fy = b.cy[l] - float(row);
+    const float w[2][2] = {{(1 - fx) * (1 - fy), fx * (1 - fy)}, {(1 - fx) * fy, fx * fy}};
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        const float mass = b.amp[l] * slabs.share[k];
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i)
+                if (col + i >= window.x0 && col + i <= window.x1 && row + j >= window.y0 && row + j <= window.y1)
+                    slabs.sheets[k][size_t(row + j) * pitch + col + i] += mass * w[j][i];
+    }
+}
+
+}  // namespace
+
+/// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
+/// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
+bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
+                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const {
+    const float cx = b.cx[l], cy = b.cy[l];
+    const bool spread = params_.mode == SlabMode::BilinearSpread;
+    // The window: for spreading the 2 x 2 nodes around the centre, else the ellipse's bounding box,
+    // or the phase table's window.
+    Box window;
+    if (spread) {
+        window.x0 = clamp_to_int(std::floor(cx), -2, ring.columns());
+        window.y0 = clamp_to_int(std::floor(cy), -2, ring.rows());
+        window.x1 = window.x0 + 1, window.y1 = window.y0 + 1;
+    } else if (window_) {
+        const int h = window_->half_width();
+        window.x0 = clamp_to_int(std::floor(cx), -kMostWindow, ring.columns() + kMostWindow) - h + 1;
+        window.y0 = clamp_to_int(std::floor(cy), -kMostWindow, ring.rows() + kMostWindow) - h + 1;
+        window.x1 = window.x0 + window_->window() - 1, window.y1 = window.y0 + window_->window() - 1;
+    } else {
+        window.x0 = clamp_to_int(std::ceil(cx - b.ext_x[l]), -1, ring.columns());
+        window.x1 = clamp_to_int(std::floor(cx + b.ext_x[l]), -1, ring.columns());
+        window.y0 = clamp_to_int(std::ceil(cy - b.ext_y[l]), -1, ring.rows());
+        window.y1 = clamp_to_int(std::floor(cy + b.ext_y[l]), -1, ring.rows());
+    }
+    const Box clipped = window.clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
+    if (clipped.empty() || window.clipped(needed).empty()) return false;
+    if (occlusion && occlusion->covered(clipped.x0, clipped.y0, clipped.x1, clipped.y1)) {
+        occluded = true;
+        return false;
+    }
+
+    LaneSlabs slabs;
+    const int64_t first_sheet = b.first_sheet[l];
+    slabs.first = int(std::clamp<int64_t>(first_open_sheet - first_sheet, 0, slabs_per_voxel_));
+    slabs.count = slabs_per_voxel_;
+    if (slabs.first >= slabs.count) return false;
+    for (int k = slabs.first; k < slabs.count; ++k) {
+        slabs.sheets[k] = ring.sheet(first_sheet + k);
+        slabs.share[k] = b.share[k][l];
+    }
+    slabs.aligned = (b.aligned >> l) & 1;
+    reached.include(clipped);
+    sheets_reached[0] = std::min(sheets_reached[0], first_sheet + slabs.first);
+    sheets_reached[1] = std::max(sheets_reached[1], first_sheet + slabs.count - 1);
+
+    const size_t pitch = ring.pitch();
+    if (spread)
+        deposit_spread(b, l, slabs, window.x0, window.y0, clipped, pitch);
+    else if (window_ && clipped.x0 == window.x0 && clipped.y0 == window.y0 && clipped.x1 == window.x1 && clipped.y1 == window.y1)
+        deposit_window(b, l, *window_, *params_.profile, slabs, window.x0, window.y0, pitch);
+    else
+        deposit_footprint(b, l, *params_.table, *params_.profile, slabs, clipped, pitch);
+    return true;
+}
+
+
+DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
+                                int64_t first_open_sheet, const OcclusionMap* occlusion) const {
+    DepositCounts counts;
+    if (first >= last) return counts;
+    const bool full = all_active(block);
+    const double stride = params_.stride, inv_stride = 1.0 / stride;
+    const double spacing = sheets_.spacing, inv_spacing = 1.0 / spacing;
+    const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
+    // Depths relative to the slab holding the block's origin keep the per-voxel arithmetic in small floats.
+    const double origin_slabs = (origin_depth(block) - sheets_.first_depth) * inv_spacing;
+    const int64_t base_sheet = sheet_floor(origin_slabs);
+    const float base_fraction = float(origin_slabs - double(base_sheet));
+    const float reach_slabs = float(depth_reach_ * inv_spacing);
+    const bool spread = params_.mode == SlabMode::BilinearSpread;
+    const float density_scale = params_.density_scale;
+    const DepthProfile& profile = *params_.profile;
+    auto D = [&profile](float8 s) {
+        return profile(s, [](float8 t) { return clamp8(t, -1.0f, 1.0f); }, [](float8 t) { return abs8(t); });
+    };
+
+    SlabBatch b;
+    for (int batch = first; batch < last; batch += kBatch) {
+        const float8 v = batch_values(block, order_, batch, last, full, params_.background);
+        b.live = non_zero_lanes(v);
+        if (!b.live) continue;
+        if (projection_.orthographic()) {
+            const float8 i = load8(order_.i.data() + batch), j = load8(order_.j.data() + batch), k = load8(order_.k.data() + batch);
+            const float ox = float(node_x0_ + dot(node_gx_, origin) - placement.node_x0);
+            const float oy = float(node_y0_ + dot(node_gy_, origin) - placement.node_y0);
+            const float8 cx = ox + float(node_gx_.x) * i + float(node_gx_.y) * j + float(node_gx_.z) * k;
+            const float8 cy = oy + float(node_gy_.x) * i + float(node_gy_.y) * j + float(node_gy_.z) * k;
+            // Slab units: the first slab a voxel reaches, and where its centre lies relative to it.
+            const float8 centre = base_fraction + load8(order_.depth.data() + batch) * float(inv_spacing);
+            const float kappa = float(shape_.depth_per_index);
+            for (int l = 0; l < kBatch; ++l) {
+                // Lanes past the block's last voxel lie at infinite depth (DepthOrder's padding) and
+                // splat nothing: their sheet is not converted from infinity.
+                const float front = b.live & (1u << l) ? std::floor(centre[l] - reach_slabs) : 0.0f;
+                b.cx[l] = cx[l];
+                b.cy[l] = cy[l];
+                b.first_sheet[l] = base_sheet + sheet_floor(front);
+                b.s0[l] = (front - centre[l]) * float(spacing) / kappa;
+            }
+            const double det = shape_.qxx * shape_.qyy - shape_.qxy * shape_.qxy;
+            const float ext_x = float(params_.kernel->radius() * std::sqrt(shape_.qyy / det));
+            const float ext_y = float(params_.kernel->radius() * std::sqrt(shape_.qxx / det));
+            const float amp_per_value = float(density_scale * shape_.line_scale * (spread ? 1.0 / std::sqrt(det) : 1.0));
+            for (int l = 0; l < kBatch; ++l) {
+                b.qxx[l] = float(shape_.qxx);
+                b.qxy[l] = float(shape_.qxy);
+                b.qyy[l] = float(shape_.qyy);
+                b.ext_x[l] = ext_x;
+                b.ext_y[l] = ext_y;
+                b.amp[l] = v[l] * amp_per_value;
+                b.s_dx[l] = float(-shape_.depth_dx / kappa);
+                b.s_dy[l] = float(-shape_.depth_dy / kappa);
+                b.s_step[l] = float(spacing / kappa);
+            }
+        } else {
+            const Mat4& m = projection_.index_to_clip();
+            for (int half = 0; half < 2; ++half) {
+                double4 x, y, z;
+                for (int l = 0; l < 4; ++l) {
+                    const int rank = batch + 4 * half + l;
+                    x[l] = origin.x + order_.i[rank];
+                    y[l] = origin.y + order_.j[rank];
+                    z[l] = origin.z + order_.k[rank];
+                }
+                auto row = [&](int r) { return x * m.m[r][0] + y * m.m[r][1] + z * m.m[r][2] + m.m[r][3]; };
+                const double4 clip_w = row(3);
+                const FootprintLanes<double4> f = projection_.footprint_lanes(x, y, z, row(0), row(1), clip_w, sqrt4);
+                for (int l = 0; l < 4; ++l) {
+                    const int lane = 4 * half + l;
+                    // A footprint needs the whole kernel in front of the eye.
+                    if (!(clip_w[l] > 0) || !(f.depth[l] > depth_reach_)) {
+                        b.live &= ~(1u << lane);
+                        continue;
+                    }
+                    const double qxx = f.qxx[l] * stride * stride, qxy = f.qxy[l] * stride * stride, qyy = f.qyy[l] * stride * stride;
+                    const double det = qxx * qyy - qxy * qxy;
+                    // Spheres: the sheet parameter is the world distance from the eye, which the ray
+                    // through the centre covers at the world length per index length (line_scale); it
+                    // changes across the footprint only where the kernel is not round in world space.
+                    double kappa = f.depth_per_index[l], parameter = f.depth[l];
+                    if (sheets_.spherical) {
+                        kappa = f.line_scale[l];
+                        parameter = length(grid_->index_to_world().transform_point(Vec3{x[l], y[l], z[l]}) - sheets_.eye);
+                    }
+                    const double slabs = (parameter - sheets_.first_depth) * inv_spacing;
+                    const double front = std::floor(slabs - depth_reach_ * inv_spacing);
+                    b.cx[lane] = float(f.px[l] * inv_stride - placement.node_x0);
+                    b.cy[lane] = float(f.py[l] * inv_stride - placement.node_y0);
+                    b.qxx[lane] = float(qxx);
+                    b.qxy[lane] = float(qxy);
+                    b.qyy[lane] = float(qyy);
+                    b.ext_x[lane] = float(params_.kernel->radius() * std::sqrt(qyy / det));
+                    b.ext_y[lane] = float(params_.kernel->radius() * std::sqrt(qxx / det));
+                    b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det) : 1.0));
+                    b.first_sheet[lane] = sheet_floor(front);
+                    b.s0[lane] = float((front - slabs) * spacing / kappa);
+                    b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa);
+                    b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa);
+                    b.s_step[lane] = float(spacing / kappa);
+                }
+            }
+        }
+        // Each slab's share of the footprint at the centre, eight voxels at once; sheets perpendicular to
+        // the rays through the kernel (isotropic voxels, orthographic view) give every tap that share.
+        // Aligned means that s moves by less than 1e-4 index units across the footprint (D changes by
+        // less than 1e-4 there); spreading puts each slab's share at the centre anyway.
+        const float8 s0 = load8(b.s0), step = load8(b.s_step);
+        float8 front = D(s0);
+        for (int k = 0; k < slabs_per_voxel_; ++k) {
+            const float8 back = D(s0 + float(k + 1) * step);
+            store8(b.share[k], back - front);
+            front = back;
+        }
+        const int8x aligned = abs8(load8(b.s_dx)) * load8(b.ext_x) + abs8(load8(b.s_dy)) * load8(b.ext_y) < 1e-4f;
+        b.aligned = spread ? 0xffu : lane_mask(aligned);
+
+        Box reached;
+        int64_t sheets_reached[2] = {INT64_MAX, INT64_MIN};
+        for (uint32_t todo = b.live; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            bool occluded = false;
+            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached))
+                ++counts.splatted;
+            else if (occluded)
+                ++counts.occluded;
+        }
+        // What the batch reached, once per sheet: boxes only need to bound where sheets are not zero.
+        for (int64_t sheet = sheets_reached[0]; sheet <= sheets_reached[1]; ++sheet) ring.touch(sheet, reached);
+    }
+    return counts;
+}
+
+}  // namespace pcvr

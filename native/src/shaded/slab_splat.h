@@ -1,0 +1,160 @@
+/// @file slab_splat.h
+/// @brief Splatting voxels slab by slab into a tile's sheet ring: the per-view preparation of one grid
+/// (SlabView) and the per-deposit work (SlabView::deposit).
+///
+/// A SlabView holds everything about one grid seen from one camera that does not change from sheet to
+/// sheet or tile to tile: the projection, the subgrid stride, the footprint and depth-profile tables,
+/// how deep a kernel reaches, and the order of a block's voxels by depth (the same for every block,
+/// since depth is affine in index space). A deposit splats a run of a block's voxels, in that order,
+/// into the sheets of a SheetRing that one tile owns, clipped to the ring: each voxel adds
+/// amplitude * P(rho^2) * (D(s_hi) - D(s_lo)) (slab_footprint.h) to every node of its footprint in
+/// each of the slabs_per_voxel() sheets from its first. Eight voxels are projected at once (in double
+/// for perspective views, with ViewProjection::footprint_lanes; affinely in float for orthographic
+/// ones), then each one's footprint is added row by row in vectors of eight nodes.
+///
+/// | mode            | per voxel and slab                                                     |
+/// |-----------------|------------------------------------------------------------------------|
+/// | Footprint       | every node within the kernel's ellipse (regular: stride 1; pcvr: the subgrid) |
+/// | BilinearSpread  | the slab's whole share of the footprint integral on the 2 x 2 nearest nodes |
+///
+/// A SlabView is immutable after construction and may be used by many tiles at once.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "shaded/occlusion_map.h"
+#include "shaded/sheet_buffer.h"
+#include "splat/phase_table.h"
+#include "splat/slab_footprint.h"
+#include "view/view_projection.h"
+
+namespace pcvr {
+
+/// floor(x) as a sheet index, saturated at +-2^60: sheets that far out are never walked, and a far
+/// clip plane at 1e300, or a depth 1e20 sheets out, must not overflow the conversion (NaN: the
+/// lowest). Two saturated indices still add up within int64.
+inline int64_t sheet_floor(double x) {
+    constexpr int64_t kFarthest = int64_t(1) << 60;
+    if (!(x > -double(kFarthest))) return -kFarthest;
+    if (!(x < double(kFarthest))) return kFarthest;
+    return int64_t(std::floor(x));
+}
+
+/// The surfaces cutting space into slabs: slab s spans [boundary(s), boundary(s + 1)] of the sheet
+/// parameter. Orthographic views: planes of constant depth (camera-space units along the view axis).
+/// Perspective views: spheres around the eye (`spherical`; the parameter is the world distance from
+/// the eye), which every ray crosses at right angles, so that a kernel's slabs are the same at every
+/// tap of its footprint (planes would cut off-axis kernels at an angle and need each tap's own share).
+struct SheetLattice {
+    bool spherical = false;
+    Vec3 eye;                ///< world position of the eye (spherical)
+    double first_depth = 0;  ///< boundary 0: the near clip plane (spherical: its distance on the axis)
+    double spacing = 1;      ///< between boundaries
+    int64_t count = 0;       ///< slabs up to the far clip plane
+
+    double boundary(int64_t s) const { return first_depth + double(s) * spacing; }
+    /// The slab holding depth z (may lie outside [0, count)).
+    int64_t slab_of(double z) const { return sheet_floor((z - first_depth) / spacing); }
+};
+
+enum class SlabMode { Footprint, BilinearSpread };
+
+struct SlabBatch;  // eight voxels projected (slab_splat.cpp)
+
+struct SlabSplatParams {
+    const Kernel* kernel = nullptr;
+    const FootprintTable* table = nullptr;
+    const DepthProfile* profile = nullptr;
+    int stride = 1;
+    SlabMode mode = SlabMode::Footprint;
+    float density_scale = 1.0f;
+    /// Splat value - background: sheets then hold the departure from the grid's background, which
+    /// the walk adds back, so that the reconstruction falls towards the background (not towards 0)
+    /// beyond the active voxels, and voxels equal to it cost nothing.
+    float background = 0.0f;
+};
+
+/// Where a ring lies on its grid's subgrid: ring node (0, 0) is subgrid node (node_x0, node_y0), i.e.
+/// image pixel (stride * node_x0, stride * node_y0).
+struct RingPlacement {
+    int node_x0 = 0, node_y0 = 0;
+    Box needed;  ///< the ring nodes the tile reads (the rest only holds whole windows): voxels missing it are skipped
+};
+
+struct DepositCounts {
+    uint64_t splatted = 0;  ///< voxels that added to at least one sheet node
+    uint64_t occluded = 0;  ///< voxels whose window lay wholly on occluded nodes
+};
+
+/// The sheet parameter's change over one index unit along the ray through the grid's centre: what
+/// "one voxel" of sheet spacing means for this grid (its voxel size along the view direction,
+/// anisotropy included): depth for planes, world length for spheres.
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical);
+
+class SlabView {
+public:
+    SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params);
+
+    const Grid& grid() const { return *grid_; }
+    const ViewProjection& projection() const { return projection_; }
+    int stride() const { return params_.stride; }
+    /// Sheets a voxel's slabs can reach: ceil(2 reach / spacing) + 1.
+    int slabs_per_voxel() const { return slabs_per_voxel_; }
+    /// How far a kernel reaches in the sheet parameter from its centre.
+    double depth_reach() const { return depth_reach_; }
+    /// For the walk's order, which follows planar depth: a voxel of a block whose planar depth is at
+    /// least `limit_scale(block) * (sheet parameter)` has at least that sheet parameter (1 for planes;
+    /// for spheres the block's largest cosine to the view axis over world units per camera unit).
+    /// And where the block's kernels begin in the sheet parameter.
+    double limit_scale(const VoxelBlock& block) const;
+    double front(const VoxelBlock& block) const;
+
+    /// A block's voxel offsets in order of depth (structure of arrays, padded to whole batches of
+    /// eight with entries that lie beyond every block's voxels).
+    struct DepthOrder {
+        std::vector<int32_t> offset;
+        std::vector<float> i, j, k;  ///< index offsets within the block
+        std::vector<float> depth;    ///< depth relative to the block origin's, increasing
+    };
+    const DepthOrder& depth_order() const { return order_; }
+    double origin_depth(const VoxelBlock& block) const;
+    /// Active voxels of the block from rank `first` on (what skipping the rest of it leaves out).
+    uint64_t voxels_left(const VoxelBlock& block, int first) const;
+    /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
+    /// this much wider than the nodes a tile reads hold whole windows, which take the fast path.
+    int window_margin() const { return window_ ? window_->window() - 1 : 0; }
+
+    /// Splats the active, finite, non-zero voxels of ranks [first, last) of `block` into `ring` at
+    /// `placement`, each clipped to the ring. With `occlusion`, voxels whose clipped window lies on
+    /// occluded nodes are skipped and counted. Voxels whose kernel reaches the eye plane are skipped
+    /// (a perspective footprint does not exist there).
+    /// Slabs before `first_open_sheet` (sheets the walk has already composited) are left out.
+    DepositCounts deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
+                          int64_t first_open_sheet, const OcclusionMap* occlusion) const;
+
+private:
+    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
+                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
+
+    const Grid* grid_;
+    ViewProjection projection_;
+    SheetLattice sheets_;
+    SlabSplatParams params_;
+    int slabs_per_voxel_ = 1;
+    double depth_reach_ = 0;
+    DepthOrder order_;
+    // Orthographic views: node coordinates and depth are affine in index space, the footprint the same for all.
+    Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
+    double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
+    Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
+    Mat4 index_to_camera_;
+    double world_per_camera_ = 1;   // world length of one camera-space unit
+    std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
+};
+
+}  // namespace pcvr

@@ -1,0 +1,276 @@
+#include "splat/phase_splat.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "splat/block_tile.h"
+#include "volume/block_voxels.h"
+
+namespace pcvr {
+
+namespace {
+
+/// A window tap by tap, clipped to the grid: for windows that stick out of it (the same table as
+/// the vector path keeps the image shift-invariant up to the grid's edges), and the whole splat of
+/// builds without AVX2. (col, row): the window's top-left tap; (fx, fy): the centre's phase.
+void deposit_clipped(SplatGrid& g, int col, int row, float fx, float fy, float amp, const PhaseFootprintTable& table) {
+    const PhaseFootprintTable::Blend b = table.blend(fx, fy);
+    const int window = table.window(), row_floats = table.pitch();
+    const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
+    const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
+    for (int j = j0; j < j1; ++j) {
+        double* out = g.row(row + j) + col;
+        for (int i = i0; i < i1; ++i) {
+            const size_t t = size_t(j) * row_floats + i;
+            out[i] += double(amp) * (b.coeff[0] * b.entry[0][t] + b.coeff[1] * b.entry[1][t] +
+                                     b.coeff[2] * b.entry[2][t] + b.coeff[3] * b.entry[3][t]);
+        }
+    }
+}
+
+#ifdef PCVR_AVX2
+
+/// The windows the deposits are specialised for.
+enum class WindowKind {
+    Tent2x2,   ///< bilinear spreading: the blend coefficients are the four weights
+    Table4x4,  ///< PCVR: two rows of four taps per vector, sizes known at compile time
+    Table,     ///< any other window (regular splatting): rows of whole vectors
+};
+
+/// A table's window sizes; compile-time constants for the fixed windows.
+struct WindowLayout {
+    int half_width, window, pitch, phases, entry_size;
+};
+
+template <WindowKind Kind>
+inline WindowLayout window_layout(const PhaseFootprintTable& t) {
+    if constexpr (Kind == WindowKind::Tent2x2)
+        return {1, 2, 8, 1, 16};
+    else if constexpr (Kind == WindowKind::Table4x4)
+        return {2, 4, 4, PhaseFootprintTable::kPhases4x4, 16};
+    else
+        return {t.half_width(), t.window(), t.pitch(), t.phases(), int(t.entry_size())};
+}
+
+/// One block's part of the mapping as eight-lane constants. Positions are floats relative to the
+/// node holding the block's origin: within a block they stay below a few dozen nodes, where a
+/// float resolves about 1e-6 node, and the image stays exactly shift-invariant by whole nodes.
+struct BlockFrame {
+    __m256 ox, oy;  // the origin's position inside its node, in [0, 1)
+    __m256 gxi, gxj, gxk, gyi, gyj, gyk;
+    __m256 amp_per_value;
+    __m256i corner_x, corner_y;  // window corner of a voxel at the origin's node, in the region
+    __m256i last_x, last_y;      // the largest corner whose window fits the region
+    DepositRegion region;        // the block's tile, or the whole grid
+};
+
+/// The frame of `block`, with a tile around its windows when `Tiled` and they fit one.
+template <bool Tiled>
+BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, WindowLayout w, const SplatGrid& grid) {
+    const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
+    const double x = map.node_x(origin), y = map.node_y(origin);
+    const double node_x = std::floor(x), node_y = std::floor(y);
+    BlockFrame f;
+    f.ox = _mm256_set1_ps(float(x - node_x));
+    f.oy = _mm256_set1_ps(float(y - node_y));
+    f.gxi = _mm256_set1_ps(float(map.gx.x));
+    f.gxj = _mm256_set1_ps(float(map.gx.y));
+    f.gxk = _mm256_set1_ps(float(map.gx.z));
+    f.gyi = _mm256_set1_ps(float(map.gy.x));
+    f.gyj = _mm256_set1_ps(float(map.gy.y));
+    f.gyk = _mm256_set1_ps(float(map.gy.z));
+    f.amp_per_value = _mm256_set1_ps(map.amp_per_value);
+
+    // Region (0, 0) relative to the origin's node.
+    int shift_x = -int(node_x), shift_y = -int(node_y);
+    f.region = DepositRegion::whole(grid);
+    if (Tiled && active_count(block) >= kTileMinVoxels) {
+        // The nodes the block's voxels fall in, from its corners, one node wider on each side for
+        // the rounding of float positions; windows reach window - 1 nodes beyond their corner.
+        const int span = VoxelBlock::kDim - 1;
+        auto node_range = [&](double frac, const Vec3& g) {
+            const double lo = frac + span * (std::min(g.x, 0.0) + std::min(g.y, 0.0) + std::min(g.z, 0.0));
+            const double hi = frac + span * (std::max(g.x, 0.0) + std::max(g.y, 0.0) + std::max(g.z, 0.0));
+            return std::pair<int, int>{int(std::floor(lo)) - 1, int(std::floor(hi)) + 1};
+        };
+        const auto [x0, x1] = node_range(x - node_x, map.gx);
+        const auto [y0, y1] = node_range(y - node_y, map.gy);
+        const int tx = x0 - w.half_width + 1, ty = y0 - w.half_width + 1;
+        f.region = DepositRegion::tile_or_grid(int(node_x) + tx, int(node_y) + ty, x1 - x0 + w.window,
+                                               y1 - y0 + w.window, 0, grid);
+        if (f.region.tiled) shift_x = tx, shift_y = ty;
+    }
+    f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
+    f.corner_y = _mm256_set1_epi32(1 - w.half_width - shift_y);
+    f.last_x = _mm256_set1_epi32(f.region.width - w.window);
+    f.last_y = _mm256_set1_epi32(f.region.height - w.window);
+    return f;
+}
+
+/// Eight voxels ready to deposit.
+struct VoxelBatch {
+    alignas(32) int32_t col[8], row[8];  // window corner in the region
+    alignas(32) int32_t entry[8];        // offset of the phase's window in the table, floats
+    alignas(32) float coeff[4][8];       // bilinear blend of the four phases around the centre, times amplitude
+    alignas(32) float fx[8], fy[8], amp[8];  // for windows the grid's edge clips
+    uint32_t live;    // lanes holding a finite, non-zero voxel
+    uint32_t inside;  // lanes whose window lies inside the region
+};
+
+/// The vector pass: node positions (lx, ly) relative to the frame and values v of eight voxels.
+inline void prepare(__m256 lx, __m256 ly, __m256 v, const BlockFrame& f, WindowLayout w, VoxelBatch& b) {
+    const __m256 node_x = _mm256_floor_ps(lx), node_y = _mm256_floor_ps(ly);
+    const __m256i col = _mm256_add_epi32(_mm256_cvttps_epi32(node_x), f.corner_x);
+    const __m256i row = _mm256_add_epi32(_mm256_cvttps_epi32(node_y), f.corner_y);
+    const __m256 fx = _mm256_sub_ps(lx, node_x), fy = _mm256_sub_ps(ly, node_y);
+    const __m256i outside = _mm256_or_si256(
+        _mm256_or_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), col), _mm256_cmpgt_epi32(_mm256_setzero_si256(), row)),
+        _mm256_or_si256(_mm256_cmpgt_epi32(col, f.last_x), _mm256_cmpgt_epi32(row, f.last_y)));
+
+    // The same phase arithmetic as PhaseFootprintTable::blend, eight lanes at once.
+    const __m256 phases = _mm256_set1_ps(float(w.phases));
+    const __m256i last_phase = _mm256_set1_epi32(w.phases - 1);
+    const __m256 sx = _mm256_mul_ps(fx, phases), sy = _mm256_mul_ps(fy, phases);
+    const __m256i px = _mm256_min_epi32(_mm256_cvttps_epi32(sx), last_phase);
+    const __m256i py = _mm256_min_epi32(_mm256_cvttps_epi32(sy), last_phase);
+    const __m256 ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(px)), ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(py));
+    const __m256i entry = _mm256_mullo_epi32(
+        _mm256_add_epi32(_mm256_mullo_epi32(py, _mm256_set1_epi32(w.phases + 1)), px), _mm256_set1_epi32(w.entry_size));
+
+    const __m256 amp = _mm256_mul_ps(v, f.amp_per_value);
+    const __m256 one = _mm256_set1_ps(1.0f);
+    const __m256 left = _mm256_sub_ps(one, ax);
+    const __m256 top = _mm256_mul_ps(_mm256_sub_ps(one, ay), amp), bottom = _mm256_mul_ps(ay, amp);
+
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.col), col);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.row), row);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(b.entry), entry);
+    _mm256_store_ps(b.coeff[0], _mm256_mul_ps(left, top));
+    _mm256_store_ps(b.coeff[1], _mm256_mul_ps(ax, top));
+    _mm256_store_ps(b.coeff[2], _mm256_mul_ps(left, bottom));
+    _mm256_store_ps(b.coeff[3], _mm256_mul_ps(ax, bottom));
+    _mm256_store_ps(b.fx, fx);
+    _mm256_store_ps(b.fy, fy);
+    _mm256_store_ps(b.amp, amp);
+    b.live = uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
+    b.inside = ~uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(outside))) & 0xffu;
+}
+
+/// Lane l's window interpolated between its four phases (table entries from e0), added row by row
+/// into doubles (the grid) or floats (a tile) with a row pitch of `pitch`. Rows are whole vectors;
+/// lanes past the window hold zero weights, and the grid's padding takes the stores past its last
+/// column.
+template <WindowKind Kind, class T>
+inline void add_window(T* out, size_t pitch, const float* e0, const VoxelBatch& b, int l, WindowLayout w) {
+    const float* e1 = e0 + w.entry_size;
+    const float* e2 = e0 + size_t(w.phases + 1) * w.entry_size;
+    const float* e3 = e2 + w.entry_size;
+    const __m256 c0 = _mm256_broadcast_ss(&b.coeff[0][l]), c1 = _mm256_broadcast_ss(&b.coeff[1][l]);
+    const __m256 c2 = _mm256_broadcast_ss(&b.coeff[2][l]), c3 = _mm256_broadcast_ss(&b.coeff[3][l]);
+    auto weights = [&](size_t t) {
+        return _mm256_fmadd_ps(c3, _mm256_loadu_ps(e3 + t),
+               _mm256_fmadd_ps(c2, _mm256_loadu_ps(e2 + t),
+               _mm256_fmadd_ps(c1, _mm256_loadu_ps(e1 + t), _mm256_mul_ps(c0, _mm256_loadu_ps(e0 + t)))));
+    };
+    if constexpr (Kind == WindowKind::Table4x4) {
+        for (int half = 0; half < 2; ++half, out += 2 * pitch) {  // two rows of four taps per vector
+            const __m256 wv = weights(8 * half);
+            accumulate4(out, _mm256_castps256_ps128(wv));
+            accumulate4(out + pitch, _mm256_extractf128_ps(wv, 1));
+        }
+    } else {
+        for (int j = 0; j < w.window; ++j, out += pitch)
+            for (int i = 0; i < w.pitch; i += 8) accumulate8(out + i, weights(size_t(j) * w.pitch + i));
+    }
+}
+
+/// Lane l's window added at `out` (row pitch `pitch`).
+template <WindowKind Kind, class T>
+inline void add_lane(T* out, size_t pitch, const float* entries, const VoxelBatch& b, int l, WindowLayout w) {
+    if constexpr (Kind == WindowKind::Tent2x2) {
+        // The tent's phase windows are unit impulses, so the blend coefficients are the weights.
+        out[0] += b.coeff[0][l];
+        out[1] += b.coeff[1][l];
+        out[pitch] += b.coeff[2][l];
+        out[pitch + 1] += b.coeff[3][l];
+    } else {
+        add_window<Kind>(out, pitch, entries + b.entry[l], b, l, w);
+    }
+}
+
+/// The second pass: every live voxel's window added to the block's tile (lanes taking turns over
+/// its copies) or straight to the grid.
+template <WindowKind Kind>
+inline void deposit(const VoxelBatch& b, const PhaseFootprintTable& table, WindowLayout w, const BlockFrame& f,
+                    float* tiles, SplatGrid& grid) {
+    // Locals, so that the compiler need not reload them after every store.
+    const float* const entries = table.data();
+    const uint32_t inside = b.live & b.inside;
+    if (f.region.tiled) {
+        const size_t pitch = size_t(f.region.pitch);
+        for (uint32_t todo = inside; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            add_lane<Kind>(tile_copy(tiles, l) + size_t(b.row[l]) * pitch + b.col[l], pitch, entries, b, l, w);
+        }
+    } else {
+        double* const base = grid.row(0);
+        const size_t columns = size_t(grid.columns());
+        for (uint32_t todo = inside; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            add_lane<Kind>(base + size_t(b.row[l]) * columns + b.col[l], columns, entries, b, l, w);
+        }
+    }
+    for (uint32_t clipped = b.live & ~b.inside; clipped; clipped &= clipped - 1) {
+        const int l = __builtin_ctz(clipped);
+        deposit_clipped(grid, f.region.col0 + b.col[l], f.region.row0 + b.row[l], b.fx[l], b.fy[l], b.amp[l], table);
+    }
+}
+
+template <WindowKind Kind>
+uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
+                     const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch) {
+    const WindowLayout w = window_layout<Kind>(table);
+    const BlockFrame f = block_frame<Kind != WindowKind::Table>(block, map, w, grid);
+    float* tiles = f.region.tiled ? scratch.tile_copies() : nullptr;
+    const TileFlush flush(f.region, tiles, grid);
+    VoxelBatch b;
+    uint64_t count = 0;
+    auto keep = [&](int offset) {
+        return !clip_view || ViewProjection::inside_clip_range(clip_view->to_clip(voxel_position(block, offset)));
+    };
+    for_each_batch(block, !clip_view && all_active(block), keep, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
+        prepare(_mm256_fmadd_ps(f.gxk, k, _mm256_fmadd_ps(f.gxj, j, _mm256_fmadd_ps(f.gxi, i, f.ox))),
+                _mm256_fmadd_ps(f.gyk, k, _mm256_fmadd_ps(f.gyj, j, _mm256_fmadd_ps(f.gyi, i, f.oy))), v, f, w, b);
+        count += __builtin_popcount(b.live);
+        deposit<Kind>(b, table, w, f, tiles, grid);
+    });
+    return count;
+}
+
+#endif  // PCVR_AVX2
+
+}  // namespace
+
+uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
+                            const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch) {
+#ifdef PCVR_AVX2
+    return table.window() == 4 ? splat_block<WindowKind::Table4x4>(block, map, table, clip_view, grid, scratch)
+           : table.is_bilinear_spread() ? splat_block<WindowKind::Tent2x2>(block, map, table, clip_view, grid, scratch)
+                                        : splat_block<WindowKind::Table>(block, map, table, clip_view, grid, scratch);
+#else
+    uint64_t count = 0;
+    const int h = table.half_width();
+    for_each_voxel(block, [&](int offset, float v) {
+        const Vec3 p = voxel_position(block, offset);
+        if (clip_view && !ViewProjection::inside_clip_range(clip_view->to_clip(p))) return;
+        const double x = map.node_x(p), y = map.node_y(p), node_x = std::floor(x), node_y = std::floor(y);
+        deposit_clipped(grid, int(node_x) - h + 1, int(node_y) - h + 1, float(x - node_x), float(y - node_y),
+                        map.amp_per_value * v, table);
+        ++count;
+    });
+    return count;
+#endif
+}
+
+}  // namespace pcvr

@@ -1,0 +1,92 @@
+/// @file level_of_detail.h
+/// @brief Which level of detail (Grid::level) an X-ray renders a grid from, and what its footprints are.
+///
+/// A zoomed-out view need not visit every voxel: level k has 8^k times fewer, each the mean of the
+/// 2^k x 2^k x 2^k voxels it stands for, placed at their centroid. Its voxels are splatted with the
+/// footprint of what they stand for, not of one coarse kernel: 8^k kernels of variance v (index
+/// units of level 0) spread uniformly over 2^k voxels each way add the box's variance (4^k - 1) / 12,
+/// so a level-k voxel's footprint has the variance of the fine voxels it replaces and nothing more
+/// (with level k's own kernel, variance v 4^k, the image blurred by about a coarse voxel: 1.7% off
+/// the pixel means at level 1 and magnification 1/16 on the tests' 48^3 blobs, against 0.7% this
+/// way). What remains is that a coarse voxel puts its mass at its centre, not where in it the mass
+/// was, and that the levels resample the volume: detail at the scale of a coarse voxel is averaged
+/// away, whatever the pixels. Relative RMSE against pixel means, pcvr (level 0: 0.01-0.16%):
+///
+/// | magnification | level 1 | level 2 | level 3 | (48^3 blobs; 128^3 blobs of 8-13 voxels)   |
+/// |---------------|---------|---------|---------|--------------------------------------------|
+/// | 1/128         | 0.01%   | 0.03%   | 0.21%   |                                            |
+/// | 1/64          | 0.08%   | 0.37%   | 1.4%    | 0.06%, 0.26%, 1.0%                          |
+/// | 1/32          | 0.65%   | 2.8%    | 10%     |                                            |
+/// | 1/16          | 0.73%   | 3.1%    | 11%     | 0.21%, 0.89%, 3.5%                          |
+/// | 1/8           | 1.2%    | 5.0%    | 29%     | 0.24%, 1.05%, 7.9%                          |
+///
+/// So automatic levels keep coarse voxels at most 1/32 of a pixel wide, which held the error under
+/// 0.1% in every case measured (1/16 gave 0.65% at 1/32); `level=k` trades accuracy for speed beyond that (the viewport's
+/// coarse first images).
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <utility>
+
+#include "pcvr/camera.h"
+#include "pcvr/grid.h"
+#include "view/view_projection.h"
+
+namespace pcvr {
+
+/// Automatic levels keep the coarse voxels at most this many pixels wide (where they are most
+/// magnified): see the table above.
+constexpr double kLevelPixelsPerVoxel = 1.0 / 32.0;
+
+/// The footprint variance (per axis, index units^2 of level k) of a level-k voxel whose kernel has
+/// variance `variance` at level 0.
+inline double level_kernel_variance(double variance, int level) {
+    const double voxels2 = std::ldexp(1.0, 2 * level);  // 4^k level-0 units^2 per level-k unit^2
+    return (variance + (voxels2 - 1.0) / 12.0) / voxels2;
+}
+
+/// The fewest and most pixels per voxel (along the voxel's most magnified direction) at the corners of
+/// the active index box `box`; nullopt when a corner lies behind a perspective eye.
+inline std::optional<std::pair<double, double>> corner_pixels_per_voxel(const std::array<int32_t, 6>& box,
+                                                                        const Mat4& index_to_world, const Camera& camera) {
+    const ViewProjection view(camera, index_to_world);
+    double fewest = std::numeric_limits<double>::infinity(), most = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 p{double(box[(corner & 1) ? 3 : 0]), double(box[(corner & 2) ? 4 : 1]), double(box[(corner & 4) ? 5 : 2])};
+        Footprint f;
+        if (!view.footprint_unclipped(p, f)) return std::nullopt;
+        const double half_trace = 0.5 * (f.qxx + f.qyy);
+        const double smallest = half_trace - std::sqrt(0.25 * (f.qxx - f.qyy) * (f.qxx - f.qyy) + f.qxy * f.qxy);
+        if (!(smallest > 0)) return std::nullopt;
+        const double pixels = 1.0 / std::sqrt(smallest);
+        fewest = std::min(fewest, pixels);
+        most = std::max(most, pixels);
+    }
+    return std::pair<double, double>{fewest, most};
+}
+
+/// The coarsest level whose voxels project to at most `pixels_per_voxel` pixels in every direction
+/// at every corner of the active index box `box` (0 when a corner lies behind a perspective eye), and
+/// no coarser than two voxels across the box.
+inline int automatic_level(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera,
+                           double pixels_per_voxel = kLevelPixelsPerVoxel) {
+    const auto corners = corner_pixels_per_voxel(box, index_to_world, camera);
+    if (!corners) return 0;
+    const double most_pixels = corners->second;
+    const int extent = std::max({box[3] - box[0], box[4] - box[1], box[5] - box[2]}) + 1;
+    int level = 0;
+    // The tolerance keeps an exact 1/64 (computed as 0.01562500001) at level 1.
+    while ((extent >> (level + 1)) >= 2 && most_pixels * std::ldexp(1.0, level + 1) <= pixels_per_voxel * (1 + 1e-6)) ++level;
+    return level;
+}
+
+inline int automatic_level(const Grid& grid, const Camera& camera, double pixels_per_voxel = kLevelPixelsPerVoxel) {
+    if (grid.active_voxel_count() == 0) return 0;
+    return automatic_level(grid.index_bbox(), grid.index_to_world(), camera, pixels_per_voxel);
+}
+
+}  // namespace pcvr
