@@ -3,6 +3,7 @@
 #include "pcvr/grid_stream.h"
 
 #include "volume/grid_data.h"
+#include "volume/vdb_leaf_reader.h"
 #include "volume/vdb_reader.h"
 
 #include <algorithm>
@@ -105,7 +106,7 @@ struct GridStream::Impl {
         const auto with_leaves = std::find_if(regions.begin() + first, regions.begin() + last,
                                               [](const Region& r) { return r.leaves > 0; });
         if (with_leaves != regions.begin() + last)
-            reader->read_leaves_parallel(targets, leaf_positions.data() + with_leaves->first_leaf, half);
+            read_leaves_parallel(reader->file(), targets, leaf_positions.data() + with_leaves->first_leaf, half);
         for (auto& leaf : leaves) batch.addLeaf(leaf.release());
         return voxels;
     }
