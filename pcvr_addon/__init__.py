@@ -4,7 +4,7 @@
 
 import bpy
 
-from . import compat, engine, viewport_session
+from . import compat, engine, passes, viewport_session
 
 
 class PCVRRenderEngine(bpy.types.RenderEngine):
@@ -28,7 +28,7 @@ class PCVRRenderEngine(bpy.types.RenderEngine):
         engine.render(self, depsgraph)
 
     def update_render_passes(self, scene, view_layer):
-        engine.register_passes(self, scene, view_layer)
+        passes.register_passes(self, scene, view_layer)
 
     def view_update(self, context, depsgraph):
         viewport_session.view_update(self, context, depsgraph)

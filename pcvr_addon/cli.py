@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import engine, image_io, presets, register, unregister
+from . import image_io, presets, register, statistics, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -155,9 +155,9 @@ def render(args):
         except RuntimeError as ex:
             print(f"pcvr: nothing to write: {ex}", file=sys.stderr)
             return 1
-        last = engine.last_render.get(scene.session_uid)
+        last = statistics.last_render.get(scene.session_uid)
         if last is not None:
-            print(f"pcvr: {engine.status_line(*last)}")
+            print(f"pcvr: {statistics.status_line(*last)}")
         print(f"pcvr: wrote {args.output}")
         return status
     finally:

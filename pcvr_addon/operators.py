@@ -7,7 +7,7 @@ from bpy.props import FloatProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import engine, presets, transfer_function
+from . import prepared_scene, presets, transfer_function
 from .volumes import KERNEL_RADIUS_VOXELS
 
 
@@ -17,7 +17,7 @@ def volume_grid(operator, context, obj):
         operator.report({'ERROR'}, "The active object is not a volume")
         return None
     try:
-        grid = engine.object_grid(context.evaluated_depsgraph_get(), obj)
+        grid = prepared_scene.object_grid(context.evaluated_depsgraph_get(), obj)
     except (OSError, ValueError, RuntimeError, MemoryError, ImportError) as ex:
         operator.report({'ERROR'}, f"Volume object '{obj.name}': {ex}")
         return None

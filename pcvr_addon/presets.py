@@ -14,8 +14,8 @@ import re
 
 import bpy
 
-from .properties import as_typed
 from .transfer_function import ramp_elements
+from .typed import as_typed
 
 SUBDIR = os.path.join("pcvr", "transfer_function")
 SHIPPED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets", "transfer_function")

@@ -4,7 +4,6 @@
 also has come from defaults.py."""
 
 import bpy
-import numpy as np
 from bpy.props import (
     BoolProperty,
     EnumProperty,
@@ -28,12 +27,6 @@ NATIVE_NAMES = {
     'BILINEAR': "bilinear",
     'CATMULL_ROM': "catmull_rom",
 }
-
-
-def as_typed(value):
-    """A float setting as typed: Blender keeps them in single precision, and the shortest decimal that rounds
-    to the stored value is what the user entered (0.99 rather than 0.9900000095367432)."""
-    return float(str(np.float32(value)))
 
 
 def identifier(native_name):

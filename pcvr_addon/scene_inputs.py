@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import lighting, transfer_function, volumes
-from .properties import NATIVE_NAMES, as_typed
+from .properties import NATIVE_NAMES
+from .typed import as_typed
 
 
 @dataclass(frozen=True)

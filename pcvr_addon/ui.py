@@ -7,7 +7,7 @@ from bpy.types import Panel
 
 from bl_ui.utils import PresetPanel
 
-from . import engine, lighting, presets
+from . import lighting, native_render, presets, statistics
 
 
 def property_split(layout):
@@ -93,13 +93,13 @@ class PCVR_RENDER_PT_statistics(PCVRRenderPanel, Panel):
 
     def draw(self, context):
         layout = self.layout
-        last = engine.last_render.get(context.scene.session_uid)
+        last = statistics.last_render.get(context.scene.session_uid)
         if last is None:
             layout.label(text="Render to see what was splatted and culled", icon='INFO')
             return
         mode, stats = last
         grid = layout.grid_flow(row_major=True, columns=2, even_columns=False, align=True)
-        for label, value in engine.statistics_rows(mode, stats):
+        for label, value in statistics.statistics_rows(mode, stats):
             grid.label(text=label)
             grid.label(text=value)
 
@@ -108,7 +108,7 @@ def draw_sampling_estimate(layout, context):
     """The magnification (and stride) the volumes in view get, as far as known without reading files."""
     settings = context.scene.pcvr
     try:
-        estimate = engine.sampling_estimate(context.evaluated_depsgraph_get(), settings)
+        estimate = native_render.sampling_estimate(context.evaluated_depsgraph_get(), settings)
     except ImportError:
         layout.label(text="The pcvr_native module is missing", icon='ERROR')
         return
@@ -121,7 +121,7 @@ def draw_sampling_estimate(layout, context):
         low, high = magnification
         text = f"{low:.2f} px/voxel" if high - low < 0.005 else f"{low:.2f} - {high:.2f} px/voxel"
         if settings.method != 'REGULAR':
-            text += ", stride " + engine.format_strides(strides)
+            text += ", stride " + statistics.format_strides(strides)
         layout.label(text=text, icon='INFO')
     if unread:
         layout.label(text=f"Render to measure {unread} volume(s) not read yet", icon='INFO')

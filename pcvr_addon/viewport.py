@@ -3,7 +3,7 @@
 """The viewport's progressive rendering: what to render next, when to cancel, what to re-use.
 
 Plain Python, without bpy, gpu or pcvr_native, so that it runs and is tested headless: `ProgressiveRenderer`
-runs the stages it is given (engine.prepare, engine.render_raw, engine.finish) on a worker thread, and
+runs the stages it is given (prepared_scene.prepare, native_render.render_raw, passes.finish) on a worker thread, and
 `Schedule` decides which step comes next. Blender's side (viewport_session.py) hands in every change and draws
 the latest image.
 

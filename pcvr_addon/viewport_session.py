@@ -16,7 +16,7 @@ import weakref
 
 import numpy as np
 
-from . import camera, engine, scene_inputs, viewport
+from . import camera, native_render, passes, prepared_scene, scene_inputs, viewport
 
 
 def _tag_redraw(engine_reference):
@@ -37,7 +37,7 @@ class ViewportSession:
     def __init__(self, render_engine):
         reference = weakref.ref(render_engine)
         self.renderer = viewport.ProgressiveRenderer(
-            engine.prepare, engine.render_viewport_step, engine.viewport_pixels,
+            prepared_scene.prepare, native_render.render_viewport_step, passes.viewport_pixels,
             on_image=lambda: _tag_redraw(reference), cost_key=lambda inputs: inputs.mode)
         self._exports = {}   # object name -> grid of a procedural volume, kept until its geometry changes
         self._texture = None
@@ -55,7 +55,7 @@ class ViewportSession:
 
     def _export(self, source):
         if source.name not in self._exports:
-            self._exports[source.name] = engine.export_grid(source)
+            self._exports[source.name] = prepared_scene.export_grid(source)
         return self._exports[source.name]
 
     def draw(self, render_engine, context, depsgraph):

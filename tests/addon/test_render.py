@@ -6,7 +6,7 @@ import pytest
 from mathutils import Vector
 
 import blender_scenes as bs
-from pcvr_addon import engine
+from pcvr_addon import statistics
 
 
 def look_at(camera, target=(0, 0, 0)):
@@ -132,6 +132,6 @@ def test_status_line_from_native_statistics(blob_object):
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=3.0)
     stats = {}
     pn.render_xray(bs.world_grid(blob_object), bs.reference_camera(), stats=stats)
-    line = engine.format_stats(stats)
+    line = statistics.format_stats(stats)
     assert f"Voxels {stats['voxels']:,}" in line and "px/voxel" in line and "Stride" in line
-    assert engine.format_stats({}) == "No volume in view"
+    assert statistics.format_stats({}) == "No volume in view"

@@ -10,7 +10,8 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import engine
+from pcvr_addon import statistics
+from pcvr_addon.passes import BACKGROUND_DEPTH
 
 
 @pytest.fixture
@@ -131,7 +132,7 @@ def test_depth_pass_is_the_depth_of_a_slab(tmp_path):
     assert covered.sum() > 100
     # Measured: 1.05, the depth of the first sample past opacity one half, half a voxel into the slab.
     assert np.abs(depth[covered] - top_depth).max() < 0.1
-    assert (depth[alpha < 0.5] == engine.BACKGROUND_DEPTH).all()
+    assert (depth[alpha < 0.5] == BACKGROUND_DEPTH).all()
     assert (alpha < 0.5).any()
 
 
@@ -187,8 +188,8 @@ def test_status_and_statistics_of_the_last_render(blob_object):
     scene = ls.shaded_setup(48, 48)
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.5)
     bs.render(scene)
-    mode, stats = engine.last_render[scene.session_uid]
+    mode, stats = statistics.last_render[scene.session_uid]
     assert mode == 'SHADED' and stats["voxels"] > 0
-    rows = dict(engine.statistics_rows(mode, stats))
+    rows = dict(statistics.statistics_rows(mode, stats))
     assert rows["Voxels splatted"] == f"{stats['voxels']:,}" and "Transparent" in rows
-    assert "Culled blocks" in engine.format_sheet_stats(stats)
+    assert "Culled blocks" in statistics.format_sheet_stats(stats)

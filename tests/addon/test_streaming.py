@@ -9,7 +9,7 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon import cache, engine
+from pcvr_addon import cache, prepared_scene, statistics
 
 
 @pytest.fixture
@@ -32,8 +32,8 @@ def test_a_volume_above_the_threshold_renders_streamed_with_the_same_image(big_v
     scene.pcvr.stream_above = 1  # MiB
     streamed = bs.xray(bs.render(scene))
     assert cached_kinds() == ["GridStream"]
-    mode, stats = engine.last_render[scene.session_uid]
-    assert engine.status_line(mode, stats).endswith("| Streamed 1 volume from its file in 1 batch")
+    mode, stats = statistics.last_render[scene.session_uid]
+    assert statistics.status_line(mode, stats).endswith("| Streamed 1 volume from its file in 1 batch")
     scene.pcvr.stream_above = 4
     whole = bs.xray(bs.render(scene))
     assert cached_kinds() == ["Grid", "GridStream"]
@@ -61,7 +61,7 @@ def test_shaded_and_mip_render_a_big_volume_from_the_level_that_fits(big_volume,
     scene.pcvr.stream_above = 1
     passes = bs.render(scene)
     assert cached_kinds() == ["GridStream"]
-    assert engine.last_render[scene.session_uid][1]["level"] == 1
+    assert statistics.last_render[scene.session_uid][1]["level"] == 1
     assert whole[:, :, :3].mean() > 0.1  # lit: the comparison can fail
     assert np.sqrt(np.mean((ls.combined(passes) - whole) ** 2)) < {'SHADED': 0.011, 'MIP': 0.056}[mode]
     # The XRay pass comes from the stream itself, not from the level's means over the background.
@@ -71,16 +71,16 @@ def test_shaded_and_mip_render_a_big_volume_from_the_level_that_fits(big_volume,
 
 
 def test_the_threshold_follows_the_memory_available_by_default():
-    assert engine.stream_threshold(None) is None  # shaded and MIP modes
-    assert engine.stream_threshold(0) == pn.default_memory_limit() // 4
-    assert engine.stream_threshold(3) == 3 * engine.MiB
+    assert prepared_scene.stream_threshold(None) is None  # shaded and MIP modes
+    assert prepared_scene.stream_threshold(0) == pn.default_memory_limit() // 4
+    assert prepared_scene.stream_threshold(3) == 3 * prepared_scene.MiB
 
 
 def test_progress_line_counts_voxels_and_time_left():
-    assert engine.progress_line(0.25, 3.0, 134_200_000) == "Splatting 33.5M of 134.2M voxels | 9 s left"
-    assert engine.progress_line(0.01, 0.5, 134_200_000) == "Splatting 1.3M of 134.2M voxels"  # too early to tell
-    assert engine.progress_line(0.5, 2.0) == "Rendering 50% | 2 s left"
-    assert engine.progress_line(1.0, 4.0) == "Rendering 100%"
+    assert statistics.progress_line(0.25, 3.0, 134_200_000) == "Splatting 33.5M of 134.2M voxels | 9 s left"
+    assert statistics.progress_line(0.01, 0.5, 134_200_000) == "Splatting 1.3M of 134.2M voxels"  # too early to tell
+    assert statistics.progress_line(0.5, 2.0) == "Rendering 50% | 2 s left"
+    assert statistics.progress_line(1.0, 4.0) == "Rendering 100%"
 
 
 class FakeEngine:
@@ -96,7 +96,7 @@ class FakeEngine:
 
 def test_progress_report_updates_the_bar_every_time_and_the_line_four_times_a_second():
     fake, now = FakeEngine(), [100.0]
-    report = engine.ProgressReport(fake, voxels=1_000_000, clock=lambda: now[0])
+    report = statistics.ProgressReport(fake, voxels=1_000_000, clock=lambda: now[0])
     for fraction, time in [(0.1, 100.1), (0.2, 100.2), (0.3, 100.4), (0.5, 101.0)]:
         now[0] = time
         report(fraction)

@@ -9,7 +9,7 @@ import pytest
 
 import blender_scenes as bs
 import pcvr_addon
-from pcvr_addon import cache, engine, presets, ui
+from pcvr_addon import cache, native_render, presets, statistics, ui
 
 
 def test_shares_output_dimensions_color_management_and_camera_panels():
@@ -43,10 +43,10 @@ def test_sampling_estimate_uses_cached_grids_only(tmp_path):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     cache.grids.clear()  # frame_volume read it
 
-    assert engine.sampling_estimate(depsgraph, scene.pcvr) == (None, [], 1)
+    assert native_render.sampling_estimate(depsgraph, scene.pcvr) == (None, [], 1)
     assert cache.grids.stats.reads == 0
     bs.render(scene)
-    magnification, strides, unread = engine.sampling_estimate(depsgraph, scene.pcvr)
+    magnification, strides, unread = native_render.sampling_estimate(depsgraph, scene.pcvr)
     assert magnification == pytest.approx((3.0, 3.0))
     assert unread == 0 and len(strides) <= 1
 
@@ -176,7 +176,7 @@ def test_statistics_panel_shows_the_last_render(tmp_path):
     assert draw(ui.PCVR_RENDER_PT_statistics, context) == ["Render to see what was splatted and culled"]
     bs.render(scene)
     drawn = draw(ui.PCVR_RENDER_PT_statistics, context)
-    assert drawn[:2] == ["Blocks", f"{engine.last_render[scene.session_uid][1]['blocks']:,}"]
+    assert drawn[:2] == ["Blocks", f"{statistics.last_render[scene.session_uid][1]['blocks']:,}"]
     assert "Transparent" in drawn and "Behind opaque" in drawn
 
 

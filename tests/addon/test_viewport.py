@@ -12,7 +12,7 @@ import pytest
 import blender_scenes as bs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import cache, engine as pcvr_engine, viewport
+from pcvr_addon import cache, prepared_scene, viewport
 
 SIZE = (96, 64)
 
@@ -331,8 +331,8 @@ def test_a_procedural_volume_is_exported_again_only_when_its_geometry_changes(en
     volume = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
     scene.collection.objects.link(volume)
     volume.modifiers.new("Mesh to Volume", 'MESH_TO_VOLUME').object = cube
-    exports, export_grid = [], pcvr_engine.export_grid
-    monkeypatch.setattr(pcvr_engine, "export_grid", lambda source: exports.append(source.name) or export_grid(source))
+    exports, export_grid = [], prepared_scene.export_grid
+    monkeypatch.setattr(prepared_scene, "export_grid", lambda source: exports.append(source.name) or export_grid(source))
     context = vs.camera_context(camera, *SIZE)
 
     engine.settle(context)

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The rendered viewport's speed: the CT phantom in a 1280 x 720 region, X-ray and shaded, through the add-on's
-own viewport path (engine.prepare, engine.render_viewport_step, engine.viewport_pixels, and the
+own viewport path (prepared_scene.prepare, native_render.render_viewport_step, passes.viewport_pixels, and the
 viewport.ProgressiveRenderer that schedules them on its worker thread), without Blender's window.
 
 | measurement | what                                                                                       |
@@ -104,7 +104,7 @@ def orbit(index_to_world, n, count):
 
 def time_steps(prepared, display, views):
     """Median seconds of each viewport step (render and finish) over `views`."""
-    from pcvr_addon import engine, viewport
+    from pcvr_addon import native_render, passes, viewport
 
     never = threading.Event()
     rows = []
@@ -112,11 +112,11 @@ def time_steps(prepared, display, views):
         seconds = []
         for view in views:
             start = time.perf_counter()
-            raw = engine.render_viewport_step(prepared, view, step, never)
-            engine.viewport_pixels(prepared, display, raw)
+            raw = native_render.render_viewport_step(prepared, view, step, never)
+            passes.viewport_pixels(prepared, display, raw)
             seconds.append(time.perf_counter() - start)
         scaled = views[0].scaled(step.scale)
-        level = engine.viewport_step_level(prepared, views[0], step)
+        level = native_render.viewport_step_level(prepared, views[0], step)
         rows.append({"scale": step.scale, "sheet_spacing": step.sheet_spacing, "level": level, "width": scaled.width,
                      "height": scaled.height, "median_s": statistics.median(seconds), "min_s": min(seconds)})
     return rows
@@ -126,10 +126,10 @@ class Watcher:
     """A ProgressiveRenderer with an event per new image."""
 
     def __init__(self, inputs, display):
-        from pcvr_addon import engine, viewport
+        from pcvr_addon import native_render, passes, prepared_scene, viewport
         self.new_image = threading.Event()
-        self.renderer = viewport.ProgressiveRenderer(engine.prepare, engine.render_viewport_step,
-                                                     engine.viewport_pixels, on_image=self.new_image.set,
+        self.renderer = viewport.ProgressiveRenderer(prepared_scene.prepare, native_render.render_viewport_step,
+                                                     passes.viewport_pixels, on_image=self.new_image.set,
                                                      cost_key=lambda i: i.mode)
         self.renderer.update_scene(inputs, display)
 
@@ -190,7 +190,7 @@ MODES = ('XRAY', 'SHADED')
 
 def run(quick=False, log=lambda message: None, modes=MODES):
     """Every measurement for `modes` (X-ray and shaded): a dict for results.json."""
-    from pcvr_addon import engine
+    from pcvr_addon import prepared_scene
 
     n = 64 if quick else 128
     grid, index_to_world = phantom_grid(n)
@@ -200,7 +200,7 @@ def run(quick=False, log=lambda message: None, modes=MODES):
                "load_before": os.getloadavg()[0]}
     for mode in modes:
         inputs, display = inputs_for(mode, grid)
-        prepared = engine.prepare(inputs)
+        prepared = prepared_scene.prepare(inputs)
         log(f"viewport {mode}: steps")
         entry = {"steps": time_steps(prepared, display, views)}
         log(f"viewport {mode}: latency")

@@ -1,0 +1,121 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""The finish stage and the render result: native results turned into Blender's passes, and written into the
+render result.
+
+Passes: Combined always; Depth in shaded mode with the view layer's Z pass (where opacity first reaches one
+half; background 1e10, as Cycles writes it); XRay with the view layer's PCVR X-ray pass, in every mode.
+"""
+
+import numpy as np
+
+from .prepared_scene import control_points, density_range
+
+# Depth where a ray meets nothing opaque enough: what Cycles and Workbench write for the background.
+BACKGROUND_DEPTH = 1e10
+
+
+def list_render_passes(scene, view_layer):
+    """The passes of a render: (name, channel ids, channel type)."""
+    yield ("Combined", "RGBA", 'COLOR')
+    if scene.pcvr.mode == 'SHADED' and view_layer.use_pass_z:
+        yield ("Depth", "Z", 'VALUE')
+    if view_layer.pcvr.use_pass_xray:
+        yield ("XRay", "X", 'VALUE')
+
+
+def register_passes(engine, scene, view_layer):
+    for name, channel_ids, channel_type in list_render_passes(scene, view_layer):
+        engine.register_pass(scene, view_layer, name, len(channel_ids), channel_ids, channel_type)
+
+
+def pass_pixels(gain, film_transparent, integral):
+    """The pixels of every pass from the line integral: {name: float32 (height, width, channels)}."""
+    height, width = integral.shape
+    combined = np.empty((height, width, 4), dtype=np.float32)
+    combined[:, :, :3] = (-np.expm1(-gain * integral))[:, :, None]
+    combined[:, :, 3] = (integral != 0) if film_transparent else 1.0
+    return {"Combined": combined, "XRay": integral[:, :, None]}
+
+
+def over_background(rgba, world, film_transparent):
+    """Premultiplied `rgba` over the world colour, or as it is with a transparent film."""
+    if film_transparent:
+        return rgba
+    combined = rgba.copy()
+    combined[:, :, :3] += (1.0 - rgba[:, :, 3:]) * np.asarray(world, dtype=np.float32)
+    combined[:, :, 3] = 1.0
+    return combined
+
+
+def mip_colours(maximum, points, density_range, mip_color, background=0.0):
+    """Premultiplied RGBA of a volume's MIP: through the transfer function's colours (ControlPoints), or grey
+    from black at the low end of its density range to white at the high end; alpha 1 where a voxel reaches
+    (the maximum is not the grid's scaled background, which rays that meet no voxel return)."""
+    reached = maximum != np.float32(background)
+    if mip_color == 'GREYSCALE':
+        low, high = density_range
+        rgb = np.repeat(np.clip((maximum - low) / (high - low), 0.0, 1.0)[:, :, None], 3, axis=2)
+    else:
+        rgb = points.colour_at(maximum)[:, :, :3]
+    rgba = np.concatenate([rgb * reached[:, :, None], reached[:, :, None]], axis=2)
+    return rgba.astype(np.float32)
+
+
+def _finish_xray(prepared, display, raw):
+    return pass_pixels(display.xray_gain, display.film_transparent, raw["integral"])
+
+
+def _finish_shaded(prepared, display, raw):
+    pixels = {"Combined": over_background(raw["rgba"], display.world, display.film_transparent)}
+    if raw["depth"] is not None:
+        depth = raw["depth"]
+        pixels["Depth"] = np.where(np.isfinite(depth), depth, BACKGROUND_DEPTH).astype(np.float32)[:, :, None]
+    return pixels
+
+
+def _finish_mip(prepared, display, raw):
+    """Each volume's maximum through its own transfer function; where volumes overlap on the image, the
+    brighter of their colours in each channel (a maximum of the colours, as the mode's name says)."""
+    rgba = None
+    for volume, maximum in zip(prepared.volumes, raw["maxima"]):
+        ramp = display.ramps[volume.index]
+        background = volume.grid.background * volume.inputs.density_scale
+        colours = mip_colours(maximum, control_points(ramp, volume), density_range(ramp, volume), display.mip_color,
+                              background)
+        rgba = colours if rgba is None else np.maximum(rgba, colours)
+    if rgba is None:
+        rgba = np.zeros(raw["shape"] + (4,), dtype=np.float32)
+    return {"Combined": over_background(rgba, display.world, display.film_transparent)}
+
+
+FINISHERS = {
+    'XRAY': _finish_xray,
+    'SHADED': _finish_shaded,
+    'MIP': _finish_mip,
+}
+
+
+def finish(prepared, display, raw):
+    """The passes of native results `raw` under DisplayInputs: {name: float32 (height, width, channels)}."""
+    pixels = FINISHERS[display.mode](prepared, display, raw)
+    if "integral" in raw and "XRay" not in pixels:
+        pixels["XRay"] = raw["integral"][:, :, None]
+    return pixels
+
+
+def viewport_pixels(prepared, display, raw):
+    """The Combined pass of a viewport render."""
+    return finish(prepared, display, raw)["Combined"]
+
+
+def write_result(engine, depsgraph, view, pixels):
+    view_layer = depsgraph.view_layer
+    # Result coordinates start at the render border, when there is one.
+    result = engine.begin_result(0, 0, view.width, view.height, layer=view_layer.name)
+    layer = result.layers[0]
+    for name, _channel_ids, _channel_type in list_render_passes(depsgraph.scene, view_layer):
+        # Blender stores rows bottom to top.
+        rect = np.ascontiguousarray(pixels[name][::-1], dtype=np.float32)
+        layer.passes[name].rect.foreach_set(rect.ravel())
+    engine.end_result(result)

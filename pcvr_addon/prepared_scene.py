@@ -1,0 +1,219 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""The prepare stage: a scene's volumes read (through the cache, streamed where too big to read whole) and placed
+in world space, with their transfer functions, lights and materials made into pcvr_native objects. What every
+render of the scene re-uses, from any view; it runs on any thread (Blender's data was read before, by
+scene_inputs.read)."""
+
+from dataclasses import dataclass, field
+
+from . import cache, scene_inputs, transfer_function, volumes
+
+def read_grid(filepath, grid_name):
+    import pcvr_native
+    return pcvr_native.read_vdb(filepath, grid_name)
+
+
+def stream_grid(filepath, grid_name):
+    import pcvr_native
+    return pcvr_native.stream_vdb(filepath, grid_name)
+
+
+MiB = 1 << 20
+
+
+def stream_threshold(stream_above_mib):
+    """Bytes of voxel values above which a volume is streamed (RenderInputs.stream_above_mib), or None."""
+    import pcvr_native
+
+    if stream_above_mib is None:
+        return None
+    return stream_above_mib * MiB if stream_above_mib > 0 else pcvr_native.default_memory_limit() // 4
+
+
+def value_bytes(filepath, grid_name):
+    """The bytes a file's grid takes read whole, from its metadata (read_vdb's choice when `grid_name` is
+    None); 0 when the file does not say."""
+    import pcvr_native
+
+    grids = pcvr_native.list_grids(filepath)
+    chosen = [g for g in grids if g["name"] == (grid_name or "density")] or grids[:1]
+    return 4 * chosen[0]["active_voxels"] if chosen else 0
+
+
+def export_grid(source):
+    """The grid of a procedural VolumeSource (made or changed by modifiers), through a temporary file.
+    Blender's data: call on its main thread."""
+    with volumes.exported_grids(source.volume) as filepath:
+        return read_grid(filepath, source.grid_name)
+
+
+def load_grid(source):
+    """The grid of a VolumeSource in world space. Raises OSError or ValueError naming the cause."""
+    if source.error:
+        raise OSError(source.error)
+    grid = cache.grids.get(source.filepath, source.grid_name, read_grid) if source.filepath else export_grid(source)
+    return grid.with_index_to_world(source.object_to_world @ grid.index_to_world)
+
+
+@dataclass
+class LoadedVolume:
+    index: int                          # in RenderInputs.volumes
+    inputs: scene_inputs.VolumeInputs
+    grid: object                        # pcvr_native.Grid in world space (X-ray: or a GridStream)
+    # Shaded and MIP of a volume too big to read whole: the GridStream its grid is level `level` of.
+    stream: object = None
+    level: int = 0
+
+    @property
+    def value_range(self):
+        """The densities of the volume itself (a coarse level's means span less)."""
+        return (self.stream or self.grid).value_range
+
+    @property
+    def xray_grid(self):
+        """What an X-ray of it renders: the stream where there is one (its levels keep line integrals)."""
+        return self.stream or self.grid
+
+
+@dataclass
+class PreparedScene:
+    """RenderInputs with their grids read and their native objects made: what every render of them, from any
+    view, re-uses."""
+    inputs: scene_inputs.RenderInputs
+    volumes: list                       # LoadedVolume
+    errors: list = field(default_factory=list)    # volumes that could not be read, one message each
+    lighting: tuple = ()                # shaded: (transfer functions, lights, ambient, Shading)
+    warnings: list = field(default_factory=list)  # volumes rendered from a coarse level, one message each
+
+    @property
+    def grids(self):
+        return [volume.grid for volume in self.volumes]
+
+    @property
+    def xray_grids(self):
+        return [volume.xray_grid for volume in self.volumes]
+
+    @property
+    def density_scales(self):
+        return [volume.inputs.density_scale for volume in self.volumes]
+
+    @property
+    def streamed(self):
+        """How many volumes are read from their files while rendering (X-ray of big volumes)."""
+        import pcvr_native
+        return sum(isinstance(volume.grid, pcvr_native.GridStream) for volume in self.volumes)
+
+
+# The levels shaded and MIP modes draw a streamed volume from: means over the background (what they reconstruct
+# towards), and MIP's maxima (a mean is lower than the largest value it stands for).
+LEVEL_REDUCTIONS = {'SHADED': "mean_over_background", 'MIP': "max_over_background"}
+
+
+def fitting_level(value_bytes, budget):
+    """The finest level of detail (1 to 7) whose voxels take at most `budget` bytes."""
+    level = 1
+    while level < 7 and value_bytes >> (3 * level) > budget:
+        level += 1
+    return level
+
+
+def _grid(volume, stream_above=None):
+    """A VolumeInputs' grid: a pcvr_native.GridStream when its file's values take more than `stream_above`
+    bytes and it can be streamed (float fog volumes), else the Grid read whole."""
+    import pcvr_native
+
+    if volume.error:
+        raise OSError(volume.error)
+    if volume.grid is not None:
+        return volume.grid
+    if stream_above is not None and value_bytes(volume.filepath, volume.grid_name) > stream_above:
+        try:
+            return cache.grids.get(volume.filepath, volume.grid_name, stream_grid, kind="stream")
+        except pcvr_native.GridError:
+            pass  # a double grid, a level set: converted as a whole
+    return cache.grids.get(volume.filepath, volume.grid_name, read_grid)
+
+
+def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
+    """PreparedScene of RenderInputs. A volume that cannot be read is left out with a message in `errors`;
+    `reading(name)` is told of each volume before it is read; a true `cancelled()` stops reading. Raises
+    ValueError for a transfer function without a range."""
+    import pcvr_native
+
+    loaded, errors, warnings = [], [], []
+    stream_above = stream_threshold(inputs.stream_above_mib)
+    for index, volume in enumerate(inputs.volumes):
+        if cancelled():
+            break
+        reading(volume.name)
+        try:
+            grid = _grid(volume, stream_above)
+            stream, level = None, 0
+            if isinstance(grid, pcvr_native.GridStream) and inputs.mode in LEVEL_REDUCTIONS:
+                # Shaded and MIP need every voxel at once: the finest level that fits stands in for the volume.
+                stream, level = grid, fitting_level(grid.value_bytes, stream_above)
+                grid = stream.level(level, LEVEL_REDUCTIONS[inputs.mode])
+                warnings.append(f"Volume object '{volume.name}': {stream.value_bytes / MiB:,.0f} MiB of voxels, more "
+                                f"than Stream Above: rendered from level {level} of detail (1/{2 ** level} of its "
+                                "resolution)")
+        except (OSError, ValueError, RuntimeError, MemoryError) as ex:
+            errors.append(f"Volume object '{volume.name}': {ex}")
+            continue
+        placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
+        loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
+    prepared = PreparedScene(inputs, loaded, errors, warnings=warnings)
+    if inputs.mode == 'SHADED' and loaded:
+        prepared.lighting = _native_lighting(prepared)
+    return prepared
+
+
+def density_range(ramp, volume):
+    """The densities a LoadedVolume's ramp (RampInputs) spans: (tf_min, tf_max), or its grid's."""
+    return transfer_function.density_range(ramp, volume.value_range, volume.inputs.density_scale)
+
+
+def control_points(ramp, volume):
+    """A LoadedVolume's ramp (RampInputs) as ControlPoints over its density range. ValueError names the
+    volume."""
+    low, high = density_range(ramp, volume)
+    try:
+        return transfer_function.points_over_range(ramp.positions, ramp.rgba, low, high)
+    except ValueError as ex:
+        raise ValueError(f"Volume object '{volume.inputs.name}': {ex}") from None
+
+
+def native_transfer_function(volume):
+    """pcvr_native.TransferFunction of a LoadedVolume in shaded mode."""
+    import pcvr_native
+
+    ramp = volume.inputs.ramp
+    points = control_points(ramp, volume)
+    # The opacity's unit is the volume's own voxel, also where a coarser level stands in for it.
+    voxel = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / 2 ** volume.level
+    unit_distance = voxel / ramp.opacity_scale
+    return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance)
+
+
+def _native_lighting(prepared):
+    """(transfer functions, lights, ambient colour, one Shading per volume) for render_shaded: the scene's lights
+    and world, and each volume's material. A volume without shading shows its transfer function's colours."""
+    import pcvr_native
+
+    transfer_functions = [native_transfer_function(volume) for volume in prepared.volumes]
+    shadings = []
+    for volume in prepared.volumes:
+        use_shading, ambient, diffuse, specular, shininess = volume.inputs.material
+        shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
+                                            shininess=shininess, lit=use_shading))
+    lights = []
+    for spec in prepared.inputs.lights:
+        make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
+        lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
+    return transfer_functions, lights, prepared.inputs.world, shadings
+
+
+def object_grid(depsgraph, obj):
+    """The world-space grid of the volume object `obj`, read through the cache."""
+    obj_eval = obj.evaluated_get(depsgraph)
+    return load_grid(volumes.source_of(obj_eval, obj_eval.matrix_world))
