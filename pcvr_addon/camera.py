@@ -42,6 +42,34 @@ class CameraView:
         return not outside
 
 
+# Blender's numpad views (and an isometric one from the front right, above): the direction the camera looks
+# along and the world direction that shows up in the image.
+AXIS_VIEWS = {
+    'TOP': ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),      # numpad 7
+    'BOTTOM': ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0)),   # ctrl numpad 7
+    'FRONT': ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),     # numpad 1
+    'BACK': ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),     # ctrl numpad 1
+    'RIGHT': ((-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),    # numpad 3
+    'LEFT': ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),      # ctrl numpad 3
+    'ISO': ((-1.0, 1.0, -1.0), (0.0, 0.0, 1.0)),
+}
+
+
+def look_rotation(direction, up=None):
+    """(3, 3) rotation of a camera looking along `direction` (its local -Z) with `up` as near its image's up
+    (local +Y) as can be: world Z, or world Y when looking along Z. ValueError for a zero direction."""
+    forward = np.asarray(direction, dtype=np.float64)
+    length = np.linalg.norm(forward)
+    if not (length > 0 and np.isfinite(length)):
+        raise ValueError(f"a view direction needs a length, not {tuple(direction)}")
+    back = -forward / length
+    if up is None:
+        up = (0.0, 1.0, 0.0) if abs(back[2]) > 0.999 else (0.0, 0.0, 1.0)
+    right = np.cross(up, back)
+    right /= np.linalg.norm(right)
+    return np.column_stack([right, np.cross(back, right), back])
+
+
 def border_window(render, width, height):
     """The pixel rectangle (x, y, width, height) Blender renders for the render border, from the bottom
     left of the frame, or None when the whole frame is rendered."""

@@ -4,11 +4,13 @@
 
     python -m pcvr_addon render INPUT -o OUTPUT [options]
 
-A .vdb is placed in an empty scene and framed from above by an orthographic camera at
---magnification pixels per voxel (a numbered .vdb brings its siblings along as a sequence, and
---frame N picks file N), lit by a sun along --light-direction and Blender's default grey world;
+A .vdb is placed in an empty scene and framed from above (or from --view, one of Blender's numpad views, or
+along --view-direction) by an orthographic camera at --magnification pixels per voxel (a numbered .vdb
+brings its siblings along as a sequence, and --frame N picks file N), lit by a sun along --light-direction
+and Blender's default grey world;
 a .blend renders with its own camera, lights and settings, overridden by the options given.
---preset applies a transfer-function preset to every volume. The image is read back from
+--preset applies a transfer-function preset to every volume, --hounsfield makes the X-ray of a CT in
+Hounsfield units a DRR (it integrates the linear attenuation). The image is read back from
 Blender's render result (after compositing) and written with OpenImageIO: .exr holds R, G, B, A,
 in shaded mode the Depth pass as Z, and the raw XRay integral; .png and .tif the Combined pass.
 """
@@ -23,10 +25,11 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import image_io, presets, register, statistics, unregister
+from . import camera, image_io, presets, register, statistics, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
+DEFAULT_MU_WATER = 0.193  # per centimetre: water near 70 keV
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
 # a white surface facing it as white, as in Cycles (see lighting.py).
 DEFAULT_LIGHT_DIRECTION = (0.4, -0.4, -0.8)
@@ -91,6 +94,14 @@ def make_parser():
                              f"{' '.join(map(str, DEFAULT_LIGHT_DIRECTION))}; the camera looks down -Z)")
     render.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help=".blend only: image size in pixels")
+    render.add_argument("--view", type=str.upper, choices=list(camera.AXIS_VIEWS),
+                        help=".vdb only: where the camera looks from, as Blender's numpad views (default top, "
+                             "looking down -Z)")
+    render.add_argument("--view-direction", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                        help=".vdb only: the direction the camera looks along, world space")
+    render.add_argument("--hounsfield", type=float, nargs="?", const=DEFAULT_MU_WATER, metavar="MU_WATER",
+                        help="X-ray of a CT in Hounsfield units: integrate mu = MU_WATER (1 + HU / 1000), never "
+                             f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV)")
     return parser
 
 
@@ -105,9 +116,16 @@ def main(argv=None):
         parser.error(f"'{args.input}' does not exist")
     if os.path.splitext(args.output)[1].lower() not in image_io.FORMATS:
         parser.error(f"OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
-    if extension == ".blend" and (args.magnification, args.grid, args.light_direction) != (None, None, None):
-        parser.error("--magnification, --grid and --light-direction apply to a .vdb; a .blend renders with "
-                     "its own camera and lights")
+    vdb_only = (args.magnification, args.grid, args.light_direction, args.view, args.view_direction)
+    if extension == ".blend" and vdb_only != (None,) * len(vdb_only):
+        parser.error("--magnification, --grid, --light-direction, --view and --view-direction apply to a .vdb; "
+                     "a .blend renders with its own camera and lights")
+    if args.view is not None and args.view_direction is not None:
+        parser.error("--view and --view-direction both say where the camera looks: give one")
+    if args.view_direction is not None and not any(args.view_direction):
+        parser.error("--view-direction needs a direction, not 0 0 0")
+    if args.hounsfield is not None and not args.hounsfield > 0:
+        parser.error(f"--hounsfield: the attenuation of water must be positive, not {args.hounsfield}")
     if extension == ".vdb" and args.resolution is not None:
         parser.error("--resolution applies to a .blend; a .vdb is sized by --magnification")
     if args.light_direction is not None and not any(args.light_direction):
@@ -137,7 +155,8 @@ def render(args):
             try:
                 vdb_scene(scene, os.path.abspath(args.input), grid=args.grid, frame=args.frame,
                           magnification=args.magnification or DEFAULT_MAGNIFICATION,
-                          light_direction=args.light_direction or DEFAULT_LIGHT_DIRECTION)
+                          light_direction=args.light_direction or DEFAULT_LIGHT_DIRECTION,
+                          view=args.view, view_direction=args.view_direction)
             except RuntimeError as ex:
                 print(f"pcvr: {ex}", file=sys.stderr)
                 return 1
@@ -165,18 +184,22 @@ def render(args):
 
 
 def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGNIFICATION,
-              light_direction=DEFAULT_LIGHT_DIRECTION):
+              light_direction=DEFAULT_LIGHT_DIRECTION, view=None, view_direction=None):
     """Make `scene` (empty) show the .vdb `filepath` as the command line renders it: imported (grid `grid`, at
-    frame `frame` or the file's number), framed from above at `magnification`, lit by a sun travelling along
-    `light_direction` and Blender's default world. Returns the volume object; raises RuntimeError with the
-    operator's report when the volume cannot be read."""
+    frame `frame` or the file's number), framed at `magnification` from `view` (a camera.AXIS_VIEWS key; default
+    from above) or along `view_direction`, lit by a sun travelling along `light_direction` and Blender's default
+    world. Returns the volume object; raises RuntimeError with the operator's report when the volume cannot be
+    read."""
     obj, file_frame = _import_vdb(filepath)
     if grid:
         obj.data.pcvr.grid = grid
     frame = frame if frame is not None else file_frame
     if frame is not None:
         scene.frame_set(frame)
-    bpy.ops.pcvr.frame_volume(magnification=magnification)
+    if view_direction is not None:
+        bpy.ops.pcvr.frame_volume(magnification=magnification, view='DIRECTION', direction=view_direction)
+    else:
+        bpy.ops.pcvr.frame_volume(magnification=magnification, view=view or 'TOP')
     _light(scene, light_direction)
     return obj
 
@@ -247,6 +270,9 @@ def _apply_options(scene, args):
     if args.preset is not None:
         for volume in bpy.data.volumes:
             volume.pcvr.apply_preset(args.preset)
+    if args.hounsfield is not None:
+        for volume in bpy.data.volumes:
+            volume.pcvr.xray_values, volume.pcvr.mu_water = 'HOUNSFIELD', args.hounsfield
     for view_layer in scene.view_layers:
         view_layer.pcvr.use_pass_xray = True
         view_layer.use_pass_z = settings.mode == 'SHADED'

@@ -3,11 +3,11 @@
 import bpy
 import numpy as np
 from bl_operators.presets import AddPresetBase
-from bpy.props import FloatProperty
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import prepared_scene, presets, transfer_function
+from . import camera, prepared_scene, presets, transfer_function
 from .volumes import KERNEL_RADIUS_VOXELS
 
 
@@ -28,8 +28,8 @@ def volume_grid(operator, context, obj):
 
 
 class PCVR_OT_frame_volume(Operator):
-    """Point the scene camera straight down at the active volume, orthographic, sized so that one voxel
-    spans the given number of pixels"""
+    """Point the scene camera at the active volume, orthographic, from one of Blender's axis views (straight down
+    by default), sized so that one voxel spans the given number of pixels"""
     bl_idname = "pcvr.frame_volume"
     bl_label = "Frame Volume"
     bl_options = {'REGISTER', 'UNDO'}
@@ -40,16 +40,36 @@ class PCVR_OT_frame_volume(Operator):
         min=0.01, soft_min=0.25, soft_max=32.0,
         default=4.0,
     )
+    view: EnumProperty(
+        name="View",
+        description="Where the camera looks from, as Blender's numpad views",
+        items=[(key, key.title() if key != 'ISO' else "Isometric", "") for key in camera.AXIS_VIEWS] +
+              [('DIRECTION', "Direction", "Along View Direction")],
+        default='TOP',
+    )
+    direction: FloatVectorProperty(
+        name="View Direction",
+        description="The direction the camera looks along, in world space (View: Direction)",
+        size=3, default=(0.0, 0.0, -1.0),
+    )
 
     def execute(self, context):
         grid = volume_grid(self, context, context.active_object)
         if grid is None:
             return {'CANCELLED'}
+        try:
+            look, up = camera.AXIS_VIEWS[self.view] if self.view in camera.AXIS_VIEWS else (self.direction, None)
+            rotation = camera.look_rotation(look, up)
+        except ValueError as ex:
+            self.report({'ERROR'}, f"Frame Volume: {ex}")
+            return {'CANCELLED'}
 
         index_to_world = np.asarray(grid.index_to_world)
-        # Pixels follow the grid's first axis; the image is exact for grids aligned with world X and Y.
+        # Pixels follow the grid's first axis; the image is exact for grids aligned with the view's axes.
         voxel_size = float(np.linalg.norm(index_to_world[:3, 0]))
-        lo, hi = _world_bounds(index_to_world, *grid.index_bbox)
+        # The voxels' box in the camera's axes: image x, image y, and towards the camera.
+        corners = _world_corners(index_to_world, *grid.index_bbox) @ rotation
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
 
         # Room for the splat kernels of the outermost voxels on every side.
         margin = 2 * KERNEL_RADIUS_VOXELS * voxel_size
@@ -72,17 +92,22 @@ class PCVR_OT_frame_volume(Operator):
         # Every voxel centre must lie between the clip planes.
         cam.clip_start = margin
         cam.clip_end = 3 * margin + depth
-        centre = (lo + hi) / 2
-        camera_object.matrix_world = Matrix.Translation((centre[0], centre[1], hi[2] + 2 * margin))
+        eye = (lo + hi) / 2
+        eye[2] = hi[2] + 2 * margin
+        placement = Matrix.Identity(4)
+        placement.translation = rotation @ eye
+        for row in range(3):
+            for column in range(3):
+                placement[row][column] = rotation[row, column]
+        camera_object.matrix_world = placement
         return {'FINISHED'}
 
 
-def _world_bounds(index_to_world, index_min, index_max):
-    """World-space bounds of the voxels from index_min to index_max (inclusive), cells included."""
+def _world_corners(index_to_world, index_min, index_max):
+    """World-space corners (8, 3) of the voxels from index_min to index_max (inclusive), cells included."""
     lo, hi = np.asarray(index_min) - 0.5, np.asarray(index_max) + 0.5
     corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    world = (index_to_world @ corners.T)[:3].T
-    return world.min(axis=0), world.max(axis=0)
+    return (index_to_world @ corners.T)[:3].T
 
 
 def _scene_camera(context):

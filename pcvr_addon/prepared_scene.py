@@ -70,10 +70,20 @@ class LoadedVolume:
         """The densities of the volume itself (a coarse level's means span less)."""
         return (self.stream or self.grid).value_range
 
+    # Hounsfield units: the map to linear attenuation per world unit, and the grid it maps once (set by prepare).
+    attenuation: object = None          # pcvr_native.AttenuationMap
+    attenuated: object = None           # pcvr_native.Grid
+
     @property
     def xray_grid(self):
-        """What an X-ray of it renders: the stream where there is one (its levels keep line integrals)."""
-        return self.stream or self.grid
+        """What an X-ray of it renders: the stream where there is one (its levels keep line integrals), else the
+        grid, in attenuation where its values are Hounsfield units."""
+        return self.stream or self.attenuated or self.grid
+
+    @property
+    def xray_attenuation(self):
+        """The attenuation map render_xray applies itself: a stream's, whose batches it maps as it reads them."""
+        return self.attenuation if self.attenuated is None else None
 
 
 @dataclass
@@ -93,6 +103,10 @@ class PreparedScene:
     @property
     def xray_grids(self):
         return [volume.xray_grid for volume in self.volumes]
+
+    @property
+    def xray_attenuation(self):
+        return [volume.xray_attenuation for volume in self.volumes]
 
     @property
     def density_scales(self):
@@ -162,10 +176,22 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
             continue
         placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
         loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
+        if inputs.xray is not None and volume.mu_water_per_cm is not None:
+            _attenuate(loaded[-1], volume.mu_water_per_cm * inputs.centimetres_per_unit)
     prepared = PreparedScene(inputs, loaded, errors, warnings=warnings)
     if inputs.mode == 'SHADED' and loaded:
         prepared.lighting = _native_lighting(prepared)
     return prepared
+
+
+def _attenuate(volume, mu_water):
+    """An X-ray of a LoadedVolume in Hounsfield units integrates mu = mu_water (1 + HU / 1000) (per world unit):
+    a grid is mapped once here, for every view the prepared scene renders; a stream as it is read."""
+    import pcvr_native
+
+    volume.attenuation = pcvr_native.AttenuationMap.hounsfield(mu_water)
+    if not isinstance(volume.grid, pcvr_native.GridStream):
+        volume.attenuated = volume.attenuation.apply(volume.grid)
 
 
 def density_range(ramp, volume):

@@ -228,6 +228,25 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
+    # What an X-ray integrates (X-ray mode and the XRay pass).
+    xray_values: EnumProperty(
+        name="X-Ray Values",
+        description="What the grid's values are to an X-ray",
+        items=[('DENSITY', "Density", "Integrate the values as they are (times the density scale)"),
+               ('HOUNSFIELD', "Hounsfield Units",
+                "A CT in Hounsfield units: integrate the linear attenuation mu = mu_water (1 + HU / 1000), never "
+                "below 0, as DRR tools do")],
+        default='DENSITY',
+        update=tag_changed,
+    )
+    mu_water: FloatProperty(
+        name="Water Attenuation",
+        description="Linear attenuation coefficient of water per centimetre (0.193 near 70 keV), converted to the "
+                    "scene's length unit (Scene > Units > Unit Scale)",
+        min=1e-6, soft_max=1.0, precision=4,
+        default=0.193,
+        update=tag_changed,
+    )
 
     # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
     transfer_function: PointerProperty(

@@ -49,6 +49,7 @@ class VolumeInputs:
     error: str = ""          # why the volume cannot be read, "" when it can
     ramp: RampInputs | None = None     # shaded mode
     material: tuple | None = None      # shaded mode: (use_shading, ambient, diffuse, specular, shininess)
+    mu_water_per_cm: float | None = None  # X-ray of a CT in Hounsfield units: water's attenuation; None: densities
     # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
     # a change).
     grid: object = None
@@ -96,6 +97,7 @@ class RenderInputs:
     # Volumes of more MiB than this are streamed from their files (0: above a quarter of the memory
     # available; None: never): X-ray reads them a part at a time, shaded and MIP draw a coarser level.
     stream_above_mib: int | None = None
+    centimetres_per_unit: float = 100.0  # the scene's length unit (attenuation is per unit length)
 
     def with_sheet_spacing(self, factor):
         """The same inputs with `factor` times the sheet spacing (a coarser, faster shaded or MIP image)."""
@@ -156,6 +158,7 @@ def volume_inputs(source, mode, export_grid):
         error=error,
         ramp=ramp_inputs(settings) if mode == 'SHADED' else None,
         material=material(settings) if mode == 'SHADED' else None,
+        mu_water_per_cm=settings.mu_water if settings.xray_values == 'HOUNSFIELD' else None,
         grid=grid,
     )
 
@@ -199,6 +202,7 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
         world=world if shaded else (0.0, 0.0, 0.0),
         with_depth=shaded and not in_viewport and depsgraph.view_layer.use_pass_z,
         stream_above_mib=settings.stream_above,
+        centimetres_per_unit=100.0 * scene.unit_settings.scale_length,
     )
     display = DisplayInputs(
         mode=mode,

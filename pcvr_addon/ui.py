@@ -164,6 +164,9 @@ class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
         settings = volume.pcvr
         layout.prop_search(settings, "grid", volume, "grids", icon='VOLUME_DATA')
         layout.prop(settings, "density_scale")
+        layout.prop(settings, "xray_values")
+        if settings.xray_values == 'HOUNSFIELD':
+            layout.prop(settings, "mu_water")
         layout.operator("pcvr.frame_volume", icon='CAMERA_DATA')
 
 

@@ -6,9 +6,10 @@
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
-
+#include <nanobind/stl/vector.h>
 
 #include "bindings.h"
+#include "pcvr/attenuation_map.h"
 #include "pcvr/camera.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
@@ -26,34 +27,55 @@ namespace pcvr::python {
 
 namespace {
 
+/// `attenuation`: None, one AttenuationMap for every grid, or a sequence with one map (or None) per grid.
+std::vector<const AttenuationMap*> attenuation_from_python(nb::handle attenuation, size_t count) {
+    if (attenuation.is_none()) return std::vector<const AttenuationMap*>(count, nullptr);
+    if (nb::isinstance<AttenuationMap>(attenuation))
+        return std::vector<const AttenuationMap*>(count, nb::cast<const AttenuationMap*>(attenuation));
+    std::vector<const AttenuationMap*> out;
+    try {
+        for (nb::handle item : attenuation) out.push_back(item.is_none() ? nullptr : nb::cast<const AttenuationMap*>(item));
+    } catch (const std::exception&) {
+        throw nb::type_error("render_xray: attenuation must be None, a pcvr_native.AttenuationMap, or one (or None) per grid");
+    }
+    if (out.size() != count)
+        throw nb::value_error("render_xray: attenuation must be one AttenuationMap or one per grid");
+    return out;
+}
+
 nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::string& method,
                           const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
                           int pixel_step, double footprint_tolerance, std::optional<uint64_t> memory_limit,
-                          bool antialias, nb::handle level) {
+                          bool antialias, nb::handle level, nb::handle attenuation) {
     // Grids and streamed grids, in any mix; scales follow the sequence's order.
     const nb::list items = nb::isinstance<Grid>(grid_arg) || nb::isinstance<GridStream>(grid_arg)
                                ? nb::list(nb::make_tuple(grid_arg))
                                : grid_sequence(grid_arg, "render_xray");
     const std::vector<double> scales = scales_from_python(density_scale, items.size(), "render_xray");
+    const std::vector<const AttenuationMap*> maps = attenuation_from_python(attenuation, items.size());
     std::vector<Grid> grids;
     std::vector<std::shared_ptr<GridStream>> streams;
     std::vector<double> grid_scales, stream_scales;
+    std::vector<const AttenuationMap*> grid_maps, stream_maps;
     for (size_t i = 0; i < items.size(); ++i) {
         if (nb::isinstance<GridStream>(items[i])) {
             streams.push_back(nb::cast<std::shared_ptr<GridStream>>(items[i]));
             stream_scales.push_back(scales[i]);
+            stream_maps.push_back(maps[i]);
         } else {
             if (!nb::isinstance<Grid>(items[i]))
                 throw nb::type_error("render_xray: `grid` must be a pcvr_native.Grid or GridStream, or a sequence of them");
             grids.push_back(nb::cast<Grid>(items[i]));
             grid_scales.push_back(scales[i]);
+            grid_maps.push_back(maps[i]);
         }
     }
     std::vector<WeightedGrid> weighted;
-    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], grid_scales[i]});
+    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], grid_scales[i], 0, grid_maps[i]});
     std::vector<WeightedStream> weighted_streams;
-    for (size_t i = 0; i < streams.size(); ++i) weighted_streams.push_back({streams[i].get(), stream_scales[i]});
+    for (size_t i = 0; i < streams.size(); ++i)
+        weighted_streams.push_back({streams[i].get(), stream_scales[i], stream_maps[i]});
 
     XrayParams params;
     params.method = xray_method_from_name(method);
@@ -99,6 +121,28 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
 }  // namespace
 
 void bind_render(nb::module_& m) {
+    nb::class_<AttenuationMap>(m, "AttenuationMap",
+                               "A piecewise-linear map from grid values to linear attenuation per world unit, constant "
+                               "beyond its ends, that render_xray applies to every active voxel (a DRR from Hounsfield units).")
+        .def(nb::init<std::vector<double>, std::vector<double>>(), "values"_a, "attenuation"_a,
+             "Through the points (values[i], attenuation[i]); values strictly increasing.")
+        .def_static("hounsfield", &AttenuationMap::hounsfield, "mu_water"_a, "mu_air"_a = 0.0,
+                    "mu = mu_water * (1 + HU / 1000), never below mu_air: what DRR tools integrate through a CT.")
+        .def_prop_ro("values", &AttenuationMap::values)
+        .def_prop_ro("attenuation", &AttenuationMap::attenuation)
+        .def("__call__", [](const AttenuationMap& map, double value) { return map(value); }, "value"_a,
+             "The attenuation of one value.")
+        .def("apply",
+             [](const AttenuationMap& map, const Grid& grid) {
+                 nb::gil_scoped_release release;
+                 return map.apply(grid);
+             },
+             "grid"_a, "The grid with every active voxel's value mapped (render_xray(attenuation=...) does this per "
+                       "render: keep the result to render many views of it).")
+        .def("__repr__", [](const AttenuationMap& map) {
+            return "<pcvr_native.AttenuationMap of " + std::to_string(map.values().size()) + " points>";
+        });
+
     nb::class_<Camera>(m, "Camera",
                        "A camera in Blender's conventions: world_to_camera (camera looks down -Z) and an OpenGL "
                        "projection matrix, as returned by Object.calc_matrix_camera(depsgraph, x=width, y=height).")
@@ -122,7 +166,7 @@ void bind_render(nb::module_& m) {
           "post_filter"_a = "bilinear", "stride"_a = 0, "threads"_a = 0, nb::kw_only(), "density_scale"_a = 1.0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), "pixel_step"_a = 1,
           "footprint_tolerance"_a = kFootprintTolerance, "memory_limit"_a = nb::none(), "antialias"_a = true,
-          "level"_a = "auto",
+          "level"_a = "auto", "attenuation"_a = nb::none(),
           "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.\n"
           "A GridStream (stream_vdb) stands wherever a Grid may: it is read a batch at a time, and memory_limit\n"
           "then bounds the batch's voxels (half the limit) as well as the buffers (the other half).\n"
@@ -133,7 +177,10 @@ void bind_render(nb::module_& m) {
           "antialias: footprints of voxels smaller than a pixel are integrated over each pixel's area, so a pixel\n"
           "is the mean of the line integral over it (False: sampled at its centre, as method 'exact' is).\n"
           "level: 'auto' renders each grid from the coarsest level of detail (Grid.level) whose voxels project to at\n"
-          "most 1/32 of a pixel (which keeps the image within 0.1% of level 0's), or a level k >= 0 (0: the grid itself); stats['level'] says which.");
+          "most 1/32 of a pixel (which keeps the image within 0.1% of level 0's), or a level k >= 0 (0: the grid itself); stats['level'] says which.\n"
+          "attenuation: an AttenuationMap (or one per grid, None for none) applied to every active voxel before\n"
+          "splatting: the image integrates the attenuation, e.g. AttenuationMap.hounsfield(0.0206) for a CT in HU\n"
+          "(mu per world unit: 0.0206 per mm, water at 70 keV).");
     m.def("default_memory_limit", &default_memory_limit,
           "Bytes a render may use when memory_limit is None: the memory this machine (or its cgroup) has available.");
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
@@ -142,3 +143,30 @@ def test_stream_above_reads_a_big_vdb_from_its_file(tmp_path):
     assert "Streamed" not in whole.stdout and "pcvr: Voxels 884,736" in whole.stdout
     integral = {name: image_io.read_passes(str(tmp_path / f"{name}.exr"))[""][:, :, 4] for name in ("streamed", "whole")}
     np.testing.assert_allclose(integral["streamed"], integral["whole"], rtol=0, atol=1e-6 * integral["whole"].max())
+
+
+def test_views_and_a_drr_from_hounsfield_units(tmp_path):
+    """--view front looks along +Y with Z up (Blender's numpad 1), --view-direction along any vector, and
+    --hounsfield integrates mu = MU_WATER (1 + HU / 1000) per centimetre of the scene's unit (metres here)."""
+    values = np.full((16, 16, 16), -1000.0, np.float32)   # air
+    values[4:12, 4:12, 2:6] = 1000.0                      # a slab of bone at the bottom (low k: low z)
+    values[4:12, 4:12, 6:14] = 0.0                        # water above it
+    ct = tmp_path / "ct.vdb"
+    pn.Grid.from_dense(values, bs.centred(), background=-1000.0).write_vdb(str(ct))
+    check(pcvr(ct, "-o", tmp_path / "front.exr", "--magnification", 2, "--view", "front", "--hounsfield"))
+    front = image_io.read_passes(str(tmp_path / "front.exr"))[""][:, :, 4]
+    # From the front Z is up: bone (mu 2 x 19.3 per metre) at the bottom, 0.8 m of it along the view at
+    # voxels of 0.1 m, and water (19.3 per metre) above it.
+    column = front[:, front.shape[1] // 2]
+    first, last = np.flatnonzero(column > 1e-3 * column.max())[[0, -1]]  # rows from the top, 2 pixels a voxel
+    water, bone = column[first + 4 + 8], column[last - 4 - 4]  # past the kernels' reach, mid-way through each
+    assert water == pytest.approx(19.3 * 0.8, rel=0.03) and bone == pytest.approx(2 * 19.3 * 0.8, rel=0.03)
+    check(pcvr(ct, "-o", tmp_path / "top.exr", "--magnification", 2, "--hounsfield", "0.2"))
+    above = image_io.read_passes(str(tmp_path / "top.exr"))[""][:, :, 4]
+    # From above: 0.4 m of bone and 0.8 m of water, at 20 per metre.
+    assert above[above.shape[0] // 2, above.shape[1] // 2] == pytest.approx(20 * (2 * 0.4 + 0.8), rel=0.03)
+    check(pcvr(ct, "-o", tmp_path / "along.exr", "--magnification", 2, "--view-direction", 0, 1, 0,
+               "--hounsfield"))
+    np.testing.assert_array_equal(image_io.read_passes(str(tmp_path / "along.exr"))[""][:, :, 4], front)
+    run = pcvr(ct, "-o", tmp_path / "x.exr", "--view", "front", "--view-direction", 0, 1, 0)
+    assert run.returncode == 2 and "give one" in run.stderr

@@ -58,3 +58,44 @@ def test_reports_an_unreadable_volume(tmp_path):
     bpy.context.view_layer.objects.active = obj
     with pytest.raises(RuntimeError, match="Lost.*lost.vdb"):
         bpy.ops.pcvr.frame_volume()
+
+
+@pytest.mark.parametrize("view, looks_along, up", [
+    ('TOP', (0, 0, -1), (0, 1, 0)),
+    ('BOTTOM', (0, 0, 1), (0, -1, 0)),
+    ('FRONT', (0, 1, 0), (0, 0, 1)),
+    ('BACK', (0, -1, 0), (0, 0, 1)),
+    ('RIGHT', (-1, 0, 0), (0, 0, 1)),
+    ('LEFT', (1, 0, 0), (0, 0, 1)),
+])
+def test_numpad_views(box_object, view, looks_along, up):
+    """Each of Blender's numpad views looks along its axis with its up, frames the volume whole and keeps one
+    voxel at `magnification` pixels; the X-ray of the cube is the same square from every side."""
+    scene = bs.setup()
+    bpy.ops.pcvr.frame_volume(magnification=4.0, view=view)
+    rotation = np.array(bpy.context.scene.camera.matrix_world)[:3, :3]
+    np.testing.assert_allclose(rotation @ (0.0, 0.0, -1.0), looks_along, atol=1e-6)  # Blender keeps float32
+    np.testing.assert_allclose(rotation @ (0.0, 1.0, 0.0), up, atol=1e-6)
+    assert (scene.render.resolution_x, scene.render.resolution_y) == (48, 48)
+    low, high = pn.effective_magnification(bs.world_grid(box_object), bs.reference_camera())
+    assert low == pytest.approx(4.0) and high == pytest.approx(4.0)
+    image = bs.xray(bs.render(scene))
+    bs.assert_matches(image, bs.exact(bs.world_grid(box_object)))
+
+
+def test_any_view_direction_frames_the_whole_volume(box_object):
+    """An oblique direction (the isometric view, and one given as a vector): every voxel in the image, none cut."""
+    scene = bs.setup()
+    for arguments in ({"view": 'ISO'}, {"view": 'DIRECTION', "direction": (0.3, -0.8, -0.2)}):
+        bpy.ops.pcvr.frame_volume(magnification=3.0, **arguments)
+        image = bs.xray(bs.render(scene))
+        assert image.max() > 0
+        # Nothing reaches the image's border rows and columns: the kernels of the outermost voxels fit.
+        border = np.concatenate([image[0], image[-1], image[:, 0], image[:, -1]])
+        assert np.abs(border).max() < 1e-3 * image.max()
+
+
+def test_a_zero_view_direction_is_reported(box_object):
+    bs.setup()
+    with pytest.raises(RuntimeError, match="view direction needs a length"):
+        bpy.ops.pcvr.frame_volume(view='DIRECTION', direction=(0.0, 0.0, 0.0))

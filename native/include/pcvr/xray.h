@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "pcvr/attenuation_map.h"
 #include "pcvr/camera.h"
 #include "pcvr/grid.h"
 #include "pcvr/grid_stream.h"
@@ -39,6 +40,8 @@ struct WeightedGrid {
     /// The grid is this level of detail of another (GridStream::level): its footprints are widened as
     /// Grid::level's are, and renders choose levels of it no further.
     int level = 0;
+    /// When set, the X-ray integrates the attenuation its values map to (Hounsfield units to mu).
+    const AttenuationMap* attenuation = nullptr;
 };
 
 enum class XrayMethod { Regular, Pcvr, BilinearSpread, Exact };
@@ -100,6 +103,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& came
 struct WeightedStream {
     const GridStream* stream;
     double density_scale = 1.0;
+    const AttenuationMap* attenuation = nullptr;  ///< applied to every batch (see WeightedGrid)
 };
 
 /// render_xray of `grids` and the streamed grids (src/xray/streamed_xray.cpp): X-ray images add, so each

@@ -88,8 +88,9 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     }
     for (const WeightedStream& s : streams) {
         const int level = stream_level(*s.stream, camera, params);
-        if (level > 0 && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
-            // A zoomed-out view: the level fits where a batch would, and stays for the next render.
+        // A zoomed-out view: the level fits where a batch would, and stays for the next render. (Not with an
+        // attenuation map, which must see every voxel before levels average them: batches map, then reduce.)
+        if (level > 0 && !s.attenuation && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
             const Grid coarse = s.stream->level(level, LevelReduction::MeanOverZero, &control);
             render_part({WeightedGrid{&coarse, s.density_scale, level}}, s.stream->active_voxel_count(), part_params);
             continue;
@@ -98,7 +99,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
         batch_params.level = level;  // every batch the same level
         uint64_t streamed = 0;
         s.stream->for_each_batch(batch_bytes, [&](const GridStream::Batch& batch) {
-            render_part({WeightedGrid{&batch.grid, s.density_scale}}, batch.voxels_done - streamed, batch_params);
+            render_part({WeightedGrid{&batch.grid, s.density_scale, 0, s.attenuation}}, batch.voxels_done - streamed,
+                        batch_params);
             streamed = batch.voxels_done;
         });
     }

@@ -169,9 +169,19 @@ void check_finite(const XrayImage& image, const std::vector<WeightedGrid>& grids
 
 }  // namespace
 
-XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
+XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& cam, const XrayParams& params,
                       RenderControl& control, XrayStats* stats_out) {
     const auto start = std::chrono::steady_clock::now();
+    // Grids with an attenuation map render as their mapped copies, which live as long as the render.
+    std::vector<Grid> mapped;
+    mapped.reserve(grids_in.size());
+    std::vector<WeightedGrid> grids = grids_in;
+    for (WeightedGrid& g : grids)
+        if (g.attenuation) {
+            mapped.push_back(g.attenuation->apply(*g.grid));
+            g.grid = &mapped.back();
+            g.attenuation = nullptr;
+        }
     // Validate every argument up front, whatever the method, so mistakes are caught early.
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
     const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
