@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import engine, image_io, presets, register, unregister
+from . import convert_command, engine, image_io, presets, register, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -63,7 +63,7 @@ def make_parser():
     render = commands.add_parser(
         "render", help="Render a .vdb or .blend to an image",
         description="Render a .vdb (framed from above) or a .blend (its own camera) to .exr, .png or .tif.")
-    render.add_argument("input", metavar="INPUT", help="a .vdb or .blend file")
+    render.add_argument("input", metavar="INPUT", help="a .vdb or .blend file, or a scan (see convert)")
     render.add_argument("-o", "--output", metavar="OUTPUT", required=True,
                         help="the image to write: " + ", ".join(image_io.FORMATS))
     render.add_argument("--mode", type=str.upper, choices=MODES, help="what the image shows")
@@ -91,12 +91,18 @@ def make_parser():
                              f"{' '.join(map(str, DEFAULT_LIGHT_DIRECTION))}; the camera looks down -Z)")
     render.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help=".blend only: image size in pixels")
+    convert_command.add_scan_options(render)
+    convert_command.add_parser(commands)
     return parser
 
 
 def main(argv=None):
     parser = make_parser()
     args = parser.parse_args(argv)
+    if args.command == "convert":
+        return convert_command.main(args)
+    if convert_command.render_input(args):  # a scan: rendered from its .vdb
+        return 1
 
     extension = os.path.splitext(args.input)[1].lower()
     if extension not in {".vdb", ".blend"}:
