@@ -39,7 +39,8 @@ def scan_path(filepath):
 
 def add_volume_object(context, vdb_path, name, unit_scale):
     volume = bpy.data.volumes.new(name)
-    volume.filepath = vdb_path
+    # Relative to a saved .blend, so that the two move together.
+    volume.filepath = bpy.path.relpath(vdb_path) if bpy.data.filepath else vdb_path
     obj = bpy.data.objects.new(name, volume)
     obj.scale = (unit_scale,) * 3
     context.collection.objects.link(obj)

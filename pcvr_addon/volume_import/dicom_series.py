@@ -49,7 +49,8 @@ class Series:
 
 def find_series(path):
     """The image series under `path` (a folder, searched with its subfolders, or one file of a series: the
-    series of that file from its folder), ordered by series number."""
+    series of that file from its folder; all of the folder's when the file is no slice, e.g. a DICOMDIR),
+    ordered by series number."""
     from pydicom import dcmread
     from pydicom.errors import InvalidDicomError
 
@@ -75,7 +76,7 @@ def find_series(path):
         series[uid].headers.append((file, header))
     found = sorted(series.values(), key=lambda s: (s.number is None, s.number or 0, s.uid))
     if not os.path.isdir(path):
-        found = [s for s in found if any(os.path.samefile(f, path) for f, _h in s.headers)]
+        return [s for s in found if any(os.path.samefile(f, path) for f, _h in s.headers)] or found
     return found
 
 

@@ -114,8 +114,10 @@ def read_slabs(layout, first_plane=0, planes=None):
                     got = (first_plane + done) * plane_bytes + len(buffer)
                     raise ScanError(f"{layout.path}: truncated: the header promises {expected} bytes of "
                                     f"{layout.dtype.name} samples ({nx} x {ny} x {nz}), the file ends after {got}")
-                samples = np.frombuffer(buffer, dtype=layout.dtype).reshape(count, ny, nx)
-                yield _physical(samples, layout.slope, layout.intercept)
+                slab = _physical(np.frombuffer(buffer, dtype=layout.dtype).reshape(count, ny, nx),
+                                 layout.slope, layout.intercept)
+                del buffer  # not held while the next slab is read
+                yield slab
                 done += count
     except (OSError, EOFError, zlib.error) as ex:
         raise ScanError(f"{layout.path}: cannot read the voxels ({layout.compression}): {ex}") from None
@@ -124,5 +126,9 @@ def read_slabs(layout, first_plane=0, planes=None):
 def _physical(samples, slope, intercept):
     if slope == 1.0 and intercept == 0.0:
         return samples.astype(np.float32)
-    # In double, so that integer samples and integer rescales (CT's) give exact float32 values.
-    return (samples.astype(np.float64) * slope + intercept).astype(np.float32)
+    # In double, a plane at a time (no double copy of the slab), so that integer samples and integer
+    # rescales (CT's) give exact float32 values.
+    out = np.empty(samples.shape, dtype=np.float32)
+    for plane, stored in zip(out, samples):
+        plane[...] = stored * slope + intercept
+    return out

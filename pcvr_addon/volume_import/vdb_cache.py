@@ -11,7 +11,7 @@ import hashlib
 import os
 import re
 
-from . import open_volume, write_vdb
+from . import format_of, open_volume, write_vdb
 
 # Bump when the conversion's output changes, so that older cached files are not reused.
 CONVERTER_VERSION = 1
@@ -33,7 +33,10 @@ def _fingerprint(path, series, frame):
 
 
 def vdb_name(path):
-    """A file name for the scan's .vdb that Blender will not take for a numbered sequence."""
+    """A file name for the scan's .vdb that Blender will not take for a numbered sequence: a DICOM series is
+    named after its folder."""
+    if os.path.isfile(path) and format_of(path) == "dicom":
+        path = os.path.dirname(os.path.abspath(path))
     stem = os.path.basename(os.path.normpath(path))
     stem = re.sub(r"(\.nii)?\.[A-Za-z]+$", "", stem) or "scan"
     return re.sub(r"[^A-Za-z0-9_-]+", "_", stem) + "_volume.vdb"

@@ -20,9 +20,9 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-# Slabs of about this many bytes of float32: large enough that per-slab overhead vanishes, small
-# beside any volume worth streaming.
-SLAB_BYTES = 16 << 20
+# Slabs of about this many bytes of float32: large enough that per-slab overhead vanishes (a 512 x 512
+# plane is 1 MiB), small beside any volume worth streaming: the margin a conversion needs above the grid.
+SLAB_BYTES = 4 << 20
 
 # Length units to millimetres, by the names the formats use (NIfTI's xyzt_units through nibabel,
 # NRRD's space units, ImageJ's and OME's units).

@@ -64,3 +64,12 @@ def test_a_bad_scan_is_reported_and_nothing_is_imported(tmp_path, rng):
     with pytest.raises(RuntimeError, match=r"slice\(s\) missing"):
         bpy.ops.pcvr.import_volume(filepath=files[0], directory_for_vdb=str(tmp_path / "vdb"))
     assert len(bpy.data.objects) == 0 and len(bpy.data.volumes) == 0
+
+
+def test_beside_a_saved_blend_the_vdb_is_kept_with_it_by_a_relative_path(tmp_path, rng):
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    _, files = ct_files(tmp_path / "ct", rng)
+    bpy.ops.pcvr.import_volume(filepath=files[0])
+    volume = bpy.context.view_layer.objects.active.data
+    assert volume.filepath.startswith("//pcvr_volumes/") and volume.filepath.endswith("ct_volume.vdb")
+    assert (tmp_path / volume.filepath[2:]).is_file()
