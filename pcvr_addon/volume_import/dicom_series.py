@@ -105,7 +105,7 @@ def open_dicom(path, series=None):
 
 def _volume(path, series):
     headers = series.headers
-    first_file, first = headers[0]
+    first = headers[0][1]
     for file, header in headers:
         if int(header.get("NumberOfFrames", 1) or 1) > 1:
             raise ScanError(f"{file}: a multi-frame image ({header.NumberOfFrames} frames); only series of "

@@ -24,6 +24,8 @@ def cache_directory():
 
 def _fingerprint(path, series, frame):
     digest = hashlib.sha1(f"{CONVERTER_VERSION}\0{os.path.abspath(path)}\0{series}\0{frame}".encode())
+    if os.path.isfile(path) and format_of(path) == "dicom":
+        path = os.path.dirname(os.path.abspath(path))  # a file names its folder's series
     files = [path] if os.path.isfile(path) else sorted(
         os.path.join(folder, name) for folder, _dirs, names in os.walk(path) for name in names)
     for file in files:
