@@ -134,3 +134,34 @@ def test_bad_files_are_refused_naming_the_file_and_cause(tmp_path, rng):
         volume_import.open_volume(str(tmp_path / "missing.nrrd"))
     with pytest.raises(ScanError, match="--series picks a DICOM series"):
         volume_import.open_volume(truncated, series="1")
+
+
+def test_nan_becomes_the_background_and_infinity_is_refused(tmp_path, rng):
+    values = rng.random((4, 5, 6)).astype(np.float32) + 1.0
+    values[1, 2, 3] = values[0, 0, 0] = np.nan
+    volume = volume_import.open_volume(sf.nifti(str(tmp_path / "masked.nii"), values, np.eye(4)))
+    grid = volume_import.to_grid(volume)
+    expected = np.transpose(values, (2, 1, 0))
+    assert grid.background == np.nanmin(values)
+    assert grid.active_voxel_count == values.size - 2 - int((values == np.nanmin(values)).sum())
+    np.testing.assert_array_equal(sf.dense_values(grid, expected.shape, grid.background),
+                                  np.where(np.isnan(expected), grid.background, expected))
+    assert volume.metadata()["pcvr_nan_voxels_as_background"] == "2"
+
+    values[1, 2, 3] = np.inf
+    volume = volume_import.open_volume(sf.nifti(str(tmp_path / "infinite.nii"), values, np.eye(4)))
+    with pytest.raises(ScanError, match=r"infinite.nii: .*infinity at \[3, 2, 1\]"):
+        volume_import.to_grid(volume)
+
+
+def test_tiff_time_series_needs_a_frame(tmp_path, rng):
+    stacks = rng.integers(0, 1000, size=(3, 4, 5, 6)).astype(np.uint16)   # [time, plane, row, column]
+    path = str(tmp_path / "timelapse.tif")
+    import tifffile
+    tifffile.imwrite(path, stacks, imagej=True, metadata={"axes": "TZYX"})
+    with pytest.raises(ScanError, match="a time series of 3 stacks; pick one with --frame 0..2"):
+        volume_import.open_volume(path)
+    volume = volume_import.open_volume(path, frame=2)
+    grid = volume_import.to_grid(volume)
+    np.testing.assert_array_equal(sf.dense_values(grid, stacks.shape[1:], grid.background),
+                                  stacks[2].astype(np.float32))
