@@ -6,7 +6,8 @@
     python -m pcvr_addon render brain.nii.gz -o brain.png --mode shaded --preset "MR Default"
 
 INPUT: a DICOM folder (searched with its subfolders) or one file of a series, .nii/.nii.gz, .nrrd/.nhdr,
-.mha/.mhd, .tif/.tiff (OME-TIFF and ImageJ stacks included). See volume_import for the conventions.
+.mha/.mhd, .tif/.tiff (OME-TIFF and ImageJ stacks included), a folder of single-plane .tif files. See
+volume_import for the conventions.
 """
 
 import os
@@ -22,7 +23,7 @@ def add_parser(commands):
                     "placed in LPS millimetres, with the scan's modality, units and a description (nothing "
                     "that identifies a patient) as metadata.")
     convert.add_argument("input", metavar="INPUT", help="a DICOM folder or file, .nii(.gz), .nrrd, .nhdr, "
-                                                        ".mha, .mhd, .tif or .tiff")
+                                                        ".mha, .mhd, .tif or .tiff, or a folder of .tif planes")
     convert.add_argument("-o", "--output", metavar="OUTPUT", required=True, help="the .vdb to write")
     add_scan_options(convert)
     convert.add_argument("--frame", type=int, help="4-D NIfTI or TIFF time series: the volume to convert")

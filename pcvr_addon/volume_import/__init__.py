@@ -14,7 +14,8 @@ import os
 from .volume import ScanError, ScanVolume  # noqa: F401 (the package's public names)
 from .vdb_writer import convert, to_grid, write_vdb  # noqa: F401
 
-# By suffix; a folder, or a file with none of these suffixes, is read as DICOM.
+# By suffix; a folder of TIFF files is a stack of planes; any other folder, or a file with none of these
+# suffixes, is read as DICOM.
 FORMATS = {
     ".nii": "nifti", ".nii.gz": "nifti",
     ".nrrd": "nrrd", ".nhdr": "nrrd",
@@ -44,7 +45,8 @@ def open_volume(path, series=None, frame=None):
     volume of a 4-D NIfTI or a time series of TIFF stacks. Raises ScanError naming the file and the cause."""
     if not os.path.exists(path):
         raise ScanError(f"{path}: no such file or folder")
-    kind = "dicom" if os.path.isdir(path) else format_of(path)
+    tiff_files = _tiff_folder(path)
+    kind = "tiff" if tiff_files else "dicom" if os.path.isdir(path) else format_of(path)
     if series is not None and kind != "dicom":
         raise ScanError(f"{path}: --series picks a DICOM series; this is a {kind} file")
     if frame is not None and kind not in ("nifti", "tiff"):
@@ -62,5 +64,18 @@ def open_volume(path, series=None, frame=None):
     if kind == "metaimage":
         from .metaimage import open_metaimage
         return open_metaimage(path)
-    from .tiff_stack import open_tiff
+    from .tiff_stack import open_tiff, open_tiff_folder
+    if tiff_files:
+        if frame is not None:
+            raise ScanError(f"{path}: --frame picks a volume of a 4-D file; this is a folder of TIFF planes")
+        return open_tiff_folder(path, tiff_files)
     return open_tiff(path, frame)
+
+
+def _tiff_folder(path):
+    """The files of a folder that holds TIFF files only (hidden files aside), else None."""
+    if not os.path.isdir(path):
+        return None
+    files = [os.path.join(path, name) for name in os.listdir(path)
+             if not name.startswith(".") and os.path.isfile(os.path.join(path, name))]
+    return files if files and all(format_of(f) == "tiff" for f in files) else None

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""Multi-page TIFF stacks, ImageJ hyperstacks and OME-TIFF, read with tifffile a slab of pages at a time.
+"""Multi-page TIFF stacks, ImageJ hyperstacks and OME-TIFF, read with tifffile a slab of pages at a time;
+and folders of single-plane TIFF files, one plane per file in the files' natural order (slice2 before slice10).
 
 Voxel size from OME's PhysicalSize{X,Y,Z} (and units), else ImageJ's 'spacing' and 'unit' with the
 XResolution and YResolution tags, else the resolution tags in inches or centimetres; without any, one
@@ -8,6 +9,8 @@ millimetre per voxel (recorded in the metadata). A stack has no patient: its axe
 x along a row, y down the columns, z through the planes (as ITK reads TIFF).
 """
 
+import os
+import re
 import xml.etree.ElementTree as ElementTree
 
 import numpy as np
@@ -79,6 +82,42 @@ def open_tiff(path, frame=None):
         notes["frame"] = f"{frame} of {frames}"
     return ScanVolume(source=path, source_format="TIFF", shape=(planes, rows, columns),
                       index_to_world=index_to_world, read_slabs=read_slabs, notes=notes)
+
+
+def open_tiff_folder(folder, files):
+    """`files` (TIFF files in `folder`), one plane each, stacked in natural name order."""
+    import tifffile
+
+    files = sorted(files, key=_natural_key)
+    try:
+        with tifffile.TiffFile(files[0]) as tif:
+            shape, dtype = tuple(tif.series[0].shape), np.dtype(tif.series[0].dtype)
+            spacing, spacing_note = _spacing(files[0], tif)
+    except (tifffile.TiffFileError, OSError, IndexError) as ex:
+        raise ScanError(f"{files[0]}: not a readable TIFF file: {ex}") from None
+    if len(shape) != 2 or dtype.kind not in "iuf":
+        raise ScanError(f"{files[0]}: a folder of TIFF files stacks single-plane greyscale images; this one "
+                        f"holds {shape} {dtype}")
+
+    def read_slabs():
+        for file in files:
+            try:
+                plane = tifffile.imread(file)
+            except (tifffile.TiffFileError, OSError, ValueError, RuntimeError) as ex:
+                raise ScanError(f"{file}: cannot read the plane: {ex}") from None
+            if plane.shape != shape:
+                raise ScanError(f"{file}: a plane of {plane.shape}, where {files[0]} has {shape}")
+            yield plane.astype(np.float32)[np.newaxis]
+
+    sx, sy, sz = spacing
+    index_to_world = affine_from_axes(np.array([[0, 0, sx], [0, sy, 0], [sz, 0, 0]], dtype=float), np.zeros(3))
+    return ScanVolume(source=folder, source_format="TIFF", shape=(len(files), *shape),
+                      index_to_world=index_to_world, read_slabs=read_slabs,
+                      notes={"spacing": spacing_note, "planes": "one file each"})
+
+
+def _natural_key(path):
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", os.path.basename(path))]
 
 
 def _spacing(path, tif):

@@ -165,3 +165,20 @@ def test_tiff_time_series_needs_a_frame(tmp_path, rng):
     grid = volume_import.to_grid(volume)
     np.testing.assert_array_equal(sf.dense_values(grid, stacks.shape[1:], grid.background),
                                   stacks[2].astype(np.float32))
+
+
+def test_folder_of_tiff_planes_in_natural_order(tmp_path, rng):
+    import tifffile
+
+    planes = rng.integers(0, 4000, size=(11, 4, 5)).astype(np.uint16)
+    for n, plane in enumerate(planes):   # slice_2 must come before slice_10
+        tifffile.imwrite(str(tmp_path / f"slice_{n}.tif"), plane, resolution=(10.0, 10.0), resolutionunit=3)
+    volume = volume_import.open_volume(str(tmp_path))
+    grid = volume_import.to_grid(volume)
+    np.testing.assert_array_equal(sf.dense_values(grid, planes.shape, grid.background), planes.astype(np.float32))
+    # 10 pixels per centimetre: 1 mm, z taken as x's.
+    np.testing.assert_allclose(volume.spacing, (1.0, 1.0, 1.0), rtol=1e-9)
+
+    tifffile.imwrite(str(tmp_path / "slice_11.tif"), planes[0, :3])
+    with pytest.raises(ScanError, match=r"slice_11.tif: a plane of \(3, 5\)"):
+        volume_import.to_grid(volume_import.open_volume(str(tmp_path)))
