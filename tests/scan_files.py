@@ -59,7 +59,8 @@ def dicom_series(folder, stored, origin=(0.0, 0.0, 0.0), row_direction=(1.0, 0.0
             ds["PixelData"].VR = "OB"
             ds["PixelData"].is_undefined_length = True
         else:
-            ds.PixelData = np.ascontiguousarray(stored[s].astype("<i2" if stored.dtype.kind == "i" else "<u2")).tobytes()
+            little_endian = "<i2" if stored.dtype.kind == "i" else "<u2"
+            ds.PixelData = np.ascontiguousarray(stored[s].astype(little_endian)).tobytes()
         path = os.path.join(folder, f"IM{int(order[s]):04d}.dcm")
         pydicom.dcmwrite(path, ds, enforce_file_format=True)
         files.append(path)

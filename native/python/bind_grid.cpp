@@ -98,7 +98,7 @@ Grid from_slabs(nb::handle slabs, std::array<size_t, 3> shape, nb::handle index_
     std::optional<DenseGridBuilder> builder;
     {
         nb::gil_scoped_release release;
-        builder.emplace(shape, m, float(background), name);
+        builder.emplace(shape, m, float(background), name, "Grid.from_slabs");
     }
     nb::module_ np = nb::module_::import_("numpy");
     for (nb::handle slab : nb::iter(slabs)) {

@@ -159,14 +159,14 @@ struct DenseGridBuilder::State {
 };
 
 DenseGridBuilder::DenseGridBuilder(std::array<size_t, 3> shape, const Mat4& index_to_world, float background,
-                                   const std::string& name)
+                                   const std::string& name, const std::string& caller)
     : state_(std::make_unique<State>()) {
     detail::initialize_openvdb();
     State& s = *state_;
     s.shape = shape;
     s.index_to_world = index_to_world;
     s.name = name;
-    s.context = "Grid.from_dense '" + name + "'";
+    s.context = caller + " '" + name + "'";
     detail::check_index_to_world(index_to_world, s.context);
     // Index coordinates must stay far from OpenVDB's int32 limits (node origins are rounded down).
     constexpr size_t kMaxDim = size_t(1) << 30;

@@ -78,8 +78,8 @@ def test_gantry_tilt_keeps_the_exact_sheared_geometry(tmp_path, rng):
     stored, _ = ct_series(tmp_path, rng, step=step)
     volume = volume_import.open_volume(str(tmp_path))
     np.testing.assert_allclose(volume.index_to_world[:3, 0], step, atol=1e-9)
-    np.testing.assert_allclose(sf.world(volume.index_to_world, (4, 2, 3)),
-                               ORIGIN + 4 * step + 3 * PIXEL_SPACING[1] * ROW + 2 * PIXEL_SPACING[0] * COLUMN, atol=1e-9)
+    patient = ORIGIN + 4 * step + 3 * PIXEL_SPACING[1] * ROW + 2 * PIXEL_SPACING[0] * COLUMN
+    np.testing.assert_allclose(sf.world(volume.index_to_world, (4, 2, 3)), patient, atol=1e-9)
     assert float(volume.metadata()["pcvr_gantry_tilt_degrees"]) == pytest.approx(15.0, abs=1e-3)
 
 

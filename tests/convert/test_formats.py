@@ -150,7 +150,8 @@ def test_nan_becomes_the_background_and_infinity_is_refused(tmp_path, rng):
 
     values[1, 2, 3] = np.inf
     volume = volume_import.open_volume(sf.nifti(str(tmp_path / "infinite.nii"), values, np.eye(4)))
-    with pytest.raises(ScanError, match=r"infinite.nii: .*infinity at \[3, 2, 1\]"):
+    with pytest.raises(ScanError, match=r"infinite.nii: Grid.from_slabs 'density': values contain infinity "
+                                        r"at \[3, 2, 1\]"):
         volume_import.to_grid(volume)
 
 

@@ -19,9 +19,10 @@ namespace pcvr {
 class DenseGridBuilder {
 public:
     /// A grid of `shape` voxels indexed [i][j][k], placed by `index_to_world`; voxels equal to
-    /// `background` stay inactive. Throws GridError on a bad transform, background or shape.
+    /// `background` stay inactive. Throws GridError on a bad transform, background or shape; errors
+    /// start with `caller` and the grid's name.
     DenseGridBuilder(std::array<size_t, 3> shape, const Mat4& index_to_world, float background,
-                     const std::string& name = "density");
+                     const std::string& name = "density", const std::string& caller = "Grid.from_dense");
     ~DenseGridBuilder();
     DenseGridBuilder(const DenseGridBuilder&) = delete;
     DenseGridBuilder& operator=(const DenseGridBuilder&) = delete;
