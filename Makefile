@@ -119,10 +119,12 @@ COMPAT_STAMPS := $(foreach v,$(COMPAT_BLENDERS),.venv-bpy$(v)/.native-stamp)
 .SECONDARY: $(foreach v,$(COMPAT_BLENDERS),.venv-bpy$(v)/.deps-stamp)  # stamps to keep, not intermediates
 
 # The Makefile holds the versions: pip runs again when it changes (seconds when nothing is new).
-.venv-bpy%/.deps-stamp: Makefile | system
+# The scan readers' packages (pcvr_addon/volume_import) as requirements.txt pins them.
+SCAN_PACKAGES = $(shell grep -E '^(pydicom|nibabel|pynrrd|tifffile)==' requirements.txt)
+.venv-bpy%/.deps-stamp: Makefile requirements.txt | system
 	test -x $(@D)/bin/python || $(PYTHON_SYS) -m venv $(@D)
 	$(@D)/bin/python -m pip install -q --upgrade pip
-	$(@D)/bin/python -m pip install -q bpy==$(BPY_$*) numpy pytest $(EXTRA_$*)
+	$(@D)/bin/python -m pip install -q bpy==$(BPY_$*) numpy pytest $(EXTRA_$*) $(SCAN_PACKAGES)
 	touch $@
 
 .venv-bpy%/.native-stamp: .venv-bpy%/.deps-stamp $(VENV)/.native-stamp

@@ -43,10 +43,11 @@ classes = (
 
 
 def register():
-    from . import operators, properties, ui
+    from . import import_volume, operators, properties, ui
 
     properties.register()
     operators.register()
+    import_volume.register()
     ui.register()
     for cls in classes:
         bpy.utils.register_class(cls)
@@ -54,11 +55,12 @@ def register():
 
 
 def unregister():
-    from . import operators, properties, ui
+    from . import import_volume, operators, properties, ui
 
     compat.forget_at_exit()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
     ui.unregister()
+    import_volume.unregister()
     operators.unregister()
     properties.unregister()

@@ -25,7 +25,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import camera, image_io, presets, register, statistics, unregister
+from . import camera, convert_command, image_io, presets, register, statistics, unregister
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -66,7 +66,7 @@ def make_parser():
     render = commands.add_parser(
         "render", help="Render a .vdb or .blend to an image",
         description="Render a .vdb (framed from above) or a .blend (its own camera) to .exr, .png or .tif.")
-    render.add_argument("input", metavar="INPUT", help="a .vdb or .blend file")
+    render.add_argument("input", metavar="INPUT", help="a .vdb or .blend file, or a scan (see convert)")
     render.add_argument("-o", "--output", metavar="OUTPUT", required=True,
                         help="the image to write: " + ", ".join(image_io.FORMATS))
     render.add_argument("--mode", type=str.upper, choices=MODES, help="what the image shows")
@@ -102,12 +102,18 @@ def make_parser():
     render.add_argument("--hounsfield", type=float, nargs="?", const=DEFAULT_MU_WATER, metavar="MU_WATER",
                         help="X-ray of a CT in Hounsfield units: integrate mu = MU_WATER (1 + HU / 1000), never "
                              f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV)")
+    convert_command.add_scan_options(render)
+    convert_command.add_parser(commands)
     return parser
 
 
 def main(argv=None):
     parser = make_parser()
     args = parser.parse_args(argv)
+    if args.command == "convert":
+        return convert_command.main(args)
+    if convert_command.render_input(args):  # a scan: rendered from its .vdb
+        return 1
 
     extension = os.path.splitext(args.input)[1].lower()
     if extension not in {".vdb", ".blend"}:

@@ -1,7 +1,9 @@
 // Python bindings of pcvr/grid.h: Grid, read_vdb, list_grids. Thin: conversions and GIL handling only.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
@@ -13,6 +15,7 @@
 #include <sstream>
 
 #include "bindings.h"
+#include "pcvr/dense_grid_builder.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
 #include "pcvr/grid_stream.h"
@@ -59,6 +62,7 @@ nb::dict grid_info_to_dict(const GridInfo& info) {
     d["value_type"] = info.value_type;
     d["grid_class"] = info.grid_class;
     d["active_voxels"] = info.active_voxels;
+    d["metadata"] = info.metadata;
     return d;
 }
 
@@ -85,6 +89,32 @@ Grid from_dense(nb::handle values, nb::handle index_to_world, double background,
     // `arr` keeps the buffer alive while the GIL is released.
     nb::gil_scoped_release release;
     return Grid::from_dense(view.data(), shape, m, float(background), name);
+}
+
+/// Grid.from_slabs: numpy converts each slab (as from_dense does); the planes are copied without the GIL.
+Grid from_slabs(nb::handle slabs, std::array<size_t, 3> shape, nb::handle index_to_world, double background,
+                const std::string& name) {
+    const Mat4 m = grid_matrix(index_to_world, "index_to_world");
+    std::optional<DenseGridBuilder> builder;
+    {
+        nb::gil_scoped_release release;
+        builder.emplace(shape, m, float(background), name, "Grid.from_slabs");
+    }
+    nb::module_ np = nb::module_::import_("numpy");
+    for (nb::handle slab : nb::iter(slabs)) {
+        nb::object arr = np.attr("ascontiguousarray")(slab, "dtype"_a = "float32");
+        const size_t ndim = nb::cast<size_t>(arr.attr("ndim"));
+        if (ndim != 3 || nb::cast<size_t>(arr.attr("shape")[1]) != shape[1] ||
+            nb::cast<size_t>(arr.attr("shape")[2]) != shape[2])
+            throw InvalidArgument("Grid.from_slabs: each slab must be indexed [i, j, k] with " +
+                                  std::to_string(shape[1]) + " x " + std::to_string(shape[2]) +
+                                  " voxels per plane, got shape " + shape_string(arr));
+        auto view = nb::cast<nb::ndarray<const float, nb::ndim<3>, nb::c_contig, nb::device::cpu>>(arr);
+        nb::gil_scoped_release release;
+        builder->add_planes(view.data(), view.shape(0));
+    }
+    nb::gil_scoped_release release;
+    return builder->finish();
 }
 
 VdbCompression compression_from_string(const std::string& s) {
@@ -156,16 +186,22 @@ void bind_grid(nb::module_& m) {
                     "Build from a 3-D array indexed [i, j, k] (converted to float32). Voxels equal to\n"
                     "`background` stay inactive. `index_to_world` is a 4x4 matrix, world = M @ [i, j, k, 1].\n"
                     "A singular or non-finite matrix, or NaN or infinite values, raise GridError.")
+        .def_static("from_slabs", &from_slabs, "slabs"_a, "shape"_a, "index_to_world"_a, "background"_a = 0.0,
+                    "name"_a = "density",
+                    "Build as from_dense from an iterable of slabs of i-planes, in order, each indexed [i, j, k]\n"
+                    "with shape[1] x shape[2] voxels per plane: only the sparse grid and one slab are held.\n"
+                    "Raises GridError unless the slabs hold exactly shape[0] planes.")
         .def(
             "write_vdb",
-            [](const Grid& g, const std::filesystem::path& path, const std::string& name, const std::string& compression) {
+            [](const Grid& g, const std::filesystem::path& path, const std::string& name, const std::string& compression,
+               const GridMetadata& metadata) {
                 const VdbCompression codec = compression_from_string(compression);
                 // Failures to write are I/O errors: OSError rather than the RuntimeError of pcvr::Error.
                 std::string error;
                 {
                     nb::gil_scoped_release release;
                     try {
-                        g.write_vdb(path.string(), name, codec);
+                        g.write_vdb(path.string(), name, codec, metadata);
                     } catch (const GridError&) {
                         throw;
                     } catch (const Error& e) {
@@ -177,8 +213,9 @@ void bind_grid(nb::module_& m) {
                     throw nb::python_error();
                 }
             },
-            "path"_a, "name"_a = "density", "compression"_a = "blosc",
-            "Write as a float fog-volume grid called `name`, compressed with 'blosc', 'zip' or 'none'.\n"
+            "path"_a, "name"_a = "density", "compression"_a = "blosc", "metadata"_a = GridMetadata(),
+            "Write as a float fog-volume grid called `name`, compressed with 'blosc', 'zip' or 'none',\n"
+            "with `metadata` (a dict of str) as the grid's string metadata.\n"
             "The file is replaced atomically (written beside it, then renamed); on failure an OSError\n"
             "is raised and no partial file is left.")
         .def(
@@ -314,7 +351,8 @@ void bind_grid(nb::module_& m) {
             for (const GridInfo& info : infos) out.append(grid_info_to_dict(info));
             return out;
         },
-        "path"_a, "The grids of a .vdb file: a list of dicts with name, value_type, grid_class, active_voxels.");
+        "path"_a, "The grids of a .vdb file: a list of dicts with name, value_type, grid_class, active_voxels\n"
+        "and metadata (the grid's string metadata).");
 }
 
 }  // namespace pcvr::python

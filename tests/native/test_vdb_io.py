@@ -52,8 +52,10 @@ def test_round_trip_keeps_values_transform_and_inactive_background(tmp_path, com
     assert back.source_path == str(path)
     np.testing.assert_allclose(back.index_to_world, m, rtol=0, atol=1e-12)
     assert_matches_array(back, values)
-    assert pn.list_grids(path) == [{"name": "density", "value_type": "float", "grid_class": "fog volume",
-                                    "active_voxels": int((values != 0).sum())}]
+    (info,) = pn.list_grids(path)
+    assert info.pop("metadata")["creator"] == "pcvr"
+    assert info == {"name": "density", "value_type": "float", "grid_class": "fog volume",
+                    "active_voxels": int((values != 0).sum())}
 
 
 def test_background_voxels_stay_inactive_and_others_stay_active(tmp_path):

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <utility>
@@ -64,6 +65,9 @@ inline Mat4 level_to_fine_index(int k) {
     return m;
 }
 
+/// String metadata stored with a grid in a .vdb (e.g. a converted scan's modality and units).
+using GridMetadata = std::map<std::string, std::string>;
+
 /// Codec for Grid::write_vdb. Blosc is OpenVDB's default and the fastest; zip suits readers built
 /// without blosc; none is largest.
 enum class VdbCompression { Blosc, Zip, None };
@@ -109,8 +113,10 @@ public:
 
     /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
     /// so a failed write never leaves a half-written file. Throws Error with the path on failure.
+    /// `metadata` is stored as string metadata on the grid, beside OpenVDB's own.
     void write_vdb(const std::string& path, const std::string& name) const;
-    void write_vdb(const std::string& path, const std::string& name, VdbCompression compression) const;
+    void write_vdb(const std::string& path, const std::string& name, VdbCompression compression,
+                   const GridMetadata& metadata = {}) const;
 
     struct Data;  ///< the OpenVDB grid and the block cache (defined in grid.cpp)
     Grid(std::shared_ptr<Data> data, const Mat4& index_to_world, std::string name);
@@ -129,6 +135,7 @@ struct GridInfo {
     std::string value_type;   ///< OpenVDB's type name: "float", "double", "int32", "vec3s", ...
     std::string grid_class;   ///< "fog volume", "level set", "staggered" or "unknown"
     uint64_t active_voxels = 0;
+    GridMetadata metadata;    ///< the grid's string metadata, OpenVDB's own ("name", "class", ...) included
 };
 
 /// Read one grid. `grid_name` empty: "density" if present, else the first scalar grid.

@@ -1,6 +1,7 @@
 /// @file grid.cpp
 /// @brief pcvr::Grid: construction from dense arrays, statistics, transforms and the block view the
 /// renderer walks. File I/O lives in vdb_io.cpp.
+#include "pcvr/dense_grid_builder.h"
 #include "volume/grid_data.h"
 
 #include <openvdb/tools/Count.h>
@@ -149,41 +150,83 @@ Grid Grid::with_index_to_world(const Mat4& index_to_world) const {
     return Grid(data_, index_to_world, name_);
 }
 
-Grid Grid::from_dense(const float* values, std::array<size_t, 3> shape, const Mat4& index_to_world,
-                      float background, const std::string& name) {
+struct DenseGridBuilder::State {
+    std::array<size_t, 3> shape;
+    Mat4 index_to_world;
+    std::string name, context;
+    vdb::FloatGrid::Ptr grid;
+    size_t planes = 0;
+};
+
+DenseGridBuilder::DenseGridBuilder(std::array<size_t, 3> shape, const Mat4& index_to_world, float background,
+                                   const std::string& name, const std::string& caller)
+    : state_(std::make_unique<State>()) {
     detail::initialize_openvdb();
-    const std::string context = "Grid.from_dense '" + name + "'";
-    detail::check_index_to_world(index_to_world, context);
+    State& s = *state_;
+    s.shape = shape;
+    s.index_to_world = index_to_world;
+    s.name = name;
+    s.context = caller + " '" + name + "'";
+    detail::check_index_to_world(index_to_world, s.context);
     // Index coordinates must stay far from OpenVDB's int32 limits (node origins are rounded down).
     constexpr size_t kMaxDim = size_t(1) << 30;
     for (size_t n : shape)
-        if (n > kMaxDim) throw GridError(context + ": array dimension " + std::to_string(n) + " is too large");
+        if (n > kMaxDim) throw GridError(s.context + ": array dimension " + std::to_string(n) + " is too large");
+    if (!std::isfinite(background)) throw GridError(s.context + ": background is not finite");
+    s.grid = vdb::FloatGrid::create(background);
+}
 
-    if (!std::isfinite(background)) throw GridError(context + ": background is not finite");
+DenseGridBuilder::~DenseGridBuilder() = default;
+
+size_t DenseGridBuilder::planes_added() const { return state_->planes; }
+
+void DenseGridBuilder::add_planes(const float* values, size_t count) {
+    State& s = *state_;
+    if (!s.grid) throw GridError(s.context + ": planes added after finish()");
+    if (count > s.shape[0] - s.planes)
+        throw GridError(s.context + ": " + std::to_string(s.planes + count) + " planes added to a grid of " +
+                        std::to_string(s.shape[0]));
     // NaN would silently count as background in copyFromDense, infinity would poison every image.
-    const size_t count = shape[0] * shape[1] * shape[2];
-    for (size_t n = 0; n < count; ++n)
+    const size_t plane = s.shape[1] * s.shape[2], total = count * plane;
+    for (size_t n = 0; n < total; ++n)
         if (!std::isfinite(values[n])) {
-            const size_t k = n % shape[2], j = n / shape[2] % shape[1], i = n / (shape[1] * shape[2]);
-            throw GridError(context + ": values contain " + (std::isnan(values[n]) ? "NaN" : "infinity") + " at [" +
+            const size_t k = n % s.shape[2], j = n / s.shape[2] % s.shape[1], i = s.planes + n / plane;
+            throw GridError(s.context + ": values contain " + (std::isnan(values[n]) ? "NaN" : "infinity") + " at [" +
                             std::to_string(i) + ", " + std::to_string(j) + ", " + std::to_string(k) + "]");
         }
-
-    auto grid = vdb::FloatGrid::create(background);
-    if (count > 0) {
-        const vdb::CoordBBox bbox(vdb::Coord(0), vdb::Coord(int(shape[0]) - 1, int(shape[1]) - 1, int(shape[2]) - 1));
+    if (total > 0) {
+        const vdb::CoordBBox bbox(vdb::Coord(int(s.planes), 0, 0),
+                                  vdb::Coord(int(s.planes + count) - 1, int(s.shape[1]) - 1, int(s.shape[2]) - 1));
         // LayoutZYX: k fastest, i.e. a C-order numpy array indexed [i, j, k]. copyFromDense only reads
-        // the array; Dense merely lacks a const-data constructor.
+        // the array; Dense merely lacks a const-data constructor. Leaves the slab shares with planes
+        // already added start from the tree's copy, so slabs need not align with 8^3 leaves.
         const vdb::tools::Dense<float, vdb::tools::LayoutZYX> dense(bbox, const_cast<float*>(values));
         // Tolerance 0: exactly the voxels equal to the background stay inactive. Constant leaves
         // become tiles, which blocks() expands again.
-        vdb::tools::copyFromDense(dense, *grid, 0.0f);
+        vdb::tools::copyFromDense(dense, *s.grid, 0.0f);
     }
-    grid->setName(name);
+    s.planes += count;
+}
+
+Grid DenseGridBuilder::finish() {
+    State& s = *state_;
+    if (!s.grid) throw GridError(s.context + ": finish() called twice");
+    if (s.planes != s.shape[0])
+        throw GridError(s.context + ": " + std::to_string(s.planes) + " of " + std::to_string(s.shape[0]) +
+                        " planes added");
+    vdb::FloatGrid::Ptr grid = std::move(s.grid);
+    grid->setName(s.name);
     grid->setGridClass(vdb::GRID_FOG_VOLUME);
     // The OpenVDB grid keeps its identity transform: index_to_world is the Grid's own, in double,
     // whatever its scale, and write_vdb converts it.
-    return Grid(std::make_shared<Data>(std::move(grid), std::string()), index_to_world, name);
+    return Grid(std::make_shared<Grid::Data>(std::move(grid), std::string()), s.index_to_world, s.name);
+}
+
+Grid Grid::from_dense(const float* values, std::array<size_t, 3> shape, const Mat4& index_to_world,
+                      float background, const std::string& name) {
+    DenseGridBuilder builder(shape, index_to_world, background, name);
+    builder.add_planes(values, shape[0]);
+    return builder.finish();
 }
 
 namespace {

@@ -131,6 +131,9 @@ std::vector<GridInfo> list_grids(const std::string& path) {
             info.value_type = e.value_type;
             vdb::GridBase::Ptr meta = reader.read_grid_metadata(i);
             info.grid_class = vdb::GridBase::gridClassToString(meta->getGridClass());
+            for (auto it = meta->beginMeta(); it != meta->endMeta(); ++it)
+                if (auto text = dynamic_cast<const vdb::StringMetadata*>(it->second.get()))
+                    info.metadata[it->first] = text->value();
             // Writers store the count as statistics metadata; without it, count the voxels, reading
             // only grids whose layout is checked (others, e.g. points, report 0).
             if (e.grid) {
@@ -150,13 +153,15 @@ void Grid::write_vdb(const std::string& path, const std::string& name) const {
     write_vdb(path, name, VdbCompression::Blosc);
 }
 
-void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompression compression) const {
+void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompression compression,
+                     const GridMetadata& metadata) const {
     detail::initialize_openvdb();
     const std::string prefix = "cannot write " + quoted(path) + ": ";
 
     // A grid sharing our tree (no voxel copy) with this Grid's own name, class and transform:
     // with_index_to_world may have re-placed it since it was read.
     vdb::MetaMap meta;
+    for (const auto& [key, value] : metadata) meta.insertMeta(key, vdb::StringMetadata(value));
     meta.insertMeta(vdb::GridBase::META_GRID_NAME, vdb::StringMetadata(name));
     meta.insertMeta(vdb::GridBase::META_GRID_CLASS, vdb::StringMetadata(vdb::GridBase::gridClassToString(vdb::GRID_FOG_VOLUME)));
     meta.insertMeta(vdb::GridBase::META_GRID_CREATOR, vdb::StringMetadata("pcvr"));
