@@ -58,6 +58,13 @@ def _resolution(text):
     return width, height
 
 
+def _gain(text):
+    if text.lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number or 'auto'") from None
 
 
 def make_parser():
@@ -80,7 +87,9 @@ def make_parser():
     render.add_argument("--sheet-spacing", type=float, help="shaded and mip: voxels between sheets")
     render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
-    render.add_argument("--gain", type=float, help="X-ray gain of the Combined pass")
+    render.add_argument("--gain", type=_gain, metavar="GAIN|auto",
+                        help="X-ray gain of the Combined pass; 'auto' picks it per image (its brightest percent "
+                             "at 95%% grey)")
     render.add_argument("--stream-above", type=int, metavar="MIB",
                         help="X-ray: read volumes of more MiB than this from their files a part at a time "
                              "(default: above a quarter of the memory available)")
@@ -266,7 +275,9 @@ def _apply_options(scene, args):
             setattr(settings, option, getattr(args, option))
     if args.stride is not None:
         settings.subgrid_stride = args.stride
-    if args.gain is not None:
+    if args.gain == "auto":
+        settings.use_auto_exposure = True
+    elif args.gain is not None:
         settings.xray_gain = args.gain
     if args.resolution is not None:
         scene.render.resolution_x, scene.render.resolution_y = args.resolution

@@ -65,8 +65,24 @@ def mip_colours(maximum, points, density_range, mip_color, background=0.0):
     return rgba.astype(np.float32)
 
 
+# Automatic exposure: the gain that shows this percentile of the pixels the volumes reach at this grey.
+EXPOSURE_PERCENTILE = 99.0
+EXPOSURE_GREY = 0.95
+
+
+def automatic_gain(integral, fallback):
+    """The gain with which the EXPOSURE_PERCENTILE-th percentile of the positive integrals shows EXPOSURE_GREY in
+    the Combined pass (1 - exp(-gain * integral)); `fallback` when no pixel is positive."""
+    reached = integral[integral > 0]
+    if reached.size == 0:
+        return fallback
+    return float(-np.log1p(-EXPOSURE_GREY) / np.percentile(reached, EXPOSURE_PERCENTILE))
+
+
 def _finish_xray(prepared, display, raw):
-    return pass_pixels(display.xray_gain, display.film_transparent, raw["integral"])
+    integral = raw["integral"]
+    gain = automatic_gain(integral, display.xray_gain) if display.auto_exposure else display.xray_gain
+    return pass_pixels(gain, display.film_transparent, integral)
 
 
 def _finish_shaded(prepared, display, raw):

@@ -197,6 +197,13 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
+    use_auto_exposure: BoolProperty(
+        name="Automatic Exposure",
+        description="Choose the gain from each image: its brightest percent of the volume's pixels shows 95% "
+                    "grey (DRRs of any scale, for a look; the XRay pass keeps the raw integral)",
+        default=False,
+        update=tag_changed,
+    )
 
 
 class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):

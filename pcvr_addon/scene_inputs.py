@@ -113,6 +113,7 @@ class DisplayInputs:
     film_transparent: bool
     world: tuple = (0.0, 0.0, 0.0)   # shaded and MIP: the background
     xray_gain: float = 1.0
+    auto_exposure: bool = False
     mip_color: str = 'TRANSFER_FUNCTION'
     ramps: tuple = ()                # MIP: a RampInputs per volume of RenderInputs.volumes, in that order
 
@@ -209,6 +210,7 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
         film_transparent=scene.render.film_transparent,
         world=world if mode != 'XRAY' else (0.0, 0.0, 0.0),
         xray_gain=settings.xray_gain if mode == 'XRAY' else 1.0,
+        auto_exposure=mode == 'XRAY' and settings.use_auto_exposure,
         mip_color=settings.mip_color if mode == 'MIP' else 'TRANSFER_FUNCTION',
         ramps=tuple(ramp_inputs(source.volume.pcvr) for source in sources) if mode == 'MIP' else (),
     )

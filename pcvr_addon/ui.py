@@ -45,7 +45,10 @@ class PCVR_RENDER_PT_pcvr(PCVRRenderPanel, Panel):
         settings = context.scene.pcvr
         layout.prop(settings, "mode")
         if settings.mode == 'XRAY':
-            layout.prop(settings, "xray_gain")
+            layout.prop(settings, "use_auto_exposure")
+            row = layout.row()
+            row.active = not settings.use_auto_exposure
+            row.prop(settings, "xray_gain")
         elif settings.mode == 'MIP':
             layout.prop(settings, "mip_color")
 
@@ -164,9 +167,10 @@ class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
         settings = volume.pcvr
         layout.prop_search(settings, "grid", volume, "grids", icon='VOLUME_DATA')
         layout.prop(settings, "density_scale")
-        layout.prop(settings, "xray_values")
-        if settings.xray_values == 'HOUNSFIELD':
-            layout.prop(settings, "mu_water")
+        if context.scene.pcvr.mode == 'XRAY' or context.view_layer.pcvr.use_pass_xray:
+            layout.prop(settings, "xray_values")
+            if settings.xray_values == 'HOUNSFIELD':
+                layout.prop(settings, "mu_water")
         layout.operator("pcvr.frame_volume", icon='CAMERA_DATA')
 
 

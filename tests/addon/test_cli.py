@@ -170,3 +170,8 @@ def test_views_and_a_drr_from_hounsfield_units(tmp_path):
     np.testing.assert_array_equal(image_io.read_passes(str(tmp_path / "along.exr"))[""][:, :, 4], front)
     run = pcvr(ct, "-o", tmp_path / "x.exr", "--view", "front", "--view-direction", 0, 1, 0)
     assert run.returncode == 2 and "give one" in run.stderr
+    check(pcvr(ct, "-o", tmp_path / "auto.exr", "--magnification", 2, "--hounsfield", "--gain", "auto"))
+    auto = image_io.read_passes(str(tmp_path / "auto.exr"))[""]
+    assert np.percentile(auto[:, :, 0][auto[:, :, 4] > 0], 99) == pytest.approx(0.95, abs=0.01)
+    run = pcvr(ct, "-o", tmp_path / "x.exr", "--gain", "bright")
+    assert run.returncode == 2 and "'bright' is not a number or 'auto'" in run.stderr

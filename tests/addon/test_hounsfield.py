@@ -37,3 +37,19 @@ def test_drr_integrates_attenuation_in_the_scenes_unit(ct_object, scale_length, 
                                attenuation=pn.AttenuationMap.hounsfield(per_unit))
     bs.assert_matches(drr, reference)
     assert drr.min() >= 0
+
+
+def test_automatic_exposure(ct_object):
+    """Automatic exposure picks the gain from the image: the brightest percent of the volume's pixels at 95% grey
+    in the Combined pass, whatever the scale of the integrals; the XRay pass stays the raw integral."""
+    scene = bs.setup()
+    bpy.ops.pcvr.frame_volume(magnification=2.0, view='FRONT')
+    ct_object.data.pcvr.xray_values = 'HOUNSFIELD'
+    scene.pcvr.use_auto_exposure = True
+    for scale_length in (1.0, 0.001):  # integrals 1000 times apart
+        scene.unit_settings.scale_length = scale_length
+        passes = bs.render(scene)
+        integral, grey = bs.xray(passes), passes["ViewLayer.Combined"][:, :, 0]
+        reached = integral > 0
+        assert np.percentile(grey[reached], 99) == pytest.approx(0.95, abs=0.01)
+        assert grey[~reached].max() == 0.0

@@ -141,7 +141,14 @@ def test_panels_of_each_mode(tmp_path, mode):
     assert draw(ui.PCVR_RENDER_PT_film, context) == ["film_transparent"]
     assert draw(ui.PCVR_RENDER_PT_passes, context) == (["use_pass_z", "use_pass_xray"] if mode == 'SHADED'
                                                        else ["use_pass_xray"])
-    assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale", "pcvr.frame_volume"]
+    # What the X-ray integrates, where an X-ray is rendered (every mode here: bs.setup turns the XRay pass on).
+    assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale", "xray_values", "pcvr.frame_volume"]
+    obj.data.pcvr.xray_values = 'HOUNSFIELD'
+    assert "mu_water" in draw(ui.PCVR_DATA_PT_volume, context)
+    obj.data.pcvr.xray_values = 'DENSITY'
+    context.view_layer.pcvr.use_pass_xray = False
+    assert ("xray_values" in draw(ui.PCVR_DATA_PT_volume, context)) == (mode == 'XRAY')
+    context.view_layer.pcvr.use_pass_xray = True
 
     sheets = mode in {'SHADED', 'MIP'}
     assert ui.PCVR_DATA_PT_transfer_function.poll(context) == sheets
