@@ -20,10 +20,10 @@ import re
 import sys
 
 import bpy
-import numpy as np
 from mathutils import Vector
 
 from . import engine, image_io, presets, register, unregister
+from .batch import run as batch_run
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -91,12 +91,15 @@ def make_parser():
                              f"{' '.join(map(str, DEFAULT_LIGHT_DIRECTION))}; the camera looks down -Z)")
     render.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help=".blend only: image size in pixels")
+    batch_run.add_arguments(render)
     return parser
 
 
 def main(argv=None):
     parser = make_parser()
     args = parser.parse_args(argv)
+    if batch_run.wants_batch(args):
+        return batch_run.run(args, parser)
 
     extension = os.path.splitext(args.input)[1].lower()
     if extension not in {".vdb", ".blend"}:
@@ -255,12 +258,6 @@ def _apply_options(scene, args):
 def _write_output(scene, view_layer, filepath):
     passes = image_io.render_result_passes(scene)
     combined = passes.get("Composite.Combined", passes[f"{view_layer.name}.Combined"])
-    if not filepath.lower().endswith(".exr"):
-        image_io.write_image(filepath, combined)
-        return
-    channels, names = [combined], ["R", "G", "B", "A"]
-    for pass_name, channel_name in (("Depth", "Z"), ("XRay", "XRay")):
-        if f"{view_layer.name}.{pass_name}" in passes:
-            channels.append(passes[f"{view_layer.name}.{pass_name}"])
-            names.append(channel_name)
-    image_io.write_image(filepath, np.concatenate(channels, axis=-1), channel_names=names)
+    extra = {name: passes[f"{view_layer.name}.{name}"] for name in ("Depth", "XRay")
+             if f"{view_layer.name}.{name}" in passes}
+    image_io.write_passes(filepath, {"Combined": combined, **extra})

@@ -88,7 +88,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     }
     for (const WeightedStream& s : streams) {
         const int level = stream_level(*s.stream, camera, params);
-        if (level > 0 && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
+        // (A stream of some batches only renders them: the coarse level is the whole grid's.)
+        if (level > 0 && s.stream->only_batches().empty() && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
             // A zoomed-out view: the level fits where a batch would, and stays for the next render.
             const Grid coarse = s.stream->level(level, LevelReduction::MeanOverZero, &control);
             render_part({WeightedGrid{&coarse, s.density_scale, level}}, s.stream->active_voxel_count(), part_params);

@@ -1,0 +1,139 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""Planning a batch: each Job read out of a Blender scene into plain values that any process can render.
+
+The scene of a job is made exactly as `python -m pcvr_addon render` makes it (cli.vdb_scene and
+cli._apply_options; a .blend opened as it is), once for all the jobs with the same input and options; each
+job then sets its frame and orbits the camera to its angle, and `scene_inputs.read` takes what the render
+engine's F12 would read (RenderInputs, DisplayInputs, the camera's view). Rendering those (render_task.py)
+runs the engine's own prepare, render_raw and finish, which need no Blender data: so a worker with no scene
+at all renders the same pixels as F12, and the planner reads no voxels (grids are read by the workers).
+
+A sequence is framed once, on the first of its frames in the batch: the camera stays put while it plays.
+"""
+
+import argparse
+import math
+import os
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+from .. import camera, cli, engine, register, scene_inputs, unregister
+from .jobs import Job
+
+
+@dataclass(frozen=True)
+class PlannedJob:
+    job: Job
+    index: int                               # in the batch, for the manifest
+    inputs: scene_inputs.RenderInputs
+    display: scene_inputs.DisplayInputs
+    view: camera.CameraView
+
+
+class PlanError(ValueError):
+    """A job that cannot be planned: its input cannot be read or makes no image."""
+
+
+def options_namespace(options, defaults):
+    """argparse.Namespace of the render options `options` (cli option names with '_') over `defaults`."""
+    unknown = options.keys() - vars(defaults).keys()
+    if unknown:
+        raise PlanError(f"unknown render options {sorted(unknown)}")
+    return argparse.Namespace(**{**vars(defaults), **options})
+
+
+def plan(jobs, defaults, stream_above_mib, start_index=0):
+    """PlannedJob of each Job (in order), reading each scene once. `defaults`: the render options not given
+    (an argparse.Namespace of cli's render command); `stream_above_mib`: the stream threshold every job
+    renders with (resolved here, not on the workers, so that every process streams the same volumes).
+    Raises PlanError naming the job's input."""
+    planned = []
+    by_scene = {}
+    for index, job in enumerate(jobs):
+        by_scene.setdefault(job.scene_key, []).append((start_index + index, job))
+    register()
+    try:
+        for scene_jobs in by_scene.values():
+            planned.extend(_plan_scene(scene_jobs, defaults, stream_above_mib))
+    finally:
+        unregister()
+    return sorted(planned, key=lambda p: p.index)
+
+
+def _plan_scene(indexed_jobs, defaults, stream_above_mib):
+    first = indexed_jobs[0][1]
+    args = options_namespace(first.options, defaults)
+    if args.stream_above is None:
+        args.stream_above = stream_above_mib
+    args.frame = None  # each job sets its own
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    path = os.path.abspath(first.input)
+    if not os.path.isfile(path):
+        raise PlanError(f"'{first.input}' does not exist")
+    if path.lower().endswith(".blend"):
+        bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+    scene = bpy.context.scene
+    if path.lower().endswith(".vdb"):
+        try:
+            cli.vdb_scene(scene, path, grid=args.grid, frame=first.frame,
+                          magnification=args.magnification or cli.DEFAULT_MAGNIFICATION,
+                          light_direction=args.light_direction or cli.DEFAULT_LIGHT_DIRECTION)
+        except RuntimeError as ex:
+            raise PlanError(str(ex)) from None
+    cli._apply_options(scene, args)
+    if scene.camera is None:
+        raise PlanError(f"'{first.input}': the scene has no camera")
+    orbit = _Orbit(scene) if any(job.angle is not None for _index, job in indexed_jobs) else None
+    planned = []
+    for index, job in indexed_jobs:
+        if job.frame is not None and scene.frame_current != job.frame:
+            scene.frame_set(job.frame)
+        if orbit is not None:
+            orbit.turn(job.angle or 0.0)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        depsgraph.update()
+        view = camera.scene_view(depsgraph)
+        inputs, display = scene_inputs.read(depsgraph, engine.export_grid, view)
+        if any(volume.grid is not None for volume in inputs.volumes):
+            raise PlanError(f"'{job.input}': a procedural volume (made by modifiers or geometry nodes) lives only "
+                            "in Blender; render this scene with `blender -b FILE -E PCVR -a` instead")
+        planned.append(PlannedJob(job, index, inputs, display, view))
+    return planned
+
+
+class _Orbit:
+    """Turns the scene camera about the axis through the volumes' centre along the camera's own up direction
+    (a C-arm about its patient): angle 0 is the camera as it is, positive angles turn it counter-clockwise
+    seen from above that axis. Its clip range grows to hold the volumes' bounding sphere from every side."""
+
+    def __init__(self, scene):
+        self.camera = scene.camera
+        self.start = self.camera.matrix_world.copy()
+        corners = [obj.matrix_world @ Vector(corner) for obj in scene.objects if obj.type == 'VOLUME'
+                   for corner in obj.bound_box]
+        if not corners:
+            raise PlanError("--angles: the scene has no volume to orbit about")
+        lo = Vector(np.min(corners, axis=0))
+        hi = Vector(np.max(corners, axis=0))
+        self.centre = (lo + hi) / 2
+        self.axis = (self.start.to_3x3() @ Vector((0.0, 1.0, 0.0))).normalized()
+        radius = (hi - lo).length / 2
+        data = self.camera.data
+        if data.type == 'ORTHO':
+            # An orthographic image does not change as the camera backs away along its view: back it away
+            # until the sphere lies between its clip planes.
+            eye = self.start.translation
+            forward = -(self.start.to_3x3() @ Vector((0.0, 0.0, 1.0))).normalized()
+            along = (self.centre - eye).dot(forward)
+            backed = max(along, radius + data.clip_start * 2)
+            self.start = Matrix.Translation(forward * (along - backed)) @ self.start
+            data.clip_end = max(data.clip_end, backed + radius + data.clip_start)
+
+    def turn(self, degrees):
+        about_centre = (Matrix.Translation(self.centre) @ Matrix.Rotation(math.radians(degrees), 4, self.axis)
+                        @ Matrix.Translation(-self.centre))
+        self.camera.matrix_world = about_centre @ self.start
