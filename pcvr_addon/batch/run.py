@@ -15,6 +15,7 @@ import uuid
 
 from . import jobs as batch_jobs
 from . import manifest
+from .. import image_io
 
 # The options this module adds to the render command (cli names); the others are the render's own.
 BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")
@@ -51,8 +52,24 @@ def run(args, parser):
     for job in jobs:
         if os.path.splitext(job.output)[1].lower() not in (".exr", ".png", ".tif", ".tiff"):
             parser.error(f"'{job.output}': OUTPUT must end in .exr, .png or .tif")
-    return render_batch(jobs, manifest_file, _render_defaults(parser), workers=args.workers,
-                        scheduler=args.scheduler, skip_existing=args.skip_existing)
+    try:
+        image_io.openimageio()  # before rendering, not after
+    except ImportError as ex:
+        print(f"pcvr: {ex}", file=sys.stderr)
+        return 1
+    client = None
+    if args.workers is not None or args.scheduler is not None:
+        from . import dask_runner
+        try:
+            client = dask_runner.connect(args.workers, args.scheduler)
+        except (ImportError, OSError) as ex:  # OSError: no scheduler at that address
+            print(f"pcvr: {ex}", file=sys.stderr)
+            return 1
+    try:
+        return render_batch(jobs, manifest_file, _render_defaults(parser), client, args.skip_existing)
+    finally:
+        if client is not None:
+            dask_runner.close(client)
 
 
 def _jobs(args, parser):
@@ -79,11 +96,11 @@ def _render_defaults(parser):
     return defaults
 
 
-def render_batch(jobs, manifest_file, defaults, workers=None, scheduler=None, skip_existing=False,
-                 stream=None, run_id=None):
-    """Render `jobs` (batch_jobs.Job) in this process, or on Dask with `workers` or `scheduler`, and write the
-    manifest to `manifest_file`. Returns the exit status: 0 when every image is there, 1 otherwise."""
-    from . import plan, render_task
+def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False, stream=None, run_id=None):
+    """Render `jobs` (batch_jobs.Job) in this process, or on the Dask cluster of `client`, and write the
+    manifest to `manifest_file`. `defaults`: the render options the jobs do not set (cli's). Returns the exit
+    status: 0 when every image is there, 1 when one failed, 130 when interrupted."""
+    from . import dask_runner, plan, render_task
     from .progress import ProgressBar
 
     stream = stream or sys.stderr
@@ -91,8 +108,7 @@ def render_batch(jobs, manifest_file, defaults, workers=None, scheduler=None, sk
     started = time.time()
     todo = [job for job in jobs if not (skip_existing and os.path.exists(job.output))]
     entries = {job.output: manifest.job_entry(job, status="skipped") for job in jobs}
-    client = None
-    document = {"run_id": run_id, "workers": workers, "scheduler": scheduler}
+    document = {"run_id": run_id, "scheduler": None if client is None else client.scheduler.address}
 
     def record(results):
         for result in results:
@@ -102,9 +118,7 @@ def render_batch(jobs, manifest_file, defaults, workers=None, scheduler=None, sk
         progress.advance(len(results))
 
     try:
-        from . import dask_runner
-        if workers is not None or scheduler is not None:
-            client = dask_runner.connect(workers, scheduler)
+        if client is not None:
             worker_total = dask_runner.worker_count(client)
             memory = dask_runner.smallest_memory_limit(client)
         else:
@@ -133,8 +147,6 @@ def render_batch(jobs, manifest_file, defaults, workers=None, scheduler=None, sk
         print(f"\npcvr: interrupted; --skip-existing renders the rest (manifest {manifest_file})", file=stream)
         return 130
     finally:
-        if client is not None:
-            dask_runner.close(client)
         seconds = time.time() - started
         statuses = [entry["status"] for entry in entries.values()]
         counts = {status: statuses.count(status) for status in sorted(set(statuses))}
