@@ -12,6 +12,7 @@ run (render_task.py). Only this module imports `distributed`; the add-on in Blen
 """
 
 import contextlib
+import logging
 import math
 import os
 import sys
@@ -37,7 +38,8 @@ def connect(workers=None, scheduler=None, memory_limit="auto"):
         return distributed.Client(scheduler)
     with _without_blender_script_paths():
         cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           memory_limit=memory_limit, dashboard_address=None)
+                                           memory_limit=memory_limit, dashboard_address=None,
+                                           silence_logs=logging.ERROR)
     return distributed.Client(cluster)
 
 
