@@ -25,11 +25,12 @@ class Job:
     frame: int | None = None    # the scene frame; for a numbered .vdb the number of its file
     angle: float | None = None  # degrees of orbit about the volume (None: the camera as it is)
     options: dict = field(default_factory=dict, compare=False)  # the render options (cli names) of this job
+    scene: str | None = None    # a sequence's frame the scene is made from (framed on), None: `input`
 
     @property
     def scene_key(self):
-        """Jobs with the same key share one Blender scene when planned: the same input and options."""
-        return (self.input, json.dumps(self.options, sort_keys=True))
+        """Jobs with the same key share one Blender scene when planned: the same scene file and options."""
+        return (self.scene or self.input, json.dumps(self.options, sort_keys=True))
 
 
 def parse_frames(text):
@@ -83,12 +84,15 @@ def expand(input_path, output_path, frames=None, angles=None, options=None):
     if hash_runs(output_path) != wanted:
         raise ValueError(f"OUTPUT '{output_path}' needs {wanted} run{'s' if wanted != 1 else ''} of '#' "
                          "(the frame number, then the angle's index), e.g. out_####.exr")
+    sequence = frames is not None and hash_runs(input_path) > 0
+    # A sequence is one scene, made from (and framed on) its first frame: the camera stays put while it plays.
+    scene = fill(input_path, frame_list[0]) if sequence else None
     jobs = []
     for frame in frame_list:
-        source = fill(input_path, frame) if frame is not None and hash_runs(input_path) else input_path
+        source = fill(input_path, frame) if sequence else input_path
         for index, angle in enumerate(angle_list):
             numbers = [n for n in (frame, index if angle is not None else None) if n is not None]
-            jobs.append(Job(source, fill(output_path, *numbers), frame, angle, options))
+            jobs.append(Job(source, fill(output_path, *numbers), frame, angle, options, scene))
     return jobs
 
 

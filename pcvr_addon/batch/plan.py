@@ -9,10 +9,14 @@ engine's F12 would read (RenderInputs, DisplayInputs, the camera's view). Render
 runs the engine's own prepare, render_raw and finish, which need no Blender data: so a worker with no scene
 at all renders the same pixels as F12, and the planner reads no voxels (grids are read by the workers).
 
-A sequence is framed once, on the first of its frames in the batch: the camera stays put while it plays.
+A .vdb sequence is one scene, made from and framed on the first of its frames in the batch: the camera stays
+put while it plays. Its other frames are not loaded into Blender (which would read every file whole on the
+client): a frame's inputs are the first frame's from the same angle with the frame's file in place of the
+first's, which is what Blender reads for that frame, since nothing else in the scene changes with the frame.
 """
 
 import argparse
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -66,20 +70,21 @@ def plan(jobs, defaults, stream_above_mib, start_index=0):
 
 def _plan_scene(indexed_jobs, defaults, stream_above_mib):
     first = indexed_jobs[0][1]
+    scene_file = first.scene or first.input
     args = options_namespace(first.options, defaults)
     if args.stream_above is None:
         args.stream_above = stream_above_mib
     args.frame = None  # each job sets its own
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    path = os.path.abspath(first.input)
+    path = os.path.abspath(scene_file)
     if not os.path.isfile(path):
-        raise PlanError(f"'{first.input}' does not exist")
+        raise PlanError(f"'{scene_file}' does not exist")
     if path.lower().endswith(".blend"):
         bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     scene = bpy.context.scene
     if path.lower().endswith(".vdb"):
         try:
-            cli.vdb_scene(scene, path, grid=args.grid, frame=first.frame,
+            cli.vdb_scene(scene, path, grid=args.grid,
                           magnification=args.magnification or cli.DEFAULT_MAGNIFICATION,
                           light_direction=args.light_direction or cli.DEFAULT_LIGHT_DIRECTION)
         except RuntimeError as ex:
@@ -88,21 +93,48 @@ def _plan_scene(indexed_jobs, defaults, stream_above_mib):
     if scene.camera is None:
         raise PlanError(f"'{first.input}': the scene has no camera")
     orbit = _Orbit(scene) if any(job.angle is not None for _index, job in indexed_jobs) else None
+    is_vdb = path.lower().endswith(".vdb")
+    read_at = {}  # a .vdb's inputs by angle, read at its scene's own frame
     planned = []
     for index, job in indexed_jobs:
-        if job.frame is not None and scene.frame_current != job.frame:
-            scene.frame_set(job.frame)
-        if orbit is not None:
-            orbit.turn(job.angle or 0.0)
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-        depsgraph.update()
-        view = camera.scene_view(depsgraph)
-        inputs, display = scene_inputs.read(depsgraph, engine.export_grid, view)
-        if any(volume.grid is not None for volume in inputs.volumes):
-            raise PlanError(f"'{job.input}': a procedural volume (made by modifiers or geometry nodes) lives only "
-                            "in Blender; render this scene with `blender -b FILE -E PCVR -a` instead")
+        if is_vdb:
+            if job.angle not in read_at:
+                read_at[job.angle] = _read(scene, orbit, job)
+            inputs, display, view = read_at[job.angle]
+            inputs = _with_file(inputs, path, os.path.abspath(job.input))
+        else:
+            if job.frame is not None and scene.frame_current != job.frame:
+                scene.frame_set(job.frame)
+            inputs, display, view = _read(scene, orbit, job)
         planned.append(PlannedJob(job, index, inputs, display, view))
     return planned
+
+
+def _read(scene, orbit, job):
+    """What F12 would read of the scene at the job's angle: (RenderInputs, DisplayInputs, CameraView)."""
+    if orbit is not None:
+        orbit.turn(job.angle or 0.0)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    depsgraph.update()
+    view = camera.scene_view(depsgraph)
+    inputs, display = scene_inputs.read(depsgraph, engine.export_grid, view)
+    if any(volume.grid is not None for volume in inputs.volumes):
+        raise PlanError(f"'{job.input}': a procedural volume (made by modifiers or geometry nodes) lives only "
+                        "in Blender; render this scene with `blender -b FILE -E PCVR -a` instead")
+    return inputs, display, view
+
+
+def _with_file(inputs, scene_file, frame_file):
+    """RenderInputs with the volume read from `scene_file` read from `frame_file` instead."""
+    if frame_file == scene_file:
+        return inputs
+    scene_real = os.path.realpath(scene_file)
+    volumes = tuple(dataclasses.replace(volume, filepath=frame_file)
+                    if volume.filepath and os.path.realpath(volume.filepath) == scene_real else volume
+                    for volume in inputs.volumes)
+    if volumes == inputs.volumes:
+        raise PlanError(f"'{scene_file}': no volume of its scene reads it, so its frames cannot stand in for it")
+    return dataclasses.replace(inputs, volumes=volumes)
 
 
 class _Orbit:

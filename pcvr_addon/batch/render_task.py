@@ -58,6 +58,11 @@ def render_job(planned, run_id):
     start = time.perf_counter()
     try:
         prepared = engine.prepare(planned.inputs)
+        if prepared.errors:
+            # Unlike F12, which shows the volumes it could read, a batch writes no image without them:
+            # --skip-existing then renders it again once its files are there.
+            return JobResult(planned.index, output, "failed", time.perf_counter() - start,
+                             errors=list(prepared.errors), worker=worker)
         stats = {}
         raw = engine.render_raw(prepared, planned.view, stats=stats)
         passes = engine.finish(prepared, planned.display, raw)
@@ -67,9 +72,7 @@ def render_job(planned, run_id):
     except (OSError, ValueError, RuntimeError, MemoryError, pcvr_native.RenderCancelled) as ex:
         return JobResult(planned.index, output, "failed", time.perf_counter() - start, errors=[str(ex)],
                          worker=worker)
-    # Volumes that could not be read are left out of the image, as F12 leaves them out, and reported.
-    return JobResult(planned.index, output, "failed" if prepared.errors else "rendered",
-                     time.perf_counter() - start, _plain(stats), list(prepared.errors), worker)
+    return JobResult(planned.index, output, "rendered", time.perf_counter() - start, _plain(stats), worker=worker)
 
 
 def _plain(stats):

@@ -101,3 +101,12 @@ def test_bad_input_names_the_file(tmp_path):
     status, printed = bh.render(tmp_path / "missing_####.vdb", tmp_path / "f_####.exr", range(1, 3))
     assert status == 1 and "missing_0001.vdb' does not exist" in printed
     assert not any(name.endswith(".exr") for name in os.listdir(tmp_path))
+
+
+def test_a_missing_frame_fails_alone(tmp_path):
+    batch_scenes.write_sequence(tmp_path / "gap", [1, 3])
+    status, printed = bh.render(tmp_path / "gap" / "smoke_####.vdb", tmp_path / "f_####.exr", range(1, 4))
+    assert status == 1 and "smoke_0002.vdb" in printed
+    with open(tmp_path / "f.manifest.json") as file:
+        assert json.load(file)["counts"] == {"failed": 1, "rendered": 2}
+    assert not (tmp_path / "f_0002.exr").exists()  # so that --skip-existing renders it once it is there
