@@ -36,7 +36,8 @@ def add_arguments(render):
 
 
 def wants_batch(args):
-    return args.input.lower().endswith(".json") or any(getattr(args, name) for name in BATCH_OPTIONS)
+    given = [getattr(args, name) for name in BATCH_OPTIONS]
+    return args.input.lower().endswith(".json") or any(value is not None and value is not False for value in given)
 
 
 def run(args, parser):

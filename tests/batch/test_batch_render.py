@@ -110,3 +110,27 @@ def test_a_missing_frame_fails_alone(tmp_path):
     with open(tmp_path / "f.manifest.json") as file:
         assert json.load(file)["counts"] == {"failed": 1, "rendered": 2}
     assert not (tmp_path / "f_0002.exr").exists()  # so that --skip-existing renders it once it is there
+
+
+def test_job_file_from_the_command_line(tmp_path, sequence):
+    jobs_file = tmp_path / "jobs.json"
+    jobs_file.write_text(json.dumps({"options": {"magnification": 2.0}, "jobs": [
+        {"input": str(sequence / "smoke_0001.vdb"), "output": "a.png"},
+        {"input": str(sequence / "smoke_0002.vdb"), "output": "b.exr", "angle": 90, "options": {"mode": "MIP"}}]}))
+    assert cli.main(["render", str(jobs_file), "-o", str(tmp_path / "results.json")]) == 0
+    with open(tmp_path / "results.json") as file:
+        document = json.load(file)
+    assert document["counts"] == {"rendered": 2}
+    assert image_io.read_passes(str(tmp_path / "a.png"))[""].shape == (56, 56, 4)  # 24 voxels + 4 of room, x2
+    assert image_io.read_passes(str(tmp_path / "b.exr"))[""].shape[2] == 5  # RGBA and XRay, as render writes
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--frames", "1-3"], "INPUT"),
+    (["--workers", "0"], "at least 1"),
+    (["--workers", "2", "--scheduler", "tcp://x:1"], "one of them"),
+])
+def test_command_line_mistakes(tmp_path, sequence, capsys, argv, message):
+    with pytest.raises(SystemExit):
+        cli.main(["render", str(sequence / "smoke_0001.vdb"), "-o", str(tmp_path / "f_####.exr"), *argv])
+    assert message in capsys.readouterr().err

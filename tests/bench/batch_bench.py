@@ -120,7 +120,7 @@ def model(results, workload):
     one = next(row for row in results["configurations"] if row["workers"] == 1)
     part = one[workload]
     images = part["images"]
-    render_s = part["seconds"] - part["plan_s"]  # the workers' share of the 1-worker batch
+    render_s = max(0.0, part["seconds"] - part["plan_s"])  # the workers' share of the 1-worker batch
     rates = {}
     for machines in MACHINES:
         seconds = part["plan_s"] + render_s / machines + one["task_overhead_s"] * images / machines
