@@ -17,6 +17,7 @@ out of the benchmark driver).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import json
 import os
@@ -60,8 +61,7 @@ def child(quick, work):
     results = {"n": n, "frames": frames, "angles": angles, "cpus": os.cpu_count(), "configurations": []}
 
     def batch(job_list, directory, client):
-        placed = [jobs.Job(j.input, j.output.replace("OUT", str(directory)), j.frame, j.angle, j.options)
-                  for j in job_list]
+        placed = [dataclasses.replace(j, output=j.output.replace("OUT", str(directory))) for j in job_list]
         start = time.perf_counter()
         status = run.render_batch(placed, str(directory / "m.manifest.json"), defaults, client, stream=open(os.devnull, "w"))
         seconds = time.perf_counter() - start
