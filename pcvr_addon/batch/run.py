@@ -51,8 +51,8 @@ def run(args, parser):
     except ValueError as ex:
         parser.error(str(ex))
     for job in jobs:
-        if os.path.splitext(job.output)[1].lower() not in (".exr", ".png", ".tif", ".tiff"):
-            parser.error(f"'{job.output}': OUTPUT must end in .exr, .png or .tif")
+        if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
+            parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
     try:
         image_io.openimageio()  # before rendering, not after
     except ImportError as ex:
