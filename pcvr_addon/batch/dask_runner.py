@@ -11,7 +11,6 @@ the scheduler gives them to another worker, whose render_task leaves alone the i
 run (render_task.py). Only this module imports `distributed`; the add-on in Blender never does.
 """
 
-import contextlib
 import logging
 import math
 import os
@@ -36,26 +35,11 @@ def connect(workers=None, scheduler=None, memory_limit="auto"):
     distributed = _distributed()
     if scheduler is not None:
         return distributed.Client(scheduler)
-    with _without_blender_script_paths():
-        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           memory_limit=memory_limit, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
+    _put_blender_script_paths_last()
+    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       memory_limit=memory_limit, dashboard_address=None,
+                                       silence_logs=logging.ERROR)
     return distributed.Client(cluster)
-
-
-@contextlib.contextmanager
-def _without_blender_script_paths():
-    """sys.path without the script folders that importing bpy adds: worker processes start with this process's
-    sys.path, where Blender's `scripts/modules/bpy` package would hide the bpy module itself."""
-    saved = list(sys.path)
-    bpy = sys.modules.get("bpy")
-    scripts = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(bpy.__file__)))) if bpy else None
-    if scripts:
-        sys.path[:] = [path for path in sys.path if not os.path.abspath(path).startswith(scripts + os.sep)]
-    try:
-        yield
-    finally:
-        sys.path[:] = saved
 
 
 def close(client):
@@ -63,6 +47,19 @@ def close(client):
     client.close()
     if cluster is not None:
         cluster.close()
+
+
+def _put_blender_script_paths_last():
+    """Move the script folders that importing bpy puts at the front of sys.path to its end. Worker processes
+    start with this process's sys.path (also when the nanny restarts one whose process died), and there
+    Blender's `scripts/modules/bpy` package would hide the bpy module itself ("No module named '_bpy'").
+    This process's bpy is imported already, and nothing else has those folders' names."""
+    bpy = sys.modules.get("bpy")
+    if bpy is None:
+        return
+    scripts = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(bpy.__file__)))) + os.sep
+    blender = [path for path in sys.path if os.path.abspath(path).startswith(scripts)]
+    sys.path[:] = [path for path in sys.path if path not in blender] + blender
 
 
 def worker_count(client, wait_seconds=30):

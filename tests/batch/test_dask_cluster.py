@@ -80,7 +80,18 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client
     # Every image once: rendered by this run, or kept when a rerun task found it written.
     assert set(counts) <= {"rendered", "kept"} and sum(counts.values()) == len(angles)
     assert [name for name in os.listdir(output) if name.startswith(".")] == []  # no temporaries left
-    client.wait_for_workers(2, timeout=60)  # the nanny restarts the worker
+    # The nanny restarts the worker, which can import the renderer (it starts with this process's sys.path).
+    deadline = time.monotonic() + 60
+    while len(client.run(os.getpid)) < 2:
+        assert time.monotonic() < deadline, "the killed worker was not replaced"
+        time.sleep(0.2)
+    assert victim not in client.run(os.getpid).values()
+    assert set(client.run(_imports_renderer).values()) == {True}
+
+
+def _imports_renderer():
+    from pcvr_addon.batch import render_task  # noqa: F401
+    return True
 
 
 def test_a_volume_split_over_two_workers_sums_to_the_streamed_render(tmp_path, client):
@@ -108,3 +119,23 @@ def test_a_volume_split_over_two_workers_sums_to_the_streamed_render(tmp_path, c
     share = split_xray.render_batches(path, split_xray._camera_values(camera), [0, 2], 1 << 20,
                                       memory_limit=memory_limit, level=0)
     assert not np.allclose(split_xray.summed_in_order(list(share.values())), single, atol=1e-3)
+
+
+@pytest.mark.parametrize("where", ["--scheduler", "--workers"])
+def test_command_line_joins_a_cluster_or_starts_one(tmp_path, sequence, client, where):
+    from pcvr_addon import cli
+
+    argv = ["render", str(sequence / "smoke_####.vdb"), "--frames", "1-2", "-o", str(tmp_path / "f_####.exr")]
+    argv += [where, client.scheduler.address if where == "--scheduler" else "1"]
+    assert cli.main(argv) == 0
+    workers, counts = _workers(tmp_path / "f.manifest.json")
+    assert counts == {"rendered": 2}
+    if where == "--scheduler":
+        assert workers <= {f"{info['host']}:{info['pid']}" for info in _worker_info(client)}
+    assert len(client.run(os.getpid)) == 2  # joining a cluster leaves it running
+
+
+def _worker_info(client):
+    import socket
+    pids = client.run(os.getpid)
+    return [{"host": socket.gethostname(), "pid": pid} for pid in pids.values()]
