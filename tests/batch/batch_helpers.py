@@ -14,11 +14,13 @@ def defaults():
     return run._render_defaults(cli.make_parser())
 
 
-def render(input_path, output, frames=None, angles=None, options=None, client=None, skip_existing=False):
+def render(input_path, output, frames=None, angles=None, options=None, client=None, skip_existing=False,
+           run_id=None):
     """Render a batch; (exit status, what it printed)."""
     batch = jobs.expand(str(input_path), str(output), frames, angles, options)
     printed = io.StringIO()
-    status = run.render_batch(batch, manifest_file(output), defaults(), client, skip_existing, stream=printed)
+    status = run.render_batch(batch, manifest_file(output), defaults(), client, skip_existing, stream=printed,
+                              run_id=run_id)
     return status, printed.getvalue()
 
 

@@ -134,3 +134,19 @@ def test_command_line_mistakes(tmp_path, sequence, capsys, argv, message):
     with pytest.raises(SystemExit):
         cli.main(["render", str(sequence / "smoke_0001.vdb"), "-o", str(tmp_path / "f_####.exr"), *argv])
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extension", [".png", ".tif"])
+def test_a_task_run_again_keeps_what_its_run_wrote(tmp_path, sequence, extension):
+    """What a task rerun by Dask (its worker lost) finds: the images its run wrote, whole, are kept, not written
+    again; another run's images are rendered over."""
+    output = tmp_path / f"f_####{extension}"
+    assert bh.render(sequence / "smoke_####.vdb", output, range(1, 3), run_id="first")[0] == 0
+    written = [os.stat(tmp_path / f"f_000{frame}{extension}").st_mtime_ns for frame in (1, 2)]
+    assert bh.render(sequence / "smoke_####.vdb", output, range(1, 3), run_id="first")[0] == 0
+    with open(tmp_path / "f.manifest.json") as file:
+        assert json.load(file)["counts"] == {"kept": 2}
+    assert [os.stat(tmp_path / f"f_000{frame}{extension}").st_mtime_ns for frame in (1, 2)] == written
+    assert bh.render(sequence / "smoke_####.vdb", output, range(1, 3), run_id="second")[0] == 0
+    with open(tmp_path / "f.manifest.json") as file:
+        assert json.load(file)["counts"] == {"rendered": 2}
