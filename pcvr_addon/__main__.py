@@ -6,4 +6,6 @@ import sys
 
 from .cli import main
 
-sys.exit(main())
+# Guarded: the worker processes of a local Dask cluster (--workers) import this module again as they start.
+if __name__ == "__main__":
+    sys.exit(main())

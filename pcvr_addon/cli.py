@@ -22,10 +22,10 @@ import re
 import sys
 
 import bpy
-import numpy as np
 from mathutils import Vector
 
 from . import camera, convert_command, image_io, presets, register, statistics, unregister
+from .batch import run as batch_run
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -113,6 +113,7 @@ def make_parser():
                              f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV)")
     convert_command.add_scan_options(render)
     convert_command.add_parser(commands)
+    batch_run.add_arguments(render)
     return parser
 
 
@@ -121,6 +122,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.command == "convert":
         return convert_command.main(args)
+    if batch_run.wants_batch(args):
+        return batch_run.run(args, parser)
     if convert_command.render_input(args):  # a scan: rendered from its .vdb
         return 1
 
@@ -298,12 +301,6 @@ def _apply_options(scene, args):
 def _write_output(scene, view_layer, filepath):
     passes = image_io.render_result_passes(scene)
     combined = passes.get("Composite.Combined", passes[f"{view_layer.name}.Combined"])
-    if not filepath.lower().endswith(".exr"):
-        image_io.write_image(filepath, combined)
-        return
-    channels, names = [combined], ["R", "G", "B", "A"]
-    for pass_name, channel_name in (("Depth", "Z"), ("XRay", "XRay")):
-        if f"{view_layer.name}.{pass_name}" in passes:
-            channels.append(passes[f"{view_layer.name}.{pass_name}"])
-            names.append(channel_name)
-    image_io.write_image(filepath, np.concatenate(channels, axis=-1), channel_names=names)
+    extra = {name: passes[f"{view_layer.name}.{name}"] for name in ("Depth", "XRay")
+             if f"{view_layer.name}.{name}" in passes}
+    image_io.write_passes(filepath, {"Combined": combined, **extra})

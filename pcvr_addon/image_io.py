@@ -62,10 +62,11 @@ def display_encoded(pixels, channel_names):
     return np.clip(encoded, 0.0, 1.0)
 
 
-def write_image(filepath, pixels, channel_names=None):
+def write_image(filepath, pixels, channel_names=None, description=None):
     """Write `pixels`, float32 (height, width, channels) with row 0 on top, to `filepath`; the
     extension picks the format (see the table above). Channels are named R, G, B, A (or Y, A) unless
-    `channel_names` says otherwise; integer formats encode only R, G, B and Y."""
+    `channel_names` says otherwise; integer formats encode only R, G, B and Y. `description`: the
+    file's ImageDescription (every format keeps it), read back by `description_of`."""
     oiio = openimageio()
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim == 2:
@@ -86,6 +87,8 @@ def write_image(filepath, pixels, channel_names=None):
     if pixel_type != "float":
         pixels = display_encoded(pixels, channel_names)
         spec.attribute("oiio:UnassociatedAlpha", 1)  # already straight: OpenImageIO must not divide again
+    if description is not None:
+        spec.attribute("ImageDescription", description)
 
     # Beside the destination, so the rename cannot cross file systems; the extension tells
     # OpenImageIO the format.
@@ -104,6 +107,31 @@ def write_image(filepath, pixels, channel_names=None):
         if os.path.exists(temporary):
             os.remove(temporary)
         raise
+
+
+def write_passes(filepath, passes, description=None):
+    """Write a render's passes {"Combined": RGBA, "Depth"?: Z, "XRay"?: integral} to `filepath`: an .exr holds
+    R, G, B, A and the other passes as channels Z and XRay, the other formats the Combined pass."""
+    if not filepath.lower().endswith(".exr"):
+        write_image(filepath, passes["Combined"], description=description)
+        return
+    channels, names = [passes["Combined"]], ["R", "G", "B", "A"]
+    for pass_name, channel_name in (("Depth", "Z"), ("XRay", "XRay")):
+        if pass_name in passes:
+            channels.append(passes[pass_name])
+            names.append(channel_name)
+    write_image(filepath, np.concatenate(channels, axis=-1), channel_names=names, description=description)
+
+
+def description_of(filepath):
+    """The ImageDescription an image was written with, "" when it has none or cannot be read."""
+    image = openimageio().ImageInput.open(filepath)
+    if image is None:
+        return ""
+    try:
+        return str(image.spec().get_string_attribute("ImageDescription", ""))
+    finally:
+        image.close()
 
 
 def read_passes(filepath):

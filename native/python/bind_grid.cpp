@@ -318,6 +318,13 @@ void bind_grid(nb::module_& m) {
             "Level of detail k, 1 <= k <= 7, as Grid.level(k, reduction) of the grid read whole: made by reading "
             "every batch once, then kept with the stream. render_xray renders a zoomed-out view of a stream from "
             "it when it takes no more than a batch; render_shaded and render_mip take it as a grid.")
+        .def("batch_count", &GridStream::batch_count, "batch_bytes"_a,
+             "How many batches render_xray reads the stream in at `batch_bytes` a batch (from the topology alone).")
+        .def("with_batches", &GridStream::with_batches, "batches"_a, "batch_bytes"_a,
+             "The same stream restricted to some of its batches of `batch_bytes` (indices below batch_count): "
+             "render_xray renders only those (never a coarse level), so renders of disjoint shares sum to the "
+             "whole stream's image, batch by batch.")
+        .def_prop_ro("only_batches", &GridStream::only_batches, "The batches with_batches chose; [] for all.")
         .def_prop_ro("leaf_count", &GridStream::leaf_count)
         .def_prop_ro("value_bytes", &GridStream::value_bytes, "Bytes the voxel values would take read whole.")
         .def("__repr__", [](const GridStream& s) {

@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import analysis_report
+import batch_bench
 import big_volume_bench
 import evidence_report
 import magnification_curve
@@ -552,6 +553,7 @@ def write(results: dict, output: Path) -> None:
     lines += minification_bench.section(results.get("minification"))
     lines += shaded_levels.section(results.get("shaded_levels"))
     lines += big_volume_bench.section(results.get("big_volume"))
+    lines += batch_bench.section(results.get("batch"))
     lines += magnification_curve.section(results.get("magnification_curve"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))

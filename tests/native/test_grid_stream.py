@@ -252,3 +252,29 @@ def test_tiles_travel_with_their_region(tmp_path, reduction):
     for k in (1, 4, 5):
         np.testing.assert_array_equal(stream.level(k, reduction).to_dense(-1000.0),
                                       grid.level(k, reduction).to_dense(-1000.0))
+
+
+def test_streams_of_some_batches_sum_to_the_whole_batch_by_batch(files):
+    """GridStream.with_batches (for renders split over processes, pcvr_addon/batch/split_xray.py): each batch
+    rendered alone, added in batch order as float32, is the streamed render bit for bit; a coarse level is never
+    taken for some batches only."""
+    path = str(files / "field.vdb")
+    stream = pn.stream_vdb(path, batch_bytes=2 * MiB)
+    cam = field_view(stream, "orthographic")
+    limit = 16 * MiB  # the batches' 2 MiB and the image's buffers
+    count = stream.batch_count(2 * MiB)
+    assert count == 3 and stream.batch_count(1) == 7 and stream.batch_count(1 << 40) == 1  # as render_streamed
+    whole = pn.render_xray(stream, cam, memory_limit=limit, level=0)
+    parts = [pn.render_xray(stream.with_batches([b], 2 * MiB), cam, memory_limit=limit, level=0) for b in range(count)]
+    total = parts[0].copy()
+    for part in parts[1:]:
+        total += part
+    assert np.array_equal(total, whole)
+    assert stream.with_batches([2, 0, 2], 2 * MiB).only_batches == [0, 2]
+    stats = {}
+    pn.render_xray(stream.with_batches([1], 2 * MiB), cam, memory_limit=limit, level=2, stats=stats)
+    assert (stats["batches"], stats["level"]) == (1, 2)  # level 2 of one batch, not the stream's kept level
+    with pytest.raises(ValueError, match=r"batches must be some of 0 to 2 \(3 batches"):
+        stream.with_batches([3], 2 * MiB)
+    with pytest.raises(ValueError, match="chosen at 2097152 bytes a batch"):
+        pn.render_xray(stream.with_batches([0], 2 * MiB), cam, memory_limit=2 * MiB)

@@ -19,6 +19,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "pcvr/grid.h"
 #include "pcvr/math.h"
@@ -36,6 +37,16 @@ public:
                                             uint64_t batch_bytes = 0);
     /// The batch size asked for on opening; 0: the render's choice.
     uint64_t batch_bytes() const { return batch_bytes_; }
+
+    /// How many batches for_each_batch(batch_bytes) makes (at least one), from the topology alone.
+    size_t batch_count(uint64_t batch_bytes) const;
+    /// The same stream restricted to some of its batches of `batch_bytes` (indices below batch_count):
+    /// renders visit only those, so processes that each render a share of the batches sum to the whole
+    /// grid's image (pcvr_addon/batch splits a volume over Dask workers so). Its batch_bytes() is
+    /// `batch_bytes`; it renders by batches even where the whole stream would render a coarse level.
+    std::shared_ptr<GridStream> with_batches(std::vector<size_t> batches, uint64_t batch_bytes) const;
+    /// The batches with_batches chose; empty for the whole stream.
+    const std::vector<size_t>& only_batches() const { return only_batches_; }
 
     const std::string& name() const;
     const std::string& path() const;
@@ -85,6 +96,7 @@ private:
     std::shared_ptr<Impl> impl_;  ///< shared by the streams with_index_to_world makes
     Mat4 index_to_world_;
     uint64_t batch_bytes_ = 0;
+    std::vector<size_t> only_batches_;  ///< sorted; empty: every batch
 };
 
 }  // namespace pcvr

@@ -78,7 +78,20 @@ struct GridStream::Impl {
     std::mutex levels_mutex;
     std::map<std::pair<int, LevelReduction>, std::shared_ptr<Grid::Data>> levels;  ///< those level() has made
 
-    void for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world, const std::function<void(const Batch&)>& visit);
+    /// `only` (sorted, or empty for all): the batches to read and visit; the others are planned, not read.
+    void for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world, const std::function<void(const Batch&)>& visit,
+                        const std::vector<size_t>& only = {});
+
+    /// The region after the batch that starts at region `next`: whole regions up to `batch_bytes`.
+    size_t batch_end(size_t next, uint64_t batch_bytes) const {
+        uint64_t bytes = 0;
+        for (; next < regions.size(); ++next) {
+            const uint64_t region_bytes = regions[next].leaves * kLeafBytes;
+            if (bytes > 0 && bytes + region_bytes > batch_bytes) break;
+            bytes += region_bytes;
+        }
+        return next;
+    }
 
     /// An empty float grid with the stream's background, for a batch.
     vdb::FloatGrid::Ptr empty_batch() const { return vdb::FloatGrid::create(topology->background()); }
@@ -163,7 +176,9 @@ const std::string& GridStream::name() const { return impl_->name; }
 const std::string& GridStream::path() const { return impl_->path; }
 std::shared_ptr<GridStream> GridStream::with_index_to_world(const Mat4& index_to_world) const {
     detail::check_index_to_world(index_to_world, "grid '" + impl_->name + "'");
-    return std::make_shared<GridStream>(impl_, index_to_world, batch_bytes_);
+    auto moved = std::make_shared<GridStream>(impl_, index_to_world, batch_bytes_);
+    moved->only_batches_ = only_batches_;
+    return moved;
 }
 float GridStream::background() const { return impl_->topology->background(); }
 uint64_t GridStream::active_voxel_count() const { return impl_->active_voxels; }
@@ -188,7 +203,7 @@ std::pair<float, float> GridStream::value_range() const {
 }
 
 void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to_world,
-                                      const std::function<void(const Batch&)>& visit) {
+                                      const std::function<void(const Batch&)>& visit, const std::vector<size_t>& only) {
     Impl& s = *this;
     std::lock_guard<std::mutex> lock(s.mutex);
     guard_read(s.path, [&] {
@@ -199,16 +214,12 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
     uint64_t voxels_done = 0;
     size_t next = 0;
     // An empty grid still makes one (empty) batch.
-    for (bool first = true; first || next < s.regions.size(); first = false) {
+    for (size_t index = 0; index == 0 || next < s.regions.size(); ++index) {
+        const size_t first_region = next;
+        next = s.batch_end(next, batch_bytes);
+        if (!only.empty() && !std::binary_search(only.begin(), only.end(), index)) continue;
         vdb::FloatGrid::Ptr batch = s.empty_batch();
-        uint64_t bytes = 0;
         guard_read(s.path, [&] {
-            const size_t first_region = next;
-            for (; next < s.regions.size(); ++next) {
-                const uint64_t region_bytes = s.regions[next].leaves * kLeafBytes;
-                if (bytes > 0 && bytes + region_bytes > batch_bytes) break;
-                bytes += region_bytes;
-            }
             if (next > first_region) voxels_done += s.add_regions(first_region, next, batch->tree());
         });
         batch->setName(s.name);
@@ -218,7 +229,29 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
 }
 
 void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const {
-    impl_->for_each_batch(batch_bytes, index_to_world_, visit);
+    if (!only_batches_.empty() && batch_bytes != batch_bytes_)
+        throw InvalidArgument("grid '" + impl_->name + "': its batches were chosen at " + std::to_string(batch_bytes_) +
+                              " bytes a batch, not " + std::to_string(batch_bytes));
+    impl_->for_each_batch(batch_bytes, index_to_world_, visit, only_batches_);
+}
+
+size_t GridStream::batch_count(uint64_t batch_bytes) const {
+    size_t count = 0;
+    for (size_t next = 0; count == 0 || next < impl_->regions.size(); ++count) next = impl_->batch_end(next, batch_bytes);
+    return count;
+}
+
+std::shared_ptr<GridStream> GridStream::with_batches(std::vector<size_t> batches, uint64_t batch_bytes) const {
+    if (batch_bytes == 0) throw InvalidArgument("grid '" + impl_->name + "': batch_bytes must be positive");
+    const size_t count = batch_count(batch_bytes);
+    std::sort(batches.begin(), batches.end());
+    batches.erase(std::unique(batches.begin(), batches.end()), batches.end());
+    if (batches.empty() || batches.back() >= count)
+        throw InvalidArgument("grid '" + impl_->name + "': batches must be some of 0 to " + std::to_string(count - 1) +
+                              " (" + std::to_string(count) + " batches of " + std::to_string(batch_bytes) + " bytes)");
+    auto subset = std::make_shared<GridStream>(impl_, index_to_world_, batch_bytes);
+    subset->only_batches_ = std::move(batches);
+    return subset;
 }
 
 Grid GridStream::level(int k, LevelReduction reduction, const RenderControl* control) const {

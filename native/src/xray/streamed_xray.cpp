@@ -88,9 +88,11 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     }
     for (const WeightedStream& s : streams) {
         const int level = stream_level(*s.stream, camera, params);
-        // A zoomed-out view: the level fits where a batch would, and stays for the next render. (Not with an
-        // attenuation map, which must see every voxel before levels average them: batches map, then reduce.)
-        if (level > 0 && !s.attenuation && (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
+        // A zoomed-out view: the level fits where a batch would, and stays for the next render. Not with an
+        // attenuation map, which must see every voxel before levels average them (batches map, then reduce),
+        // nor for a stream of some batches only, which renders just them (the coarse level is the whole grid's).
+        if (level > 0 && !s.attenuation && s.stream->only_batches().empty() &&
+            (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
             const Grid coarse = s.stream->level(level, LevelReduction::MeanOverZero, &control);
             render_part({WeightedGrid{&coarse, s.density_scale, level}}, s.stream->active_voxel_count(), part_params);
             continue;

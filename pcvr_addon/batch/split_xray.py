@@ -1,0 +1,83 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""An X-ray of a volume bigger than one worker: its batches of 128^3 regions rendered on several, summed.
+
+pcvr_native's streamed X-ray (render_xray of a GridStream, native/src/streamed_xray.cpp) reads a file a batch
+of regions at a time, renders each batch and adds the images in batch order. Here each worker renders a share
+of the batches (GridStream.with_batches: the same stream, the same level and settings, only those batches),
+returns one image per batch, and the images are added here in the same order, as float32: the sum is the
+single-process streamed render bit for bit, and no worker holds more than a batch of values (half of
+`memory_limit`) and its buffers.
+
+Shaded and MIP images are not sums and need every voxel of a pixel's ray at once: they are not split (a
+sort-last compositor of depth-ordered bricks would be the way; not done).
+"""
+
+import numpy as np
+
+# render_xray's batch size when neither the memory limit nor the stream says (GridStream::kDefaultBatchBytes).
+DEFAULT_BATCH_BYTES = 64 << 20
+
+
+def batch_bytes(stream, memory_limit=None):
+    """The bytes of values render_xray(stream, memory_limit=...) reads a batch at a time: half the limit, or
+    the default, or less where the stream asks for less (as streamed_xray.cpp chooses)."""
+    size = memory_limit // 2 if memory_limit else DEFAULT_BATCH_BYTES
+    return min(size, stream.batch_bytes) if stream.batch_bytes else size
+
+
+def _camera_values(camera):
+    """A pcvr_native.Camera as plain values, which pickle (the Camera itself does not)."""
+    return (np.asarray(camera.world_to_camera), np.asarray(camera.projection), camera.width, camera.height)
+
+
+def render_batches(path, camera_values, batches, size, grid=None, **xray_options):
+    """{batch: image} of the batches `batches` (of `size` bytes each) of grid `grid` of `path`, each rendered
+    alone as render_xray renders it within the whole stream."""
+    import pcvr_native
+
+    stream = pcvr_native.stream_vdb(path, grid)
+    camera = pcvr_native.Camera(*camera_values)
+    return {batch: pcvr_native.render_xray(stream.with_batches([batch], size), camera, **xray_options)
+            for batch in batches}
+
+
+def render_xray_split(client, path, camera, grid=None, parts=None, memory_limit=None, level=0, **xray_options):
+    """The X-ray of grid `grid` of the .vdb `path` seen by `camera` (pcvr_native.Camera), its batches rendered
+    on the workers of the Dask `client` in `parts` shares (default: one per worker), summed here: equal to
+    pcvr_native.render_xray(pcvr_native.stream_vdb(path, grid), camera, memory_limit=memory_limit, level=level,
+    **xray_options), bit for bit. `level` must be a number (the whole stream's "auto" level is chosen by the
+    native render). Returns the float32 (height, width) integral."""
+    import pcvr_native
+
+    if not isinstance(level, int):
+        raise ValueError("render_xray_split: level must be a level of detail (0, 1, ...), not 'auto'")
+    options = dict(xray_options, memory_limit=memory_limit, level=level)
+    stream = pcvr_native.stream_vdb(path, grid)
+    size = batch_bytes(stream, memory_limit)
+    count = stream.batch_count(size)
+    if count == 1 or (level > 0 and stream.value_bytes >> (3 * level) <= size):
+        # One batch, or a coarse level that fits where a batch would: the stream renders it whole.
+        return client.submit(_render_whole, path, _camera_values(camera), grid, options, pure=False).result()
+    parts = parts or len(client.scheduler_info()["workers"])
+    shares = [list(range(count))[part::parts] for part in range(min(parts, count))]
+    futures = [client.submit(render_batches, path, _camera_values(camera), share, size, grid, pure=False,
+                             **options) for share in shares]
+    images = {}
+    for future in futures:
+        images.update(future.result())
+    return summed_in_order([images[batch] for batch in range(count)])
+
+
+def _render_whole(path, camera_values, grid, options):
+    import pcvr_native
+
+    return pcvr_native.render_xray(pcvr_native.stream_vdb(path, grid), pcvr_native.Camera(*camera_values), **options)
+
+
+def summed_in_order(images):
+    """Images added in the order given, as float32: as the streamed render adds its batches' images."""
+    total = np.array(images[0], dtype=np.float32, copy=True)
+    for image in images[1:]:
+        total += image
+    return total

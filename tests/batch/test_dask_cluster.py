@@ -1,0 +1,141 @@
+"""A real local Dask cluster of 2 worker processes: sequences and view sweeps equal to one process, a worker
+killed mid-run, and an X-ray of a volume split over both workers."""
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import batch_helpers as bh
+import batch_scenes
+from pcvr_addon.batch import dask_runner, split_xray
+
+pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def client():
+    client = dask_runner.connect(workers=2)
+    yield client
+    dask_runner.close(client)
+
+
+@pytest.fixture(scope="module")
+def sequence(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("sequence")
+    batch_scenes.write_sequence(directory, range(1, 7))
+    return directory
+
+
+def _workers(manifest_file):
+    import json
+    with open(manifest_file) as file:
+        document = json.load(file)
+    return {job["worker"] for job in document["jobs"]}, document["counts"]
+
+
+def test_sequence_and_sweep_on_two_workers_equal_one_process(tmp_path, sequence, client):
+    for where, on in (("here", None), ("cluster", client)):
+        status, printed = bh.render(sequence / "smoke_####.vdb", tmp_path / where / "f_####_#.exr", range(1, 7),
+                                    angles=[0.0, 60.0], client=on)
+        assert status == 0, printed
+    bh.assert_same_images(bh.images(tmp_path / "cluster"), bh.images(tmp_path / "here"))
+    workers, counts = _workers(tmp_path / "cluster" / "f.manifest.json")
+    assert counts == {"rendered": 12} and len(workers) == 2
+    assert str(os.getpid()) not in {worker.split(":")[1] for worker in workers}
+
+
+def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client):
+    angles = [float(a) for a in range(0, 360, 10)]
+    status, _ = bh.render(sequence / "smoke_0001.vdb", tmp_path / "reference" / "v_##.exr", angles=angles)
+    assert status == 0
+    output = tmp_path / "cluster"
+    victim = next(iter(client.run(os.getpid).values()))
+    killed_after = []
+
+    def kill_once_an_image_is_there():
+        # As a machine lost would be: the worker process killed outright. (A thread of its own: bpy, which
+        # the batch uses while planning, must stay on the main thread.)
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            written = sum(name.endswith(".exr") for name in os.listdir(output)) if output.is_dir() else 0
+            if written:
+                os.kill(victim, signal.SIGKILL)
+                killed_after.append(written)
+                return
+            time.sleep(0.005)
+
+    killer = threading.Thread(target=kill_once_an_image_is_there)
+    killer.start()
+    finished = [bh.render(sequence / "smoke_0001.vdb", output / "v_##.exr", angles=angles, client=client)]
+    killer.join()
+    assert killed_after and killed_after[0] < len(angles)  # so the kill came mid-run
+    status, printed = finished[0]
+    assert status == 0, printed
+    bh.assert_same_images(bh.images(output), bh.images(tmp_path / "reference"))
+    workers, counts = _workers(output / "v.manifest.json")
+    # Every image once: rendered by this run, or kept when a rerun task found it written.
+    assert set(counts) <= {"rendered", "kept"} and sum(counts.values()) == len(angles)
+    assert [name for name in os.listdir(output) if name.startswith(".")] == []  # no temporaries left
+    # The nanny restarts the worker, which can import the renderer (it starts with this process's sys.path).
+    deadline = time.monotonic() + 60
+    while len(client.run(os.getpid)) < 2:
+        assert time.monotonic() < deadline, "the killed worker was not replaced"
+        time.sleep(0.2)
+    assert victim not in client.run(os.getpid).values()
+    assert set(client.run(_imports_renderer).values()) == {True}
+
+
+def _imports_renderer():
+    from pcvr_addon.batch import render_task  # noqa: F401
+    return True
+
+
+def test_a_volume_split_over_two_workers_sums_to_the_streamed_render(tmp_path, client):
+    import pcvr_native as pn
+    import pcvr_native.cameras
+
+    values = np.zeros((300, 260, 20), np.float32)
+    values[5:290, 10:250, 2:18] = np.random.default_rng(1).random((285, 240, 16), dtype=np.float32) + 0.1
+    path = str(tmp_path / "wide.vdb")
+    pn.Grid.from_dense(values, np.diag([0.1, 0.1, 0.1, 1.0])).write_vdb(path)
+    view = np.eye(4)
+    view[:3, 3] = [-15.0, -13.0, -10.0]
+    camera = pn.Camera(view, pn.cameras.ortho(-16, 16, -14, 14, 0.1, 20), 160, 140)
+    memory_limit = 2 << 20  # batches of 1 MiB of a 7 MiB volume
+    stream = pn.stream_vdb(path)
+    batches = stream.batch_count(split_xray.batch_bytes(stream, memory_limit))
+    assert batches >= 4
+
+    single_stats = {}
+    single = pn.render_xray(stream, camera, memory_limit=memory_limit, level=0, stats=single_stats)
+    assert single_stats["batches"] == batches
+    split = split_xray.render_xray_split(client, path, camera, parts=2, memory_limit=memory_limit)
+    assert np.array_equal(split, single)
+    # A share alone is not the whole.
+    share = split_xray.render_batches(path, split_xray._camera_values(camera), [0, 2], 1 << 20,
+                                      memory_limit=memory_limit, level=0)
+    assert not np.allclose(split_xray.summed_in_order(list(share.values())), single, atol=1e-3)
+
+
+@pytest.mark.parametrize("where", ["--scheduler", "--workers"])
+def test_command_line_joins_a_cluster_or_starts_one(tmp_path, sequence, client, where):
+    from pcvr_addon import cli
+
+    argv = ["render", str(sequence / "smoke_####.vdb"), "--frames", "1-2", "-o", str(tmp_path / "f_####.exr")]
+    argv += [where, client.scheduler.address if where == "--scheduler" else "1"]
+    assert cli.main(argv) == 0
+    workers, counts = _workers(tmp_path / "f.manifest.json")
+    assert counts == {"rendered": 2}
+    if where == "--scheduler":
+        assert workers <= {f"{info['host']}:{info['pid']}" for info in _worker_info(client)}
+    assert len(client.run(os.getpid)) == 2  # joining a cluster leaves it running
+
+
+def _worker_info(client):
+    import socket
+    pids = client.run(os.getpid)
+    return [{"host": socket.gethostname(), "pid": pid} for pid in pids.values()]
