@@ -15,7 +15,7 @@ import uuid
 
 from . import jobs as batch_jobs
 from . import manifest
-from .. import image_io
+from .. import image_io, presets
 
 # The options this module adds to the render command (cli names); the others are the render's own.
 BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")
@@ -53,6 +53,11 @@ def run(args, parser):
     for job in jobs:
         if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
             parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
+        if job.options.get("preset") is not None:
+            try:
+                presets.find(job.options["preset"])
+            except KeyError as ex:
+                parser.error(ex.args[0])
     try:
         image_io.openimageio()  # before rendering, not after
     except ImportError as ex:
