@@ -146,7 +146,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
                 render_task.render_task(task, run_id, progress=lambda result: record([result]))
         else:
             dask_runner.run_tasks(client, tasks, run_id, record)
-    except plan.PlanError as ex:
+    except (plan.PlanError, OSError) as ex:  # OSError: a cluster without workers
         print(f"pcvr: {ex}", file=stream)
         return 1
     except KeyboardInterrupt:
