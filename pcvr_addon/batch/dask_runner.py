@@ -63,8 +63,12 @@ def _put_blender_script_paths_last():
 
 
 def worker_count(client, wait_seconds=30):
-    """The workers the scheduler has (waiting up to `wait_seconds` for one)."""
-    client.wait_for_workers(1, timeout=wait_seconds)
+    """The workers the scheduler has (waiting up to `wait_seconds` for one). OSError when none comes."""
+    try:
+        client.wait_for_workers(1, timeout=wait_seconds)
+    except TimeoutError:
+        raise OSError(f"no Dask worker joined the scheduler at {client.scheduler.address} within "
+                      f"{wait_seconds} s: start some with `dask worker {client.scheduler.address} --nthreads 1`")
     return len(client.scheduler_info()["workers"])
 
 

@@ -15,7 +15,7 @@ import uuid
 
 from . import jobs as batch_jobs
 from . import manifest
-from .. import image_io
+from .. import image_io, presets
 
 # The options this module adds to the render command (cli names); the others are the render's own.
 BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")
@@ -53,6 +53,11 @@ def run(args, parser):
     for job in jobs:
         if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
             parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
+        if job.options.get("preset") is not None:
+            try:
+                presets.find(job.options["preset"])
+            except KeyError as ex:
+                parser.error(ex.args[0])
     try:
         image_io.openimageio()  # before rendering, not after
     except ImportError as ex:
@@ -141,7 +146,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
                 render_task.render_task(task, run_id, progress=lambda result: record([result]))
         else:
             dask_runner.run_tasks(client, tasks, run_id, record)
-    except plan.PlanError as ex:
+    except (plan.PlanError, OSError) as ex:  # OSError: a cluster without workers
         print(f"pcvr: {ex}", file=stream)
         return 1
     except KeyboardInterrupt:

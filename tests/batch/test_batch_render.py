@@ -129,6 +129,7 @@ def test_job_file_from_the_command_line(tmp_path, sequence):
     (["--frames", "1-3"], "INPUT"),
     (["--workers", "0"], "at least 1"),
     (["--workers", "2", "--scheduler", "tcp://x:1"], "one of them"),
+    (["--angles", "0:90:45", "--preset", "No Such Preset"], "No Such Preset"),
 ])
 def test_command_line_mistakes(tmp_path, sequence, capsys, argv, message):
     with pytest.raises(SystemExit):

@@ -271,6 +271,7 @@ def test_streams_of_some_batches_sum_to_the_whole_batch_by_batch(files):
         total += part
     assert np.array_equal(total, whole)
     assert stream.with_batches([2, 0, 2], 2 * MiB).only_batches == [0, 2]
+    assert stream.with_batches([1], 2 * MiB).value_range == pn.read_vdb(path).value_range  # the grid's
     stats = {}
     pn.render_xray(stream.with_batches([1], 2 * MiB), cam, memory_limit=limit, level=2, stats=stats)
     assert (stats["batches"], stats["level"]) == (1, 2)  # level 2 of one batch, not the stream's kept level

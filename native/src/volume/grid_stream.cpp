@@ -191,7 +191,8 @@ std::pair<float, float> GridStream::value_range() const {
     if (!impl_->value_range) {
         std::pair<float, float> range{0.0f, 0.0f};
         bool any = false;
-        for_each_batch(kDefaultBatchBytes, [&](const Batch& batch) {
+        // Every batch, also for a stream of some batches only: the range is the grid's.
+        impl_->for_each_batch(kDefaultBatchBytes, index_to_world_, [&](const Batch& batch) {
             if (batch.grid.active_voxel_count() == 0) return;
             const auto [lo, hi] = batch.grid.value_range();
             range = any ? std::pair<float, float>{std::min(range.first, lo), std::max(range.second, hi)} : std::pair<float, float>{lo, hi};
