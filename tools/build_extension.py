@@ -80,7 +80,7 @@ def download_pure_wheels(pins, folder):
     wheels = sorted(folder.glob("*.whl"))
     impure = [wheel.name for wheel in wheels if not wheel.name.endswith("-none-any.whl")]
     if impure:
-        sys.exit(f"build_extension: {REQUIREMENTS.name} must pin pure-Python packages; these wheels are "
+        sys.exit(f"build_extension: the requirements must pin pure-Python packages; these wheels are "
                  f"built for one Python or platform: {impure}")
     return wheels
 
@@ -102,9 +102,9 @@ def stage(staging, native, pins):
     shutil.copytree(ADDON, staging, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     wheel_folder = staging / "wheels"
     wheel_folder.mkdir()
+    pure = download_pure_wheels(pins, wheel_folder)  # first: it checks every wheel in the folder
     for wheel in native:
         shutil.copy2(wheel, wheel_folder / wheel.name)
-    pure = download_pure_wheels(pins, wheel_folder)
     names = [wheel.name for wheel in native] + [wheel.name for wheel in pure]
     (staging / MANIFEST.name).write_text(with_wheels(MANIFEST.read_text(), names))
 
@@ -126,11 +126,13 @@ def main():
                         help="where the wheel is and the archive goes (default: dist/)")
     parser.add_argument("--staging", type=Path, default=ROOT / "build" / "extension" / "pcvr",
                         help="staging folder (default: build/extension/pcvr)")
+    parser.add_argument("--requirements", type=Path, default=REQUIREMENTS,
+                        help="the pure-Python wheels to ship (default: extension_requirements.txt)")
     args = parser.parse_args()
 
     native = native_wheels(args.dist)
     manifest = check_manifest(native)
-    stage(args.staging, native, requirements())
+    stage(args.staging, native, requirements(args.requirements))
 
     blender_ext = find_blender_ext()
     for archive in archives(manifest, args.dist):
