@@ -171,8 +171,9 @@ PYTAG_45 := cp311
 PYTAG_52 := cp313
 PYTAG_53 := cp313
 python_for = $(if $(filter cp313,$(PYTAG_$(1))),$(PYTHON313),$(PYTHON_SYS))
-# Blender's own deprecation warnings (RNA properties: "... is expected to be removed in Blender 6.0").
-BLENDER_DEPRECATIONS := -W "error:.*is expected to be removed:DeprecationWarning"
+# Blender's own deprecation warnings (RNA properties: "'Scene.x' is expected to be removed in Blender 6.0"),
+# as an ini filter: pytest's -W takes the message literally, and Blender's start with the property's name.
+BLENDER_DEPRECATIONS := -o "filterwarnings=error:.*is expected to be removed:DeprecationWarning"
 
 .PHONY: test-compat compat-smoke
 .SECONDARY: $(foreach v,$(COMPAT_BLENDERS),.venv-bpy$(v)/.deps-stamp)  # stamps to keep, not intermediates
