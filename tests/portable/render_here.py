@@ -24,27 +24,31 @@ import install_extension
 CT_BONE = "CT Bone"
 
 
+def shipped_wheel(names):
+    """Of an archive's file names, the pcvr_native wheel for this Python (the one Blender installs)."""
+    tag = "cp{}{}".format(*sys.version_info[:2])
+    [wheel] = [name for name in names if name.startswith("wheels/pcvr_native-") and f"-{tag}-" in name]
+    return wheel
+
+
 def shipped_module_digest(archive):
     """SHA-256 of the compiled module in the archive's wheel for this Python."""
-    tag = "cp{}{}".format(*sys.version_info[:2])
     with zipfile.ZipFile(archive) as extension:
-        [wheel] = [name for name in extension.namelist() if name.startswith("wheels/pcvr_native-")
-                   and f"-{tag}-" in name]
-        with zipfile.ZipFile(io.BytesIO(extension.read(wheel))) as files:
-            [module] = [name for name in files.namelist() if name.startswith("pcvr_native/_pcvr")]
-            return hashlib.sha256(files.read(module)).hexdigest()
+        wheel = extension.read(shipped_wheel(extension.namelist()))
+    with zipfile.ZipFile(io.BytesIO(wheel)) as files:
+        [module] = [name for name in files.namelist() if name.startswith("pcvr_native/_pcvr")]
+        return hashlib.sha256(files.read(module)).hexdigest()
 
 
 def install_shipped_wheel(archive, work):
     """The archive's add-on and its wheel for this Python installed beside bpy, as the command line
     needs them (Blender removes an extension's wheels from its own folder when a process starts
     with the extension not enabled)."""
-    tag = "cp{}{}".format(*sys.version_info[:2])
     with zipfile.ZipFile(archive) as extension:
         names = extension.namelist()
-        extension.extractall(work / "addon" / "pcvr_addon", [name for name in names if "/" not in name
-                                                              or not name.startswith("wheels/")])
-        [wheel] = [name for name in names if name.startswith("wheels/pcvr_native-") and f"-{tag}-" in name]
+        extension.extractall(work / "addon" / "pcvr_addon", [name for name in names
+                                                              if not name.startswith("wheels/")])
+        wheel = shipped_wheel(names)
         extension.extract(wheel, work)
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-index", "--target",
                     str(work / "site"), str(work / wheel)], check=True)
