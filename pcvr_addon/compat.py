@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""What differs between the Blenders PCVR supports (4.2 LTS, 4.5 LTS and 5.0), one function per difference.
+"""What differs between the Blenders PCVR supports (4.2 LTS to 5.3), one function per difference.
 
 Each function tests for a feature, not a version number, so the releases in between get what they have.
 
@@ -10,6 +10,11 @@ Each function tests for a feature, not a version number, so the releases in betw
 | `set_file_format`    | 5.0 moved multi-layer OpenEXR from `file_format` to `media_type`               |
 | `unregister_at_exit` | bpy 4.2 crashes and 4.5 hangs at exit unless the add-on lets go of bpy first   |
 | `world_uses_nodes`   | 5.0 always renders a world through its nodes and deprecated World.use_nodes    |
+| `composite_with`     | 5.0 composites through a node group; 5.3 lists it as one of the scene's effects |
+
+5.1 to 5.3 changed nothing else that PCVR uses: render passes (RenderEngine.add_pass, register_pass),
+volume grids (Volume.grids, VolumeGrid) and the image settings above behave as in 5.0, as `make
+test-compat` checks with every add-on test and Blender's deprecation warnings made errors.
 """
 
 import atexit
@@ -57,6 +62,19 @@ def world_uses_nodes(world):
     if getattr(world.bl_rna.properties["use_nodes"], "is_deprecated", False):
         return True
     return world.use_nodes
+
+
+def composite_with(scene, node_group):
+    """Have `scene` composite its renders through `node_group` (a CompositorNodeTree ending in a Group Output),
+    on Blender 5.0 and later. 5.0 to 5.2 take it as Scene.compositing_node_group; 5.3 deprecated that for
+    Scene.compositor_effects, a stack of effects with a node group each (its first is what 5.2 had)."""
+    prop = scene.bl_rna.properties.get("compositing_node_group")
+    if prop is not None and not getattr(prop, "is_deprecated", False):
+        scene.compositing_node_group = node_group
+        return
+    effects = scene.compositor_effects
+    effects.clear()
+    effects.new(name=node_group.name).node_group = node_group
 
 
 def _blender_is_a_python_module():

@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pcvr_native as pn
 
-from pcvr_addon import image_io
+from pcvr_addon import compat, image_io
 
 N = 16
 
@@ -111,12 +111,12 @@ def setup(width=64, height=48, method='REGULAR', xray_pass=True):
 
 def compositor(scene):
     """A new, empty compositor node tree for `scene`, the input socket its image goes to, and the node type
-    of Math there. Blender 5.0 composites with a node group (scene.compositing_node_group) that ends in a
+    of Math there. Blender 5.0 composites with a node group (compat.composite_with) that ends in a
     Group Output and takes the shader Math node; 4.x with scene.node_tree, which ends in a Composite node."""
-    if "compositing_node_group" in scene.bl_rna.properties:
+    if {"compositing_node_group", "compositor_effects"} & set(scene.bl_rna.properties.keys()):
         tree = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
         tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        scene.compositing_node_group = tree
+        compat.composite_with(scene, tree)
         return tree, tree.nodes.new("NodeGroupOutput").inputs[0], "ShaderNodeMath"
     scene.use_nodes = True
     tree = scene.node_tree

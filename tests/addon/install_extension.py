@@ -6,26 +6,35 @@ folder, so nothing lands in the user's own Blender configuration:
     python install_extension.py ARCHIVE WORK_DIR [--leave-enabled]
 
 --leave-enabled ends the script with the extension still enabled, as a user's script would.
+
+install() serves tests/portable/render_here.py too.
 """
 
 import sys
 from pathlib import Path
 
 import bpy
-import numpy as np
-
-import blender_scenes as bs
-import lit_scenes as ls
 
 MODULE = "bl_ext.pcvr_test.pcvr"
 
 
-def main(archive, work_dir, leave_enabled):
+def install(archive, work_dir):
+    """Install and enable the extension `archive` in a new user repository under `work_dir` (Blender picks
+    the wheels that fit its Python); return the add-on's module."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     repos = bpy.context.preferences.extensions.repos
     repos.new(name="PCVR Test", module="pcvr_test", custom_directory=str(work_dir / "repo"), source='USER')
     bpy.ops.extensions.package_install_files(filepath=str(archive), repo="pcvr_test", enable_on_install=True)
     assert MODULE in bpy.context.preferences.addons, "the extension was installed but not enabled"
+    return sys.modules[MODULE]
+
+
+def main(archive, work_dir, leave_enabled):
+    install(archive, work_dir)
+    # The scene helpers import pcvr_native, which the installed extension provides.
+    import numpy as np
+    import blender_scenes as bs
+    import lit_scenes as ls
 
     scene = bs.setup(48, 40)
     bs.add_camera(location=(0.2, -3.0, 1.0), lens=35.0, rotation=(1.25, 0.0, 0.05))

@@ -1,9 +1,9 @@
-"""What differs between Blender 4.2, 4.5 and 5.0 (pcvr_addon.compat), and a smoke test of each: register,
+"""What differs between Blender 4.2 and 5.3 (pcvr_addon.compat), and a smoke test of each: register,
 frame a volume, F12 render with the XRay pass, a shaded render with a preset, a sun and the world, a MIP, write
 an EXR through the command line in each mode, exit cleanly.
 
-`make test` runs this file on every Blender the manifest claims (one virtual environment each); `make
-test-compat` runs all the add-on tests there."""
+`make test` runs this file on the oldest, the previous LTS and the newest Blender (one virtual environment
+each, README's table); `make test-compat` runs all the add-on tests on every one."""
 
 import re
 import subprocess
@@ -120,6 +120,20 @@ def test_world_uses_nodes():
         world.use_nodes = False
     # 5.0 renders the nodes whatever use_nodes says; before, use_nodes decides.
     assert compat.world_uses_nodes(world) == (bpy.app.version >= (5, 0, 0))
+
+
+@pytest.mark.skipif(not {"compositing_node_group", "compositor_effects"}
+                    & set(bpy.types.Scene.bl_rna.properties.keys()),
+                    reason="before 5.0 a scene composites through its own node tree")
+def test_composite_with():
+    scene = bpy.context.scene
+    group = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
+    compat.composite_with(scene, group)
+    compat.composite_with(scene, group)  # again: replaces, never stacks
+    if "compositor_effects" in scene.bl_rna.properties:  # 5.3 and later
+        assert [effect.node_group for effect in scene.compositor_effects] == [group]
+    else:
+        assert scene.compositing_node_group == group
 
 
 def test_shaded_and_mip_render(tmp_path):
