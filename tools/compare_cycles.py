@@ -28,7 +28,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402
 
 import pcvr_addon  # noqa: E402
-from pcvr_addon import cache, cli, image_io, transfer_function  # noqa: E402
+from pcvr_addon import cache, command_scene, image_io, transfer_function  # noqa: E402
 from tools import ct_head  # noqa: E402
 
 
@@ -91,7 +91,7 @@ def main(argv=None):
         grid = ct_head.grid(args.size, cut_away=True, rotation=ct_head.opened_upwards())
         grid.write_vdb(head, "density")
         scene = bpy.context.scene
-        obj = cli.vdb_scene(scene, head, magnification=args.magnification)
+        obj = command_scene.vdb_scene(scene, head, magnification=args.magnification)
         obj.data.pcvr.apply_preset("CT Bone")
         scene.render.engine = 'PCVR'
         scene.pcvr.mode = 'SHADED'

@@ -27,7 +27,7 @@ import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 import pcvr_addon  # noqa: E402
-from pcvr_addon import cli, image_io  # noqa: E402
+from pcvr_addon import command_scene, image_io  # noqa: E402
 
 # From the front (Blender's -Y: the patient's face), a little from the patient's right and from above.
 VIEW_DIRECTION = Vector((0.4, 1.0, -0.2)).normalized()
@@ -54,7 +54,7 @@ def render(series_folder, output, series=None, resolution=(640, 480), preset="CT
             scene.render.resolution_x, scene.render.resolution_y = resolution
             scene.render.resolution_percentage = 100
             _camera(scene, obj)
-            cli._light(scene, LIGHT_DIRECTION)
+            command_scene._light(scene, LIGHT_DIRECTION)
             bpy.ops.render.render()
             image_io.write_image(output, image_io.render_result_passes(scene)["ViewLayer.Combined"])
             print(f"wrote {output}: {obj.data['pcvr_description']}")

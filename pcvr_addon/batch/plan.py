@@ -2,8 +2,8 @@
 
 """Planning a batch: each Job read out of a Blender scene into plain values that any process can render.
 
-The scene of a job is made exactly as `python -m pcvr_addon render` makes it (cli.vdb_scene and
-cli._apply_options; a .blend opened as it is), once for all the jobs with the same scene and options; each
+The scene of a job is made exactly as `python -m pcvr_addon render` makes it (command_scene.vdb_scene and
+command_scene.apply_options; a .blend opened as it is), once for all the jobs with the same scene and options; each
 job then sets its frame and orbits the camera to its angle, and `scene_inputs.read` takes what the render
 engine's F12 would read (RenderInputs, DisplayInputs, the camera's view). Rendering those (render_task.py)
 runs the engine's own prepare, render_raw and finish, which need no Blender data: so a worker with no scene
@@ -26,7 +26,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .. import camera, cli, prepared_scene, register, scene_inputs, unregister
+from .. import camera, command_scene, prepared_scene, register, scene_inputs, unregister
 from .jobs import Job
 
 
@@ -85,12 +85,12 @@ def _plan_scene(indexed_jobs, defaults, stream_above_mib):
     scene = bpy.context.scene
     if path.lower().endswith(".vdb"):
         try:
-            cli.vdb_scene(scene, path, grid=args.grid,
-                          magnification=args.magnification or cli.DEFAULT_MAGNIFICATION,
-                          light_direction=args.light_direction or cli.DEFAULT_LIGHT_DIRECTION)
+            command_scene.vdb_scene(scene, path, grid=args.grid,
+                          magnification=args.magnification or command_scene.DEFAULT_MAGNIFICATION,
+                          light_direction=args.light_direction or command_scene.DEFAULT_LIGHT_DIRECTION)
         except RuntimeError as ex:
             raise PlanError(str(ex)) from None
-    cli._apply_options(scene, args)
+    command_scene.apply_options(scene, args)
     if scene.camera is None:
         raise PlanError(f"'{first.input}': the scene has no camera")
     orbit = _Orbit(scene) if any(job.angle is not None for _index, job in indexed_jobs) else None

@@ -15,7 +15,7 @@ import uuid
 
 from . import jobs as batch_jobs
 from . import manifest
-from .. import image_io, presets
+from .. import command_scene, image_io
 
 # The options this module adds to the render command (cli names); the others are the render's own.
 BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")
@@ -53,15 +53,8 @@ def run(args, parser):
     for job in jobs:
         if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
             parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
-        if job.options.get("preset") is not None:
-            try:
-                presets.find(job.options["preset"])
-            except KeyError as ex:
-                parser.error(ex.args[0])
-    try:
-        image_io.openimageio()  # before rendering, not after
-    except ImportError as ex:
-        print(f"pcvr: {ex}", file=sys.stderr)
+        command_scene.check_preset(parser, job.options.get("preset"))
+    if not command_scene.can_write_images():
         return 1
     client = None
     if args.workers is not None or args.scheduler is not None:

@@ -15,7 +15,7 @@ import pytest
 import batch_helpers as bh
 import batch_scenes
 import pcvr_addon
-from pcvr_addon import cli, image_io
+from pcvr_addon import command_scene, image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
@@ -29,8 +29,8 @@ def save_sequence_scene(sequence, blend, output):
     pcvr_addon.register()
     try:
         scene = bpy.context.scene
-        cli.vdb_scene(scene, str(sequence / "smoke_0001.vdb"))
-        cli._apply_options(scene, bh.defaults())
+        command_scene.vdb_scene(scene, str(sequence / "smoke_0001.vdb"))
+        command_scene.apply_options(scene, bh.defaults())
         scene.render.filepath = str(output)
         scene.render.image_settings.file_format = 'OPEN_EXR'
         scene.render.image_settings.color_depth = '32'
