@@ -98,6 +98,9 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["blocks_listed"] = s.blocks_listed;
     stats["voxels"] = s.voxels_splatted;
     stats["voxels_occluded"] = s.voxels_occluded;
+    stats["taps"] = s.taps;
+    stats["samples_classified"] = s.samples_classified;
+    stats["samples_shaded"] = s.samples_shaded;
     stats["sheets"] = s.sheets;
     stats["tiles"] = s.tiles;
     stats["tiles_terminated"] = s.tiles_terminated;

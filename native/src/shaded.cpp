@@ -355,6 +355,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     for (const WalkStats& w : walk_stats) total.add(w);
     stats.voxels_splatted = total.voxels_splatted;
     stats.voxels_occluded = total.voxels_occluded;
+    stats.taps = total.taps;
+    stats.samples_classified = total.samples_classified;
+    stats.samples_shaded = total.samples_shaded;
     stats.tiles_terminated = total.tiles_terminated;
     stats.tile_sheets_composited = total.tile_sheets_composited;
     stats.tile_sheets_skipped = total.tile_sheets_skipped;

@@ -318,7 +318,8 @@ void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, 
 /// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
 /// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
 bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const {
+                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2],
+                            uint64_t& taps) const {
     const float cx = b.cx[l], cy = b.cy[l];
     const bool spread = params_.mode == SlabMode::BilinearSpread;
     // The window: for spreading the 2 x 2 nodes around the centre, else the ellipse's bounding box,
@@ -360,6 +361,7 @@ bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Bo
     sheets_reached[0] = std::min(sheets_reached[0], first_sheet + slabs.first);
     sheets_reached[1] = std::max(sheets_reached[1], first_sheet + slabs.count - 1);
 
+    taps += uint64_t(clipped.x1 - clipped.x0 + 1) * uint64_t(clipped.y1 - clipped.y0 + 1) * uint64_t(slabs.count - slabs.first);
     const size_t pitch = ring.pitch();
     if (spread)
         deposit_spread(b, l, slabs, window.x0, window.y0, clipped, pitch);
@@ -496,7 +498,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             bool occluded = false;
-            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached))
+            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached, counts.taps))
                 ++counts.splatted;
             else if (occluded)
                 ++counts.occluded;

@@ -89,6 +89,7 @@ struct RingPlacement {
 struct DepositCounts {
     uint64_t splatted = 0;  ///< voxels that added to at least one sheet node
     uint64_t occluded = 0;  ///< voxels whose window lay wholly on occluded nodes
+    uint64_t taps = 0;      ///< node-slab pairs deposited: each window's nodes (within the ring) times its slabs
 };
 
 /// The sheet parameter's change over one index unit along the ray through the grid's centre: what
@@ -141,7 +142,7 @@ public:
 
 private:
     bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
+                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2], uint64_t& taps) const;
 
     const Grid* grid_;
     ViewProjection projection_;
