@@ -94,9 +94,13 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["blocks"] = s.blocks_total;
     stats["blocks_outside"] = s.blocks_outside;
     stats["blocks_transparent"] = s.blocks_transparent;
+    stats["bricks_transparent"] = s.bricks_transparent;
     stats["blocks_listed"] = s.blocks_listed;
     stats["voxels"] = s.voxels_splatted;
     stats["voxels_occluded"] = s.voxels_occluded;
+    stats["taps"] = s.taps;
+    stats["samples_classified"] = s.samples_classified;
+    stats["samples_shaded"] = s.samples_shaded;
     stats["sheets"] = s.sheets;
     stats["tiles"] = s.tiles;
     stats["tiles_terminated"] = s.tiles_terminated;

@@ -18,6 +18,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
 | shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |
+| CT head     | ct_head.py       | shaded rendering of a real CT head (Debian's invesalius-examples) against VTK |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -88,6 +89,7 @@ STANDALONE_PARTS = [
     ("shaded_levels", "shaded_levels", "shaded and MIP levels of detail"),
     ("big_volume", "big_volume_bench", "big volumes"),
     ("batch", "batch_bench", "batches over Dask"),
+    ("ct_head", "ct_head", "shaded rendering of a real CT head against VTK"),
 ]
 
 
@@ -466,6 +468,8 @@ def parse_args(argv=None):
                    help="skip shaded and MIP error and time per level of detail")
     p.add_argument("--no-batch", dest="batch", action="store_false",
                    help="skip frames/s and DRRs/s of batches in one process and on Dask workers")
+    p.add_argument("--no-ct-head", dest="ct_head", action="store_false",
+                   help="skip the real CT head against VTK")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.

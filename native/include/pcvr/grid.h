@@ -44,6 +44,14 @@ struct BlockValueRange {
     float reach_min = 0, reach_max = 0;
     float mid_min = 0, mid_max = 0;
     float wide_min = 0, wide_max = 0;
+    /// The same three ranges around each of the block's eight 4^3 bricks (brick (i >> 2, j >> 2, k >> 2)
+    /// as bits 2, 1, 0): over every voxel within 8, 12 and 16 index units of the brick. A block that is
+    /// not transparent may still have bricks that are (the air around a CT's skin): those are left out.
+    /// Empty ranges (no active voxel) are lo > hi.
+    struct Bricks {
+        std::array<float, 8> lo, hi;
+    };
+    Bricks brick_reach, brick_mid, brick_wide;
 };
 
 /// How Grid::level combines 2^3 voxels into one, each kind kept for the renderer that sees the volume so.

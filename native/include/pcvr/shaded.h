@@ -91,9 +91,13 @@ struct ShadedStats {
     uint64_t blocks_total = 0;
     uint64_t blocks_outside = 0;      ///< outside the view or the clip range
     uint64_t blocks_transparent = 0;  ///< values (with their neighbours') transparent under the transfer function
+    uint64_t bricks_transparent = 0;  ///< 4^3 bricks of the listed blocks left out the same way
     uint64_t blocks_listed = 0;       ///< (block, tile) pairs to splat
     uint64_t voxels_splatted = 0;     ///< voxel deposits (a voxel reaching k tiles counts k times)
     uint64_t voxels_occluded = 0;     ///< deposits skipped: footprint wholly on opaque pixels
+    uint64_t taps = 0;                ///< node-slab pairs the deposits covered (window nodes times slabs)
+    uint64_t samples_classified = 0;  ///< pixel-samples classified (some voxel reaches them, pixel not opaque)
+    uint64_t samples_shaded = 0;      ///< of those, with extinction: gradient, lighting and compositing
     uint64_t sheets = 0;              ///< sheets between the first and last reached by any voxel
     uint64_t tiles = 0;
     uint64_t tiles_terminated = 0;    ///< tiles that became opaque before their last sheet

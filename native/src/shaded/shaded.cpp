@@ -153,16 +153,33 @@ CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool 
 /// A block whose samples can only take densities the transfer function makes transparent. A sample
 /// is the background plus a weighted sum of values less the background, weights adding up to at most
 /// one: between the background and the values around the block.
-bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
+bool transparent(float lowest, float highest, double background, double density_scale, const CullingReach& reach,
                  const ClassificationTable& table) {
-    const auto [lowest, highest] = reach.voxels == 8    ? std::pair{r.reach_min, r.reach_max}
-                                   : reach.voxels == 12 ? std::pair{r.mid_min, r.mid_max}
-                                                        : std::pair{r.wide_min, r.wide_max};
+    if (!(lowest <= highest)) lowest = highest = float(background);  // no active voxel: the background alone
     const double lo = std::min(0.0, (double(lowest) - background) * density_scale);
     const double hi = std::max(0.0, (double(highest) - background) * density_scale);
     const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
     const double offset = background * density_scale;
     return table.transparent(offset + lo - margin, offset + hi + margin);
+}
+
+bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
+                 const ClassificationTable& table) {
+    const auto [lowest, highest] = reach.voxels == 8    ? std::pair{r.reach_min, r.reach_max}
+                                   : reach.voxels == 12 ? std::pair{r.mid_min, r.mid_max}
+                                                        : std::pair{r.wide_min, r.wide_max};
+    return transparent(lowest, highest, background, density_scale, reach, table);
+}
+
+/// The bricks of a block that is not transparent whose own neighbourhoods are (the same argument at
+/// 4^3 voxels): bit h set for each brick to splat (BlockValueRange::Bricks' order).
+uint8_t bricks_to_splat(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
+                        const ClassificationTable& table) {
+    const BlockValueRange::Bricks& b = reach.voxels == 8 ? r.brick_reach : reach.voxels == 12 ? r.brick_mid : r.brick_wide;
+    uint8_t keep = 0;
+    for (int h = 0; h < 8; ++h)
+        if (!transparent(b.lo[h], b.hi[h], background, density_scale, reach, table)) keep |= uint8_t(1u << h);
+    return keep;
 }
 
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
@@ -287,12 +304,22 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_outside;
                     continue;
                 }
-                if (ranges && culling.voxels > 0 && transparent((*ranges)[pb.index], grid.background(), volume.density_scale, culling, *classification)) {
-                    ++stats.blocks_transparent;
-                    continue;
+                uint8_t bricks = 0xff;
+                if (ranges && culling.voxels > 0) {
+                    const BlockValueRange& r = (*ranges)[pb.index];
+                    if (transparent(r, grid.background(), volume.density_scale, culling, *classification)) {
+                        ++stats.blocks_transparent;
+                        continue;
+                    }
+                    bricks = bricks_to_splat(r, grid.background(), volume.density_scale, culling, *classification);
+                    if (bricks == 0) {  // each brick's neighbourhood is transparent, the block's is not
+                        ++stats.blocks_transparent;
+                        continue;
+                    }
+                    stats.bricks_transparent += 8 - __builtin_popcount(bricks);
                 }
                 tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
-                          float(view.limit_scale(block)));
+                          float(view.limit_scale(block)), bricks);
                 ++stats.blocks_listed;
             }
         }
@@ -328,6 +355,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     for (const WalkStats& w : walk_stats) total.add(w);
     stats.voxels_splatted = total.voxels_splatted;
     stats.voxels_occluded = total.voxels_occluded;
+    stats.taps = total.taps;
+    stats.samples_classified = total.samples_classified;
+    stats.samples_shaded = total.samples_shaded;
     stats.tiles_terminated = total.tiles_terminated;
     stats.tile_sheets_composited = total.tile_sheets_composited;
     stats.tile_sheets_skipped = total.tile_sheets_skipped;

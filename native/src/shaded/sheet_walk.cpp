@@ -44,6 +44,9 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
 void WalkStats::add(const WalkStats& o) {
     voxels_splatted += o.voxels_splatted;
     voxels_occluded += o.voxels_occluded;
+    taps += o.taps;
+    samples_classified += o.samples_classified;
+    samples_shaded += o.samples_shaded;
     tiles_terminated += o.tiles_terminated;
     tile_sheets_composited += o.tile_sheets_composited;
     tile_sheets_skipped += o.tile_sheets_skipped;
@@ -235,7 +238,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             const bool occlusion = occlusion_culling && l.occlusion.active();
             if (occlusion && l.occlusion.covered(l.ring_box(tb))) {
                 // Whatever is left of the block lands on opaque pixels only.
-                stats.voxels_occluded += view.voxels_left(block, active[a].next_rank);
+                stats.voxels_occluded += view.voxels_left(block, active[a].next_rank, tb.bricks);
                 continue;
             }
             // The voxels whose kernels reach sheet s + 2 come first in depth order (planar depth; for
@@ -245,9 +248,10 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
             const DepositCounts n = view.deposit(block, active[a].next_rank, last, l.ring, l.placement, open_sheet,
-                                                 occlusion ? &l.occlusion : nullptr);
+                                                 occlusion ? &l.occlusion : nullptr, tb.bricks);
             stats.voxels_splatted += n.splatted;
             stats.voxels_occluded += n.occluded;
+            stats.taps += n.taps;
             active[a].next_rank = last;
             if (last < VoxelBlock::kSize) active[kept++] = active[a];
         }
@@ -329,6 +333,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         ++s;
     }
     if (terminated) ++stats.tiles_terminated;
+    stats.samples_classified += samples_classified_;
+    stats.samples_shaded += samples_shaded_;
+    samples_classified_ = samples_shaded_ = 0;
 
     // The tile into the image.
     for (int y = 0; y < th; ++y) {
@@ -524,6 +531,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 any = reaches_something(sources[k], size_t(y + g.halo) * g.pitch() + size_t(x + g.halo), open);
             }
             if (!any) continue;
+            samples_classified_ += uint64_t(__builtin_popcount(lane_mask(open)));
             const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
             const float8 share = whole ? broadcast8(1.0f) : setup.clip_share(f.depth, f.depth_rate * float(half_extent));
             open &= share > 0;
@@ -572,6 +580,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // extinction (shares of at most one: colour times extinction could leave float's range).
             const int8x lit = sigma_sum > 0;
             if (!any8(lit)) continue;
+            samples_shaded_ += uint64_t(__builtin_popcount(lane_mask(lit & open)));
             const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             Vec3x8 emission{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};
             for (int k = 0; k < lit_count; ++k) emission = emission + lit_colours[k] * (extinctions[k] * per_sigma);

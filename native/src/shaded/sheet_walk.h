@@ -105,7 +105,8 @@ struct SheetWalkSetup {
 };
 
 struct WalkStats {
-    uint64_t voxels_splatted = 0, voxels_occluded = 0;
+    uint64_t voxels_splatted = 0, voxels_occluded = 0, taps = 0;
+    uint64_t samples_classified = 0, samples_shaded = 0;  ///< pixel-samples: classified, and with extinction (lit, composited)
     uint64_t tiles_terminated = 0, tile_sheets_composited = 0, tile_sheets_skipped = 0;
     double seconds_splat = 0, seconds_post_convolution = 0, seconds_shading = 0;
     int64_t first_sheet = INT64_MAX, last_sheet = INT64_MIN;
@@ -138,6 +139,7 @@ private:
     std::vector<float> red_, green_, blue_, alpha_, depth_;
     std::vector<float> maximum_;
     std::vector<float> scratch_;
+    uint64_t samples_classified_ = 0, samples_shaded_ = 0;  // this tile's, for WalkStats
 };
 
 }  // namespace pcvr

@@ -54,6 +54,14 @@ float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, 
     return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
 }
 
+/// Zeroes the lanes of ranks [first, first + 8) whose brick is not in `bricks`.
+float8 keep_bricks(float8 v, const SlabView::DepthOrder& order, int first, uint8_t bricks) {
+    if (bricks == 0xff) return v;
+    for (int l = 0; l < kBatch; ++l)
+        if (!((bricks >> order.brick[first + l]) & 1)) v[l] = 0.0f;
+    return v;
+}
+
 uint32_t non_zero_lanes(float8 v) { return lane_mask(v != 0.0f); }
 
 }  // namespace
@@ -114,6 +122,7 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     order_.j.assign(padded, 0.0f);
     order_.k.assign(padded, 0.0f);
     order_.depth.assign(padded, INFINITY);
+    order_.brick.assign(padded, 0);
     for (int r = 0; r < VoxelBlock::kSize; ++r) {
         const int32_t o = offsets[r];
         order_.offset[r] = o;
@@ -121,6 +130,7 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
         order_.j[r] = float((o >> 3) & 7);
         order_.k[r] = float(o & 7);
         order_.depth[r] = float(depth_of(o));
+        order_.brick[r] = uint8_t(((o >> 8) & 1) << 2 | ((o >> 5) & 1) << 1 | ((o >> 2) & 1));
     }
 
     if (projection_.orthographic()) {
@@ -152,10 +162,11 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     }
 }
 
-uint64_t SlabView::voxels_left(const VoxelBlock& block, int first) const {
-    if (all_active(block)) return uint64_t(VoxelBlock::kSize - first);
+uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, uint8_t bricks) const {
+    if (all_active(block) && bricks == 0xff) return uint64_t(VoxelBlock::kSize - first);
     uint64_t n = 0;
-    for (int rank = first; rank < VoxelBlock::kSize; ++rank) n += block.active(order_.offset[rank]);
+    for (int rank = first; rank < VoxelBlock::kSize; ++rank)
+        n += block.active(order_.offset[rank]) && ((bricks >> order_.brick[rank]) & 1);
     return n;
 }
 
@@ -307,7 +318,8 @@ void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, 
 /// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
 /// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
 bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const {
+                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2],
+                            uint64_t& taps) const {
     const float cx = b.cx[l], cy = b.cy[l];
     const bool spread = params_.mode == SlabMode::BilinearSpread;
     // The window: for spreading the 2 x 2 nodes around the centre, else the ellipse's bounding box,
@@ -349,6 +361,7 @@ bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Bo
     sheets_reached[0] = std::min(sheets_reached[0], first_sheet + slabs.first);
     sheets_reached[1] = std::max(sheets_reached[1], first_sheet + slabs.count - 1);
 
+    taps += uint64_t(clipped.x1 - clipped.x0 + 1) * uint64_t(clipped.y1 - clipped.y0 + 1) * uint64_t(slabs.count - slabs.first);
     const size_t pitch = ring.pitch();
     if (spread)
         deposit_spread(b, l, slabs, window.x0, window.y0, clipped, pitch);
@@ -361,7 +374,7 @@ bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Bo
 
 
 DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
-                                int64_t first_open_sheet, const OcclusionMap* occlusion) const {
+                                int64_t first_open_sheet, const OcclusionMap* occlusion, uint8_t bricks) const {
     DepositCounts counts;
     if (first >= last) return counts;
     const bool full = all_active(block);
@@ -382,7 +395,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
 
     SlabBatch b;
     for (int batch = first; batch < last; batch += kBatch) {
-        const float8 v = batch_values(block, order_, batch, last, full, params_.background);
+        const float8 v = keep_bricks(batch_values(block, order_, batch, last, full, params_.background), order_, batch, bricks);
         b.live = non_zero_lanes(v);
         if (!b.live) continue;
         if (projection_.orthographic()) {
@@ -485,7 +498,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
         for (uint32_t todo = b.live; todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             bool occluded = false;
-            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached))
+            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached, counts.taps))
                 ++counts.splatted;
             else if (occluded)
                 ++counts.occluded;

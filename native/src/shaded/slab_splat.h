@@ -89,6 +89,7 @@ struct RingPlacement {
 struct DepositCounts {
     uint64_t splatted = 0;  ///< voxels that added to at least one sheet node
     uint64_t occluded = 0;  ///< voxels whose window lay wholly on occluded nodes
+    uint64_t taps = 0;      ///< node-slab pairs deposited: each window's nodes (within the ring) times its slabs
 };
 
 /// The sheet parameter's change over one index unit along the ray through the grid's centre: what
@@ -120,11 +121,12 @@ public:
         std::vector<int32_t> offset;
         std::vector<float> i, j, k;  ///< index offsets within the block
         std::vector<float> depth;    ///< depth relative to the block origin's, increasing
+        std::vector<uint8_t> brick;  ///< the 4^3 brick of the voxel (TileBlock::bricks' bit)
     };
     const DepthOrder& depth_order() const { return order_; }
     double origin_depth(const VoxelBlock& block) const;
-    /// Active voxels of the block from rank `first` on (what skipping the rest of it leaves out).
-    uint64_t voxels_left(const VoxelBlock& block, int first) const;
+    /// Active voxels of the block's `bricks` from rank `first` on (what skipping the rest of it leaves out).
+    uint64_t voxels_left(const VoxelBlock& block, int first, uint8_t bricks = 0xff) const;
     /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
     /// this much wider than the nodes a tile reads hold whole windows, which take the fast path.
     int window_margin() const { return window_ ? window_->window() - 1 : 0; }
@@ -133,13 +135,14 @@ public:
     /// `placement`, each clipped to the ring. With `occlusion`, voxels whose clipped window lies on
     /// occluded nodes are skipped and counted. Voxels whose kernel reaches the eye plane are skipped
     /// (a perspective footprint does not exist there).
-    /// Slabs before `first_open_sheet` (sheets the walk has already composited) are left out.
+    /// Slabs before `first_open_sheet` (sheets the walk has already composited) are left out, and so
+    /// are the voxels of bricks not in `bricks` (TileBlock::bricks).
     DepositCounts deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
-                          int64_t first_open_sheet, const OcclusionMap* occlusion) const;
+                          int64_t first_open_sheet, const OcclusionMap* occlusion, uint8_t bricks = 0xff) const;
 
 private:
     bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2]) const;
+                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2], uint64_t& taps) const;
 
     const Grid* grid_;
     ViewProjection projection_;

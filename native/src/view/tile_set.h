@@ -27,6 +27,7 @@ struct TileBlock {
     double front;    ///< sheet parameter where the block's kernels begin (SlabView::front)
     float min_x, min_y, max_x, max_y;  ///< pixels its footprints can reach
     float limit_scale = 1;  ///< SlabView::limit_scale of the block
+    uint8_t bricks = 0xff;  ///< its 4^3 bricks to splat (bit (i >> 2) << 2 | (j >> 2) << 1 | k >> 2)
 };
 
 class TileSet {
@@ -40,7 +41,7 @@ public:
     /// Lists a block in every tile that the pixel bounds [min_x, max_x] x [min_y, max_y], widened by
     /// `reach` pixels, overlap.
     void add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach,
-             float limit_scale = 1.0f);
+             float limit_scale = 1.0f, uint8_t bricks = 0xff);
     /// Orders each tile's blocks nearest first (ties by layer, then block: deterministic).
     void sort();
     const std::vector<TileBlock>& blocks(size_t tile) const { return lists_[tile]; }

@@ -283,16 +283,118 @@ std::vector<VoxelBlock> build_blocks(const vdb::FloatTree& tree, const std::stri
     return blocks;
 }
 
+struct Range {
+    float lo = std::numeric_limits<float>::infinity(), hi = -std::numeric_limits<float>::infinity();
+    void include(float v) { lo = std::min(lo, v), hi = std::max(hi, v); }
+    void include(const Range& r) { lo = std::min(lo, r.lo), hi = std::max(hi, r.hi); }
+};
+
+struct OriginHash {
+    size_t operator()(const std::array<int32_t, 3>& o) const {
+        return std::hash<uint64_t>()((uint64_t(uint32_t(o[0])) * 0x9E3779B1u) ^ (uint64_t(uint32_t(o[1])) << 21) ^
+                                     (uint64_t(uint32_t(o[2])) << 42));
+    }
+};
+using BlockIndex = std::unordered_map<std::array<int32_t, 3>, size_t, OriginHash>;
+
+/// Block neighbours by origin: a dense array over the blocks' bounding box where that is small (a
+/// lookup per neighbour, 125 per block, was most of the brick ranges' cost through the hash map).
+class BlockLookup {
+public:
+    BlockLookup(const std::vector<VoxelBlock>& blocks, const BlockIndex& index) : index_(index) {
+        if (blocks.empty()) return;
+        for (int a = 0; a < 3; ++a) lo_[a] = hi_[a] = blocks[0].origin[a] / VoxelBlock::kDim;
+        for (const VoxelBlock& b : blocks)
+            for (int a = 0; a < 3; ++a) {
+                lo_[a] = std::min(lo_[a], int64_t(b.origin[a] / VoxelBlock::kDim));
+                hi_[a] = std::max(hi_[a], int64_t(b.origin[a] / VoxelBlock::kDim));
+            }
+        for (int a = 0; a < 3; ++a) size_[a] = hi_[a] - lo_[a] + 1;
+        if (size_[0] * size_[1] * size_[2] > (int64_t(1) << 24)) return;
+        dense_.assign(size_t(size_[0] * size_[1] * size_[2]), -1);
+        for (size_t b = 0; b < blocks.size(); ++b) dense_[cell(blocks[b].origin)] = int64_t(b);
+    }
+    /// The block at `origin` (a multiple of 8), or -1.
+    int64_t find(const std::array<int32_t, 3>& origin) const {
+        if (dense_.empty()) {
+            const auto it = index_.find(origin);
+            return it == index_.end() ? -1 : int64_t(it->second);
+        }
+        for (int a = 0; a < 3; ++a) {
+            const int64_t c = origin[a] / VoxelBlock::kDim;
+            if (c < lo_[a] || c > hi_[a]) return -1;
+        }
+        return dense_[cell(origin)];
+    }
+
+private:
+    size_t cell(const std::array<int32_t, 3>& o) const {
+        return size_t(((o[0] / VoxelBlock::kDim - lo_[0]) * size_[1] + (o[1] / VoxelBlock::kDim - lo_[1])) * size_[2] +
+                      (o[2] / VoxelBlock::kDim - lo_[2]));
+    }
+    const BlockIndex& index_;
+    int64_t lo_[3] = {0, 0, 0}, hi_[3] = {0, 0, 0}, size_[3] = {0, 0, 0};
+    std::vector<int64_t> dense_;
+};
+
+/// BlockValueRange's brick ranges: each block's neighbourhood of 5^3 blocks as 10^3 bricks (the
+/// ranges of their 4^3 halves), then for each of its own eight bricks the union over the bricks within
+/// 2, 3 and 4 bricks (8, 12 and 16 index units: bricks lie on a grid of 4), one axis at a time.
+void build_brick_ranges(const std::vector<VoxelBlock>& blocks, const std::vector<std::array<Range, 8>>& halves,
+                        const BlockIndex& index, std::vector<BlockValueRange>& ranges) {
+    constexpr int kSide = 10;  // bricks per side of the neighbourhood; the block's own are 4 and 5
+    constexpr int kReaches[3] = {2, 3, 4};
+    const BlockLookup lookup(blocks, index);
+    tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+        std::array<Range, kSide * kSide * kSide> local;
+        const auto& o = blocks[b].origin;
+        for (int dx = -2; dx <= 2; ++dx)
+            for (int dy = -2; dy <= 2; ++dy)
+                for (int dz = -2; dz <= 2; ++dz) {
+                    const int64_t n = lookup.find({o[0] + dx * VoxelBlock::kDim, o[1] + dy * VoxelBlock::kDim, o[2] + dz * VoxelBlock::kDim});
+                    if (n < 0) continue;
+                    for (int h = 0; h < 8; ++h) {
+                        const int x = 4 + 2 * dx + (h >> 2), y = 4 + 2 * dy + ((h >> 1) & 1), z = 4 + 2 * dz + (h & 1);
+                        local[(x * kSide + y) * kSide + z] = halves[size_t(n)][h];
+                    }
+                }
+        // Along x, then y, then z: unions over windows of 2 r + 1 bricks around the block's own 4 and 5.
+        Range along_x[3][2][kSide][kSide], along_y[3][2][2][kSide];
+        for (int r = 0; r < 3; ++r)
+            for (int tx = 0; tx < 2; ++tx)
+                for (int y = 0; y < kSide; ++y)
+                    for (int z = 0; z < kSide; ++z) {
+                        Range u;
+                        for (int x = 4 + tx - kReaches[r]; x <= 4 + tx + kReaches[r]; ++x) u.include(local[(x * kSide + y) * kSide + z]);
+                        along_x[r][tx][y][z] = u;
+                    }
+        for (int r = 0; r < 3; ++r)
+            for (int tx = 0; tx < 2; ++tx)
+                for (int ty = 0; ty < 2; ++ty)
+                    for (int z = 0; z < kSide; ++z) {
+                        Range u;
+                        for (int y = 4 + ty - kReaches[r]; y <= 4 + ty + kReaches[r]; ++y) u.include(along_x[r][tx][y][z]);
+                        along_y[r][tx][ty][z] = u;
+                    }
+        BlockValueRange::Bricks BlockValueRange::*out[3] = {&BlockValueRange::brick_reach, &BlockValueRange::brick_mid,
+                                                            &BlockValueRange::brick_wide};
+        for (int r = 0; r < 3; ++r)
+            for (int h = 0; h < 8; ++h) {
+                const int tx = h >> 2, ty = (h >> 1) & 1, tz = h & 1;
+                Range u;
+                for (int z = 4 + tz - kReaches[r]; z <= 4 + tz + kReaches[r]; ++z) u.include(along_y[r][tx][ty][z]);
+                (ranges[b].*out[r]).lo[h] = u.lo;
+                (ranges[b].*out[r]).hi[h] = u.hi;
+            }
+    });
+}
+
 /// Each block's own value range, then the unions over the 3^3 blocks around it, over the voxels
-/// within 12 index units (from the halves of the blocks 2 away that face it) and over the 5^3 blocks.
+/// within 12 index units (from the halves of the blocks 2 away that face it) and over the 5^3 blocks;
+/// and its bricks' (build_brick_ranges).
 std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& blocks) {
     std::vector<BlockValueRange> ranges(blocks.size());
     // The ranges of each block's eight 4^3 halves, (i >> 2, j >> 2, k >> 2) as bits 2, 1, 0.
-    struct Range {
-        float lo = std::numeric_limits<float>::infinity(), hi = -std::numeric_limits<float>::infinity();
-        void include(float v) { lo = std::min(lo, v), hi = std::max(hi, v); }
-        void include(const Range& r) { lo = std::min(lo, r.lo), hi = std::max(hi, r.hi); }
-    };
     std::vector<std::array<Range, 8>> halves(blocks.size());
     tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
         const VoxelBlock& block = blocks[b];
@@ -307,13 +409,7 @@ std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& b
         ranges[b].min = whole.lo;
         ranges[b].max = whole.hi;
     });
-    struct OriginHash {
-        size_t operator()(const std::array<int32_t, 3>& o) const {
-            return std::hash<uint64_t>()((uint64_t(uint32_t(o[0])) * 0x9E3779B1u) ^ (uint64_t(uint32_t(o[1])) << 21) ^
-                                         (uint64_t(uint32_t(o[2])) << 42));
-        }
-    };
-    std::unordered_map<std::array<int32_t, 3>, size_t, OriginHash> index;
+    BlockIndex index;
     index.reserve(blocks.size());
     for (size_t b = 0; b < blocks.size(); ++b) index.emplace(blocks[b].origin, b);
     // Each ring is the union of the previous ring's ranges over the 27 blocks around.
@@ -356,6 +452,7 @@ std::vector<BlockValueRange> build_value_ranges(const std::vector<VoxelBlock>& b
         ranges[b].mid_min = within.lo;
         ranges[b].mid_max = within.hi;
     });
+    build_brick_ranges(blocks, halves, index, ranges);
     return ranges;
 }
 
