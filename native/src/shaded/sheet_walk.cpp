@@ -14,32 +14,7 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 
 int floor_div(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
-
 }  // namespace
-
-SheetGeometry::SheetGeometry(const Camera& camera) {
-    const Mat4& w2c = camera.world_to_camera();
-    auto depth_of = [&](const Vec3& p) { return -(w2c.m[2][0] * p.x + w2c.m[2][1] * p.y + w2c.m[2][2] * p.z + w2c.m[2][3]); };
-    auto rate_of = [&](const Vec3& d) { return -(w2c.m[2][0] * d.x + w2c.m[2][1] * d.y + w2c.m[2][2] * d.z); };
-    auto at = [&](double px, double py, Vec3& origin, Vec3& dir) {
-        const Ray r = camera.pixel_ray(px, py);
-        dir = r.direction / rate_of(r.direction);
-        origin = r.origin - dir * depth_of(r.origin);
-    };
-    Vec3 o1, d1, o2, d2;
-    at(0, 0, origin0, dir0);
-    at(1, 0, o1, d1);
-    at(0, 1, o2, d2);
-    origin_dx = o1 - origin0;
-    origin_dy = o2 - origin0;
-    dir_dx = d1 - dir0;
-    dir_dy = d2 - dir0;
-    world_per_depth = 1.0 / length(Vec3{w2c.m[2][0], w2c.m[2][1], w2c.m[2][2]});
-    // |direction| is convex in the pixel coordinates: largest in a corner of the image.
-    longest_ray = 0;
-    for (double px : {0.0, double(camera.width() - 1)})
-        for (double py : {0.0, double(camera.height() - 1)}) longest_ray = std::max(longest_ray, length(direction(px, py)));
-}
 
 void WalkStats::add(const WalkStats& o) {
     voxels_splatted += o.voxels_splatted;
@@ -375,8 +350,6 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
         {0, 0, rect.width() - 1, rect.height() - 1});
 }
 
-inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8(float(v.y)), broadcast8(float(v.z))}; }
-
 }  // namespace
 
 bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
@@ -386,37 +359,6 @@ bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
 }
 
 double SheetWalkSetup::ray_length_per_unit() const { return sheets.spherical ? 1.0 : length(geometry->dir0); }
-
-SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
-    const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
-    // Relative to origin0 (the eye in perspective): float resolves positions near the camera.
-    const Vec3x8 origin = lanes3(geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
-    SampleFrames f;
-    if (!spherical) {
-        f.position = origin + dir * float(u);
-        f.per_pixel_x = lanes3(geo.origin_dx + geo.dir_dx * u);
-        f.per_pixel_y = lanes3(geo.origin_dy + geo.dir_dy * u);
-        f.along = dir;
-        f.depth = broadcast8(float(u));
-        f.depth_rate = broadcast8(1.0f);
-        return f;
-    }
-    // On the sphere of radius u around the eye: the point u along the unit direction d = dir / |dir|,
-    // which turns per pixel by the part of dir's change across d, over |dir|.
-    const float8 inverse_length = 1.0f / sqrt8(dot(dir, dir));
-    const Vec3x8 d = dir * inverse_length;
-    auto turn = [&](const Vec3& change) {
-        const Vec3x8 c = lanes3(change);
-        return (c - d * dot(d, c)) * (inverse_length * float(u));
-    };
-    f.position = origin + d * float(u);
-    f.per_pixel_x = turn(geo.dir_dx);
-    f.per_pixel_y = turn(geo.dir_dy);
-    f.along = d;
-    f.depth_rate = inverse_length;  // dir advances one unit of depth per |dir| of world length
-    f.depth = inverse_length * float(u);
-    return f;
-}
 
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {
     const float spacing = float(setup.sheets.spacing);

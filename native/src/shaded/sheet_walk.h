@@ -25,37 +25,13 @@
 #include "pcvr/transfer_function.h"
 #include "shaded/compositing.h"
 #include "shaded/occlusion_map.h"
+#include "shaded/sheet_geometry.h"
 #include "shaded/sheet_buffer.h"
 #include "shaded/slab_splat.h"
 #include "splat/post_convolution.h"
 #include "view/tile_set.h"
 
 namespace pcvr {
-
-/// World positions along pixel rays in terms of depth: point(px, py, z) = origin(px, py) + z dir(px, py),
-/// both affine in pixel coordinates (every pinhole and orthographic camera).
-struct SheetGeometry {
-    Vec3 origin0, origin_dx, origin_dy;  ///< where a pixel's ray has depth 0 (the eye, in perspective)
-    Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
-    double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
-    double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
-
-    explicit SheetGeometry(const Camera& camera);
-    Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
-    Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
-};
-
-/// Eight pixels' samples on one sheet: world position relative to SheetGeometry::origin0, the world displacement per pixel right and
-/// down on the sheet and per unit of the sheet parameter along the ray, and the sample's depth.
-struct SampleFrames {
-    Vec3x8 position, per_pixel_x, per_pixel_y, along;
-    float8 depth;       ///< camera-space depth (the clip planes and the Depth pass use it)
-    float8 depth_rate;  ///< camera-space depth per unit of the sheet parameter
-};
-
-/// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
-/// world radius u around the eye.
-SampleFrames sample_frames(const SheetGeometry& geometry, bool spherical, float8 px, float py, double u);
 
 /// One grid as the walk sees it: what classifies its sheets, and the finest subgrid stride of its
 /// layers (the step of its in-sheet gradient).
