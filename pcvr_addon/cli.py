@@ -69,7 +69,7 @@ def make_parser():
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
     render.add_argument("--gain", type=_gain, metavar="GAIN|auto",
                         help="X-ray gain of the Combined pass; 'auto' picks it per image (its brightest percent "
-                             "at 95%% grey)")
+                             "at 80%% grey)")
     render.add_argument("--stream-above", type=int, metavar="MIB",
                         help="X-ray: read volumes of more MiB than this from their files a part at a time "
                              "(default: above a quarter of the memory available)")

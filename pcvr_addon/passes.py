@@ -65,9 +65,10 @@ def mip_colours(maximum, points, density_range, mip_color, background=0.0):
     return rgba.astype(np.float32)
 
 
-# Automatic exposure: the gain that shows this percentile of the pixels the volumes reach at this grey.
+# Automatic exposure: the gain that shows this percentile of the pixels the volumes reach at this grey. 80% keeps
+# headroom and midtones: at 95% a CT head's median pixel showed 88% grey, at 80% 68% (the DRR of tools/ct_head.py).
 EXPOSURE_PERCENTILE = 99.0
-EXPOSURE_GREY = 0.95
+EXPOSURE_GREY = 0.8
 
 
 def automatic_gain(integral, fallback):

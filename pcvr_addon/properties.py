@@ -199,7 +199,7 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
     use_auto_exposure: BoolProperty(
         name="Automatic Exposure",
-        description="Choose the gain from each image: its brightest percent of the volume's pixels shows 95% "
+        description="Choose the gain from each image: its brightest percent of the volume's pixels shows 80% "
                     "grey (DRRs of any scale, for a look; the XRay pass keeps the raw integral)",
         default=False,
         update=tag_changed,

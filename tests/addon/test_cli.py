@@ -172,6 +172,6 @@ def test_views_and_a_drr_from_hounsfield_units(tmp_path):
     assert run.returncode == 2 and "give one" in run.stderr
     check(pcvr(ct, "-o", tmp_path / "auto.exr", "--magnification", 2, "--hounsfield", "--gain", "auto"))
     auto = image_io.read_passes(str(tmp_path / "auto.exr"))[""]
-    assert np.percentile(auto[:, :, 0][auto[:, :, 4] > 0], 99) == pytest.approx(0.95, abs=0.01)
+    assert np.percentile(auto[:, :, 0][auto[:, :, 4] > 0], 99) == pytest.approx(0.8, abs=0.01)  # passes.EXPOSURE_GREY
     run = pcvr(ct, "-o", tmp_path / "x.exr", "--gain", "bright")
     assert run.returncode == 2 and "'bright' is not a number or 'auto'" in run.stderr

@@ -6,6 +6,7 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
+from pcvr_addon.passes import EXPOSURE_GREY
 
 
 @pytest.fixture
@@ -40,7 +41,7 @@ def test_drr_integrates_attenuation_in_the_scenes_unit(ct_object, scale_length, 
 
 
 def test_automatic_exposure(ct_object):
-    """Automatic exposure picks the gain from the image: the brightest percent of the volume's pixels at 95% grey
+    """Automatic exposure picks the gain from the image: the brightest percent of the volume's pixels at 80% grey
     in the Combined pass, whatever the scale of the integrals; the XRay pass stays the raw integral."""
     scene = bs.setup()
     bpy.ops.pcvr.frame_volume(magnification=2.0, view='FRONT')
@@ -51,5 +52,5 @@ def test_automatic_exposure(ct_object):
         passes = bs.render(scene)
         integral, grey = bs.xray(passes), passes["ViewLayer.Combined"][:, :, 0]
         reached = integral > 0
-        assert np.percentile(grey[reached], 99) == pytest.approx(0.95, abs=0.01)
+        assert np.percentile(grey[reached], 99) == pytest.approx(EXPOSURE_GREY, abs=0.01)
         assert grey[~reached].max() == 0.0
