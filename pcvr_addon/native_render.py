@@ -10,6 +10,7 @@ import numpy as np
 
 from . import cache, camera, viewport, volumes
 
+
 def native_camera(view):
     import pcvr_native
     return pcvr_native.Camera(view.world_to_camera, view.projection, view.width, view.height)
@@ -47,8 +48,8 @@ def _xray_integral(prepared, view, control, stats, level=None):
     return pcvr_native.render_xray(
         prepared.xray_grids, native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
-        stride=settings.stride, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation, stats=stats,
-        **_level_argument(level), **control.arguments(prepared.inputs.threads))
+        stride=settings.stride, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation,
+        stats=stats, **_level_argument(level), **control.arguments(prepared.inputs.threads))
 
 
 def _render_xray(prepared, view, control, stats, sheets, level):

@@ -94,11 +94,8 @@ class PCVR_OT_frame_volume(Operator):
         cam.clip_end = 3 * margin + depth
         eye = (lo + hi) / 2
         eye[2] = hi[2] + 2 * margin
-        placement = Matrix.Identity(4)
+        placement = Matrix(rotation.tolist()).to_4x4()
         placement.translation = rotation @ eye
-        for row in range(3):
-            for column in range(3):
-                placement[row][column] = rotation[row, column]
         camera_object.matrix_world = placement
         return {'FINISHED'}
 
