@@ -6,6 +6,7 @@ also has come from defaults.py."""
 import bpy
 from bpy.props import (
     BoolProperty,
+    CollectionProperty,
     EnumProperty,
     FloatProperty,
     IntProperty,
@@ -218,6 +219,23 @@ class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
 
 
+class PCVRClipPlane(bpy.types.PropertyGroup):
+    """One clip plane of a volume: an object whose local +Z side is kept."""
+    object: PointerProperty(
+        name="Object",
+        description="Object (an empty) whose local +Z side is kept: the plane through its origin, normal to its "
+                    "Z axis",
+        type=bpy.types.Object,
+        update=tag_changed,
+    )
+    enabled: BoolProperty(
+        name="Enabled",
+        description="Cut the volume at this plane",
+        default=True,
+        update=tag_changed,
+    )
+
+
 class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     owner = bpy.types.Volume
     label = "Volume"
@@ -253,6 +271,31 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=1e-6, soft_max=1.0, precision=4,
         default=0.193,
         update=tag_changed,
+    )
+
+    # Clipping (every mode); see clipping.py.
+    use_crop: BoolProperty(
+        name="Crop",
+        description="Keep only the part of the volume inside the crop object's box",
+        default=False,
+        update=tag_changed,
+    )
+    crop_object: PointerProperty(
+        name="Crop Object",
+        description="Object whose local box from -1 to 1 on each axis is kept (Blender's default cube; an empty "
+                    "displayed as a cube draws it)",
+        type=bpy.types.Object,
+        update=tag_changed,
+    )
+    clip_planes: CollectionProperty(
+        name="Clip Planes",
+        description="Objects whose local +Z side is kept: the volume is cut at each one's XY plane",
+        type=PCVRClipPlane,
+    )
+    clip_plane_index: IntProperty(
+        name="Active Clip Plane",
+        description="The clip plane chosen in the list",
+        default=0,
     )
 
     # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
@@ -361,6 +404,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
 classes = (
     PCVRSceneSettings,
     PCVRViewLayerSettings,
+    PCVRClipPlane,
     PCVRVolumeSettings,
 )
 
