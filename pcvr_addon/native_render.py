@@ -49,7 +49,8 @@ def _xray_integral(prepared, view, control, stats, level=None):
         prepared.xray_grids, native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
         stride=settings.stride, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation,
-        stats=stats, **_level_argument(level), **control.arguments(prepared.inputs.threads))
+        stats=stats, **prepared.clip_arguments, **_level_argument(level),
+        **control.arguments(prepared.inputs.threads))
 
 
 def _render_xray(prepared, view, control, stats, sheets, level):
@@ -66,7 +67,7 @@ def _render_shaded(prepared, view, control, stats, sheets, level):
     transfer_functions, lights, ambient, shadings = prepared.lighting
     result = pcvr_native.render_shaded(
         prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shadings,
-        stats=stats, density_scale=prepared.density_scales, return_depth=with_depth,
+        stats=stats, density_scale=prepared.density_scales, return_depth=with_depth, **prepared.clip_arguments,
         **dataclasses.asdict(sheets), **_level_argument(level), **control.arguments(prepared.inputs.threads))
     rgba, depth = result if with_depth else (result, None)
     return {"rgba": rgba, "depth": depth}
@@ -80,7 +81,7 @@ def _render_mip(prepared, view, control, stats, sheets, level):
         volume_stats = {}
         maxima.append(pcvr_native.render_mip(
             volume.grid, native_camera(view), density_scale=volume.inputs.density_scale, stats=volume_stats,
-            **sheets.mip_arguments(), **_level_argument(level),
+            **volume.inputs.clipping.native_arguments(), **sheets.mip_arguments(), **_level_argument(level),
             **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
         _add_stats(stats, volume_stats)
     return {"maxima": maxima, "shape": (view.height, view.width)}

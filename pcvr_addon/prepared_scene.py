@@ -7,7 +7,7 @@ scene_inputs.read)."""
 
 from dataclasses import dataclass, field
 
-from . import cache, scene_inputs, transfer_function, volumes
+from . import cache, clipping, scene_inputs, transfer_function, volumes
 
 def read_grid(filepath, grid_name):
     import pcvr_native
@@ -111,6 +111,11 @@ class PreparedScene:
     @property
     def density_scales(self):
         return [volume.inputs.density_scale for volume in self.volumes]
+
+    @property
+    def clip_arguments(self):
+        """The native renders' clip keywords for the grids of all volumes, one entry each."""
+        return clipping.native_arguments([volume.inputs.clipping for volume in self.volumes])
 
     @property
     def streamed(self):

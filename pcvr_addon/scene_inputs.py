@@ -10,7 +10,7 @@ light in X-ray mode). Each mode reads only what it uses:
 | type          | what                                                   | read for               |
 |---------------|--------------------------------------------------------|------------------------|
 | RenderInputs  | what the native render call depends on                 | every mode             |
-| VolumeInputs  | one volume instance: its grid's source and placement   | every mode             |
+| VolumeInputs  | one volume instance: its grid's source, placement and clipping | every mode     |
 | RampInputs    | a transfer function: the ramp's points and its range   | shaded (render), MIP (display) |
 | XRaySettings  | render_xray's options                                  | X-ray, and the XRay pass |
 | SheetSettings | render_shaded's and render_mip's options               | shaded and MIP         |
@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import lighting, transfer_function, volumes
+from .clipping import ClipError, Clipping, volume_clipping
 from .properties import NATIVE_NAMES
 from .typed import as_typed
 
@@ -50,6 +51,7 @@ class VolumeInputs:
     ramp: RampInputs | None = None     # shaded mode
     material: tuple | None = None      # shaded mode: (use_shading, ambient, diffuse, specular, shininess)
     mu_water_per_cm: float | None = None  # X-ray of a CT in Hounsfield units: water's attenuation; None: densities
+    clipping: Clipping = Clipping()  # what of it is kept (crop box, clip planes)
     # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
     # a change).
     grid: object = None
@@ -144,7 +146,11 @@ def material(settings):
 def volume_inputs(source, mode, export_grid):
     """VolumeInputs of a VolumeSource. `export_grid(source)` returns the grid of a procedural volume."""
     settings = source.volume.pcvr
-    grid, error = None, source.error
+    grid, error, clipped = None, source.error, Clipping()
+    try:
+        clipped = volume_clipping(settings)
+    except ClipError as ex:
+        error = error or str(ex)
     if not source.filepath and not error:
         try:
             grid = export_grid(source)
@@ -160,6 +166,7 @@ def volume_inputs(source, mode, export_grid):
         ramp=ramp_inputs(settings) if mode == 'SHADED' else None,
         material=material(settings) if mode == 'SHADED' else None,
         mu_water_per_cm=settings.mu_water if settings.xray_values == 'HOUNSFIELD' else None,
+        clipping=clipped,
         grid=grid,
     )
 
