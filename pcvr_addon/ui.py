@@ -3,7 +3,7 @@
 """Panels of the PCVR settings, and the built-in panels PCVR shares."""
 
 import bpy
-from bpy.types import Panel
+from bpy.types import Panel, UIList
 
 from bl_ui.utils import PresetPanel
 
@@ -174,6 +174,45 @@ class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
         layout.operator("pcvr.frame_volume", icon='CAMERA_DATA')
 
 
+class PCVR_UL_clip_planes(UIList):
+    """A volume's clip planes: the object of each, and whether it cuts."""
+
+    def draw_item(self, _context, layout, _data, item, _icon, _active_data, _active_property, _index=0, _flt=0):
+        row = layout.row(align=True)
+        row.prop(item, "enabled", text="")
+        row.prop(item, "object", text="", emboss=False, icon='EMPTY_SINGLE_ARROW')
+
+
+class PCVR_DATA_PT_clipping(PCVRButtonsPanel, Panel):
+    """The volume's crop box and clip planes (every mode)."""
+    bl_label = "Clipping"
+    bl_context = "data"
+    bl_parent_id = "PCVR_DATA_PT_volume"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.volume and super().poll(context)
+
+    def draw(self, context):
+        layout = property_split(self.layout)
+        settings = context.volume.pcvr
+        row = layout.row(heading="Crop")
+        row.prop(settings, "use_crop", text="")
+        sub = row.row()
+        sub.active = settings.use_crop
+        sub.prop(settings, "crop_object", text="")
+        layout.operator("pcvr.add_crop_box", icon='CUBE')
+
+        layout = self.layout
+        layout.label(text="Clip Planes (each keeps its +Z side)")
+        row = layout.row()
+        row.template_list("PCVR_UL_clip_planes", "", settings, "clip_planes", settings, "clip_plane_index", rows=3)
+        col = row.column(align=True)
+        col.operator("pcvr.add_clip_plane", icon='ADD', text="")
+        col.operator("pcvr.remove_clip_plane", icon='REMOVE', text="")
+
+
 class PCVR_PT_transfer_function_presets(PresetPanel, Panel):
     """Blender's preset menu, listing the presets shipped with the add-on as well as the user's."""
     bl_label = "Transfer Function Presets"
@@ -336,6 +375,8 @@ classes = (
     PCVR_RENDER_PT_film,
     PCVR_RENDER_PT_passes,
     PCVR_DATA_PT_volume,
+    PCVR_UL_clip_planes,
+    PCVR_DATA_PT_clipping,
     PCVR_PT_transfer_function_presets,
     PCVR_DATA_PT_transfer_function,
     PCVR_DATA_PT_shading,

@@ -78,6 +78,11 @@ class Layout:
         self.prop(data, name)
         self.operator(new)
 
+    def template_list(self, list_type, list_id, data, name, active_data, active_name, **kwargs):
+        assert hasattr(bpy.types, list_type), f"no list {list_type}"
+        assert name in data.bl_rna.properties and active_name in active_data.bl_rna.properties
+        self.drawn.append(name)
+
     def template_color_ramp(self, data, name, **kwargs):
         assert isinstance(getattr(data, name), bpy.types.ColorRamp)
         self.drawn.append("color_ramp")
@@ -172,6 +177,21 @@ def test_panels_of_each_mode(tmp_path, mode):
         assert {"type", "color", "energy"} <= set(lit) and "Lights as a point light: no cone, no size" in lit
     world_drawn = draw(ui.PCVR_WORLD_PT_ambient, context)
     assert world_drawn in (["color"], ["default_value", "default_value"])
+
+
+def test_clipping_panel(tmp_path):
+    scene = bs.setup()
+    obj = bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
+    context = panel_context(scene, volume=obj.data)
+    assert ui.PCVR_DATA_PT_clipping.poll(context)
+    assert draw(ui.PCVR_DATA_PT_clipping, context) == [
+        "use_crop", "crop_object", "pcvr.add_crop_box", "Clip Planes (each keeps its +Z side)", "clip_planes",
+        "pcvr.add_clip_plane", "pcvr.remove_clip_plane"]
+    drawn = []
+    item = obj.data.pcvr.clip_planes.add()
+    ui.PCVR_UL_clip_planes.draw_item(None, context, Layout(drawn), obj.data.pcvr, item, 0, obj.data.pcvr,
+                                     "clip_plane_index")
+    assert drawn == ["enabled", "object"]
 
 
 def test_statistics_panel_shows_the_last_render(tmp_path):
