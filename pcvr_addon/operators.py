@@ -7,7 +7,7 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import camera, prepared_scene, presets, transfer_function
+from . import camera, clipping, prepared_scene, presets, transfer_function
 from .volumes import KERNEL_RADIUS_VOXELS
 
 
@@ -167,11 +167,104 @@ class PCVR_OT_transfer_function_preset_add(VolumeOperator, AddPresetBase, Operat
         presets.write(context.volume.pcvr, filepath)
 
 
+class VolumeObjectOperator:
+    """An operator on the active volume object (in the Properties editor, the one it shows)."""
+    @classmethod
+    def poll(cls, context):
+        return context.object is not None and context.object.type == 'VOLUME'
+
+
+def _local_bounds(operator, context, obj):
+    """(centre, half sizes) of the volume object's bounding box in its own space, or None after `operator`
+    reported why there is none."""
+    corners = np.array([tuple(corner) for corner in obj.evaluated_get(context.evaluated_depsgraph_get()).bound_box])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    if not (hi > lo).any():
+        operator.report({'ERROR'}, f"Volume object '{obj.name}' has no extent: its grids are empty or not loaded")
+        return None
+    return (lo + hi) / 2, (hi - lo) / 2
+
+
+def _add_helper_empty(context, volume_object, name, display_type, location, scale, size=1.0):
+    """clipping.add_empty as a child of `volume_object` (it moves with the volume) at `location` in the volume's
+    space, in the volume's collection, and the only object selected and active (to be moved right away)."""
+    collection = volume_object.users_collection[0] if volume_object.users_collection else context.scene.collection
+    empty = clipping.add_empty(collection, name, display_type, size, parent=volume_object)
+    empty.location, empty.scale = location, scale
+    for obj in context.selected_objects:
+        obj.select_set(False)
+    empty.select_set(True)
+    context.view_layer.objects.active = empty
+    return empty
+
+
+class PCVR_OT_add_crop_box(VolumeObjectOperator, Operator):
+    """Add an empty drawn as a cube around the volume, and crop the volume to it: move, turn and scale the cube
+    to keep the part of the volume inside it"""
+    bl_idname = "pcvr.add_crop_box"
+    bl_label = "Add Crop Box"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        obj = context.object
+        bounds = _local_bounds(self, context, obj)
+        if bounds is None:
+            return {'CANCELLED'}
+        centre, half = bounds
+        # An empty cube of size 1 draws its local [-1, 1]^3: exactly the box a crop object keeps.
+        box = _add_helper_empty(context, obj, f"{obj.name} Crop", 'CUBE', centre, np.maximum(half, 1e-6 * half.max()))
+        settings = obj.data.pcvr
+        settings.crop_object, settings.use_crop = box, True
+        return {'FINISHED'}
+
+
+class PCVR_OT_add_clip_plane(VolumeObjectOperator, Operator):
+    """Add an empty through the volume's centre and cut the volume at its XY plane, keeping the side its arrow
+    (local +Z) points to"""
+    bl_idname = "pcvr.add_clip_plane"
+    bl_label = "Add Clip Plane"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        obj = context.object
+        bounds = _local_bounds(self, context, obj)
+        if bounds is None:
+            return {'CANCELLED'}
+        centre, half = bounds
+        plane = _add_helper_empty(context, obj, f"{obj.name} Clip Plane", 'SINGLE_ARROW', centre, (1.0, 1.0, 1.0),
+                                  size=float(np.linalg.norm(half)))
+        settings = obj.data.pcvr
+        settings.clip_planes.add().object = plane
+        settings.clip_plane_index = len(settings.clip_planes) - 1
+        return {'FINISHED'}
+
+
+class PCVR_OT_remove_clip_plane(VolumeOperator, Operator):
+    """Stop cutting the volume at the chosen clip plane (its object stays)"""
+    bl_idname = "pcvr.remove_clip_plane"
+    bl_label = "Remove Clip Plane"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and len(context.volume.pcvr.clip_planes) > 0
+
+    def execute(self, context):
+        settings = context.volume.pcvr
+        settings.clip_planes.remove(settings.clip_plane_index)
+        settings.clip_plane_index = max(0, min(settings.clip_plane_index, len(settings.clip_planes) - 1))
+        context.volume.update_tag()  # a collection's items change without an update callback
+        return {'FINISHED'}
+
+
 classes = (
     PCVR_OT_frame_volume,
     PCVR_OT_transfer_function_new,
     PCVR_OT_transfer_function_range_from_grid,
     PCVR_OT_transfer_function_preset_add,
+    PCVR_OT_add_crop_box,
+    PCVR_OT_add_clip_plane,
+    PCVR_OT_remove_clip_plane,
 )
 
 
