@@ -10,9 +10,10 @@ brings its siblings along as a sequence, and --frame N picks file N), lit by a s
 and Blender's default grey world;
 a .blend renders with its own camera, lights and settings, overridden by the options given.
 --preset applies a transfer-function preset to every volume, --hounsfield makes the X-ray of a CT in
-Hounsfield units a DRR (it integrates the linear attenuation). The image is read back from
-Blender's render result (after compositing) and written with OpenImageIO: .exr holds R, G, B, A,
-in shaded mode the Depth pass as Z, and the raw XRay integral; .png and .tif the Combined pass.
+Hounsfield units a DRR (it integrates the linear attenuation), --clip-box and --clip-plane cut every volume
+open. The image is read back from Blender's render result (after compositing) and written with OpenImageIO:
+.exr holds R, G, B, A, in shaded mode the Depth pass as Z, and the raw XRay integral; .png and .tif the
+Combined pass.
 """
 
 import argparse
@@ -91,6 +92,12 @@ def make_parser():
     render.add_argument("--hounsfield", type=float, nargs="?", const=DEFAULT_MU_WATER, metavar="MU_WATER",
                         help="X-ray of a CT in Hounsfield units: integrate mu = MU_WATER (1 + HU / 1000), never "
                              f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV)")
+    render.add_argument("--clip-box", type=float, nargs=6, metavar=("CX", "CY", "CZ", "HX", "HY", "HZ"),
+                        help="keep only the part of every volume inside the box centred at CX CY CZ with half-sizes "
+                             "HX HY HZ (world units; a .blend's volumes keep their own crops too)")
+    render.add_argument("--clip-plane", type=float, nargs=4, action="append", metavar=("A", "B", "C", "D"),
+                        help="keep only the part of every volume where A x + B y + C z + D >= 0 (world space); "
+                             "repeat for more planes")
     convert_command.add_scan_options(render)
     convert_command.add_parser(commands)
     batch_run.add_arguments(render)
@@ -129,6 +136,9 @@ def main(argv=None):
     if args.light_direction is not None and not any(args.light_direction):
         parser.error("--light-direction needs a direction, not 0 0 0")
     command_scene.check_preset(parser, args.preset)
+    problem = command_scene.clipping_problem(args.clip_box, args.clip_plane)
+    if problem:
+        parser.error(problem)
     if not command_scene.can_write_images():
         return 1
 

@@ -10,9 +10,9 @@ import re
 import sys
 
 import bpy
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
-from . import image_io, presets
+from . import clipping, image_io, presets
 from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
@@ -146,6 +146,71 @@ def apply_options(scene, args):
     if args.hounsfield is not None:
         for volume in bpy.data.volumes:
             volume.pcvr.xray_values, volume.pcvr.mu_water = 'HOUNSFIELD', args.hounsfield
+    if args.clip_box is not None or args.clip_plane:
+        add_clipping(scene, args.clip_box, args.clip_plane or ())
     for view_layer in scene.view_layers:
         view_layer.pcvr.use_pass_xray = True
         view_layer.use_pass_z = settings.mode == 'SHADED'
+
+
+def clipping_problem(clip_box, clip_planes):
+    """What is wrong with the command line's --clip-box (CX CY CZ HX HY HZ) and --clip-plane (A B C D, a list
+    of them), as they come from argparse or a job file's options; None when nothing is."""
+    def numbers(values, count):
+        return (isinstance(values, (list, tuple)) and len(values) == count
+                and all(isinstance(value, (int, float)) and math.isfinite(value) for value in values))
+
+    if clip_box is not None:
+        if not numbers(clip_box, 6):
+            return f"--clip-box needs 6 finite numbers (centre X Y Z, half-sizes X Y Z), not {clip_box}"
+        if min(clip_box[3:]) <= 0:
+            return f"--clip-box: the half-sizes must be positive, not {' '.join(map(str, clip_box[3:]))}"
+    for plane in clip_planes or ():
+        if not numbers(plane, 4):
+            return f"--clip-plane needs 4 finite numbers (A B C D: keep A x + B y + C z + D >= 0), not {plane}"
+        if not any(plane[:3]):
+            return "--clip-plane needs a normal: A, B and C cannot all be 0"
+    return None
+
+
+def add_clipping(scene, clip_box=None, clip_planes=()):
+    """Cut every volume to the box `clip_box` (centre X Y Z and half-sizes X Y Z, world units) and to each plane
+    (A, B, C, D) of `clip_planes` (keeping A x + B y + C z + D >= 0), besides its own crop and clip planes: as
+    empties in `scene`, a user of the saved .blend would see them. A volume with a crop object of its own keeps
+    it, and the box is cut by six planes on its faces."""
+    volumes = list(bpy.data.volumes)
+    for plane in clip_planes:
+        normal = Vector(plane[:3])
+        empty = clipping.add_empty(scene.collection, "Command-Line Clip Plane", 'SINGLE_ARROW')
+        # Through the point of the plane nearest the origin, its local Z along the normal.
+        empty.matrix_world = Matrix.LocRotScale(-plane[3] / normal.length_squared * normal,
+                                                normal.to_track_quat('Z', 'Y'), None)
+        for volume in volumes:
+            volume.pcvr.clip_planes.add().object = empty
+    if clip_box is None:
+        return
+    box = clipping.add_empty(scene.collection, "Command-Line Clip Box", 'CUBE')
+    box.matrix_world = Matrix.LocRotScale(Vector(clip_box[:3]), None, Vector(clip_box[3:]))
+    faces = None
+    for volume in volumes:
+        settings = volume.pcvr
+        if not settings.use_crop:
+            settings.crop_object, settings.use_crop = box, True
+            continue
+        faces = faces or _box_faces(scene, box)
+        for face in faces:
+            settings.clip_planes.add().object = face
+
+
+def _box_faces(scene, box):
+    """Six plane empties, children of the crop object `box`, on the faces of its box, each keeping its inside."""
+    faces = []
+    for axis in range(3):
+        for side in (-1.0, 1.0):
+            inwards = Vector([-side if i == axis else 0.0 for i in range(3)])
+            face = clipping.add_empty(scene.collection, f"{box.name} {'-+'[side > 0]}{'XYZ'[axis]}", 'SINGLE_ARROW',
+                                      size=0.5, parent=box)
+            # On the face at box coordinate `side` along `axis`, its local Z pointing into the box.
+            face.matrix_basis = Matrix.LocRotScale(-inwards, inwards.to_track_quat('Z', 'Y'), None)
+            faces.append(face)
+    return faces

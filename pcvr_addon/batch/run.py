@@ -54,6 +54,9 @@ def run(args, parser):
         if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
             parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
         command_scene.check_preset(parser, job.options.get("preset"))
+        problem = command_scene.clipping_problem(job.options.get("clip_box"), job.options.get("clip_plane"))
+        if problem:
+            parser.error(f"'{job.output}': {problem}")
     if not command_scene.can_write_images():
         return 1
     client = None

@@ -3,14 +3,8 @@ by hand (not by pcvr_addon.clipping) so that the tests check the add-on's readin
 
 import bpy
 import numpy as np
-import pcvr_native as pn
-import pytest
 
-# pcvr_native with issue 21's clipping: render_xray, render_shaded and render_mip take clip_box and clip_planes.
-NATIVE_CLIPPING = all("clip_box" in function.__doc__ and "clip_planes" in function.__doc__
-                      for function in (pn.render_xray, pn.render_shaded, pn.render_mip))
-needs_native_clipping = pytest.mark.skipif(
-    not NATIVE_CLIPPING, reason="pcvr_native's render functions lack the clip_box and clip_planes keywords")
+from clip_support import needs_native_clipping  # noqa: F401 - the tests' one import of it
 
 
 def rotation_z(angle):

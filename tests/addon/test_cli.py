@@ -11,8 +11,9 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
+import clip_scenes as cs
 import lit_scenes as ls
-from pcvr_addon import image_io
+from pcvr_addon import command_scene, image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -175,3 +176,43 @@ def test_views_and_a_drr_from_hounsfield_units(tmp_path):
     assert np.percentile(auto[:, :, 0][auto[:, :, 4] > 0], 99) == pytest.approx(0.8, abs=0.01)  # passes.EXPOSURE_GREY
     run = pcvr(ct, "-o", tmp_path / "x.exr", "--gain", "bright")
     assert run.returncode == 2 and "'bright' is not a number or 'auto'" in run.stderr
+
+
+@cs.needs_native_clipping
+def test_clip_box_and_clip_planes_cut_every_volume(tmp_path, box_vdb):
+    box, planes = ((0.5, 0.0, 0.0), (0.5, 1.0, 1.0)), [(0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.1)]
+    check(pcvr(box_vdb, "-o", tmp_path / "cut.exr", "--magnification", 2, "--method", "regular",
+               "--clip-box", *box[0], *box[1], *[value for plane in planes for value in ("--clip-plane", *plane)]))
+    cut = image_io.read_passes(str(tmp_path / "cut.exr"))[""][:, :, 4]
+    # The same scene here, as the command line makes it: the same camera and grid, cut by pcvr_native directly.
+    obj = command_scene.vdb_scene(bpy.context.scene, box_vdb, magnification=2)
+    grid, camera = bs.world_grid(obj), bs.reference_camera()
+    reference = pn.render_xray(grid, camera, method="regular", clip_box=cs.world_to_box(*box), clip_planes=planes)
+    bs.assert_matches(cut, reference, 1e-5)  # the same native call: only the threads' order of sums differs
+    # x >= 0 and y >= 0 keep a quarter of the box's columns, z >= -0.1 five eighths of each.
+    assert cut.sum() / pn.render_xray(grid, camera, method="regular").sum() == pytest.approx(0.25 * 5 / 8, rel=0.1)
+
+
+@cs.needs_native_clipping
+def test_clip_box_of_a_blend_cuts_volumes_with_crops_of_their_own(tmp_path, box_vdb):
+    bs.setup(32, 32)
+    bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.0)
+    obj = bs.add_volume("Box", box_vdb)
+    cs.crop(obj, cs.add_empty("Own Crop", location=(0.0, 0.2, 0.0), rotation=(0.0, 0.0, 0.4), scale=(0.5,) * 3))
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"), copy=True)
+    check(pcvr(tmp_path / "scene.blend", "-o", tmp_path / "cut.exr", "--method", "regular",
+               "--clip-box", 0.2, 0, 0, 0.3, 0.3, 1))
+    # The command line's box is cut by planes on its faces: x in [-0.1, 0.5], y in [-0.3, 0.3], z in [-1, 1].
+    faces = [(1, 0, 0, 0.1), (-1, 0, 0, 0.5), (0, 1, 0, 0.3), (0, -1, 0, 0.3), (0, 0, 1, 1), (0, 0, -1, 1)]
+    reference = pn.render_xray(bs.world_grid(obj), bs.reference_camera(), method="regular", clip_planes=faces,
+                               clip_box=cs.world_to_box((0.0, 0.2, 0.0), (0.5,) * 3, 0.4))
+    bs.assert_matches(image_io.read_passes(str(tmp_path / "cut.exr"))[""][:, :, 4], reference, 1e-5)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--clip-box", 0, 0, 0, 1, 1, 0], "the half-sizes must be positive"),
+    (["--clip-plane", 0, 0, 0, 1], "--clip-plane needs a normal"),
+])
+def test_clipping_mistakes(tmp_path, box_vdb, argv, message):
+    run = pcvr(box_vdb, "-o", tmp_path / "out.exr", *argv)
+    assert run.returncode == 2 and message in run.stderr and not (tmp_path / "out.exr").exists()

@@ -9,6 +9,7 @@ import pytest
 
 import batch_helpers as bh
 import batch_scenes
+from clip_support import needs_native_clipping
 from pcvr_addon import cli, image_io
 from pcvr_addon.batch import render_task
 
@@ -130,6 +131,7 @@ def test_job_file_from_the_command_line(tmp_path, sequence):
     (["--workers", "0"], "at least 1"),
     (["--workers", "2", "--scheduler", "tcp://x:1"], "one of them"),
     (["--angles", "0:90:45", "--preset", "No Such Preset"], "No Such Preset"),
+    (["--angles", "0:90:45", "--clip-plane", "0", "0", "0", "1"], "--clip-plane needs a normal"),
 ])
 def test_command_line_mistakes(tmp_path, sequence, capsys, argv, message):
     with pytest.raises(SystemExit):
@@ -151,3 +153,20 @@ def test_a_task_run_again_keeps_what_its_run_wrote(tmp_path, sequence, extension
     assert bh.render(sequence / "smoke_####.vdb", output, range(1, 3), run_id="second")[0] == 0
     with open(tmp_path / "f.manifest.json") as file:
         assert json.load(file)["counts"] == {"rendered": 2}
+
+
+@needs_native_clipping
+def test_job_file_clips_as_the_command_line_does(tmp_path, sequence):
+    # The files' voxels of 0.1 span 0 to 2.4: the box keeps x < 1.2, the plane z > 0.8.
+    clip = {"clip_box": [0.6, 1.2, 1.2, 0.6, 2.0, 2.0], "clip_plane": [[0.0, 0.0, 1.0, -0.8]]}
+    jobs_file = tmp_path / "jobs.json"
+    jobs_file.write_text(json.dumps({"options": {"magnification": 1.0, **clip}, "jobs": [
+        {"input": str(sequence / "smoke_0001.vdb"), "output": "batch/f.exr"}]}))
+    assert cli.main(["render", str(jobs_file), "-o", str(tmp_path / "results.json")]) == 0
+    single = ["render", str(sequence / "smoke_0001.vdb"), "--magnification", "1"]
+    clip_argv = ["--clip-box", *map(str, clip["clip_box"]), "--clip-plane", *map(str, clip["clip_plane"][0])]
+    assert cli.main(single + ["-o", str(tmp_path / "single" / "f.exr")] + clip_argv) == 0
+    assert cli.main(single + ["-o", str(tmp_path / "whole" / "f.exr")]) == 0
+    cut = bh.images(tmp_path / "single")
+    bh.assert_same_images(bh.images(tmp_path / "batch"), cut)
+    assert cut["f.exr"][..., 4].sum() < 0.8 * bh.images(tmp_path / "whole")["f.exr"][..., 4].sum()
