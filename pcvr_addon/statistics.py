@@ -84,10 +84,18 @@ def _share(part, whole):
     return f"{part:,} ({100 * part / whole:.0f}%)" if whole else f"{part:,}"
 
 
+# What clipping (clipping.py) saved and cost: (label, native statistic).
+CLIP_ROWS = (("Blocks cut away", "blocks_clipped"), ("Voxels cut through", "voxels_cut"))
+
+
 def statistics_rows(mode, stats):
     """(label, value) rows of a render's statistics, for the interface."""
     if not stats:
         return [("Volumes", "none in view")]
+    return _mode_rows(mode, stats) + [(label, f"{stats[key]:,}") for label, key in CLIP_ROWS if stats.get(key)]
+
+
+def _mode_rows(mode, stats):
     if mode == 'XRAY':
         return [("Voxels", f"{stats['voxels']:,}"),
                 ("Magnification", f"{stats['magnification']:.2f} - {stats['magnification_max']:.2f} px/voxel"),

@@ -14,7 +14,7 @@ import blender_scenes as bs
 import clip_scenes as cs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import image_io, prepared_scene, scene_inputs
+from pcvr_addon import image_io, prepared_scene, scene_inputs, statistics
 
 SIZE = (48, 48)
 # The F12 render and the reference make the same native call with the same grid and numbers: they differ only
@@ -243,3 +243,10 @@ def test_add_and_remove_clip_planes(blob):
         assert bpy.ops.pcvr.remove_clip_plane() == {'FINISHED'}
     assert [item.object for item in settings.clip_planes] == [second] and first.name in bpy.data.objects
     np.testing.assert_allclose(read_clipping(obj).planes, expected[1:], atol=1e-6)
+
+
+def test_last_render_rows_show_what_clipping_cut():
+    xray = {"voxels": 10, "magnification": 1.0, "magnification_max": 2.0, "strides": [1.5], "seconds": 0.1}
+    assert "Blocks cut away" not in dict(statistics.statistics_rows('XRAY', {**xray, "blocks_clipped": 0}))
+    rows = dict(statistics.statistics_rows('XRAY', {**xray, "blocks_clipped": 1200, "voxels_cut": 34}))
+    assert (rows["Blocks cut away"], rows["Voxels cut through"], rows["Voxels"]) == ("1,200", "34", "10")
