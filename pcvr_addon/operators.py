@@ -198,45 +198,45 @@ def _add_helper_empty(context, volume_object, name, display_type, location, scal
     return empty
 
 
-class PCVR_OT_add_crop_box(VolumeObjectOperator, Operator):
+class AddClipObject(VolumeObjectOperator):
+    """Adds an empty fitted to the active volume object's bounding box, (centre, half sizes) in its space, and
+    makes it cut the volume (`add`)."""
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        obj = context.object
+        bounds = _local_bounds(self, context, obj)
+        if bounds is None:
+            return {'CANCELLED'}
+        self.add(context, obj, *bounds)
+        return {'FINISHED'}
+
+
+class PCVR_OT_add_crop_box(AddClipObject, Operator):
     """Add an empty drawn as a cube around the volume, and crop the volume to it: move, turn and scale the cube
     to keep the part of the volume inside it"""
     bl_idname = "pcvr.add_crop_box"
     bl_label = "Add Crop Box"
-    bl_options = {'REGISTER', 'UNDO'}
 
-    def execute(self, context):
-        obj = context.object
-        bounds = _local_bounds(self, context, obj)
-        if bounds is None:
-            return {'CANCELLED'}
-        centre, half = bounds
+    def add(self, context, obj, centre, half):
         # An empty cube of size 1 draws its local [-1, 1]^3: exactly the box a crop object keeps.
         box = _add_helper_empty(context, obj, f"{obj.name} Crop", 'CUBE', centre, np.maximum(half, 1e-6 * half.max()))
         settings = obj.data.pcvr
         settings.crop_object, settings.use_crop = box, True
-        return {'FINISHED'}
 
 
-class PCVR_OT_add_clip_plane(VolumeObjectOperator, Operator):
+class PCVR_OT_add_clip_plane(AddClipObject, Operator):
     """Add an empty through the volume's centre and cut the volume at its XY plane, keeping the side its arrow
     (local +Z) points to"""
     bl_idname = "pcvr.add_clip_plane"
     bl_label = "Add Clip Plane"
-    bl_options = {'REGISTER', 'UNDO'}
 
-    def execute(self, context):
-        obj = context.object
-        bounds = _local_bounds(self, context, obj)
-        if bounds is None:
-            return {'CANCELLED'}
-        centre, half = bounds
+    def add(self, context, obj, centre, half):
         plane = _add_helper_empty(context, obj, f"{obj.name} Clip Plane", 'SINGLE_ARROW', centre, (1.0, 1.0, 1.0),
                                   size=float(np.linalg.norm(half)))
         settings = obj.data.pcvr
         settings.clip_planes.add().object = plane
         settings.clip_plane_index = len(settings.clip_planes) - 1
-        return {'FINISHED'}
 
 
 class PCVR_OT_remove_clip_plane(VolumeOperator, Operator):
