@@ -66,7 +66,7 @@ def test_a_cut_voxel_keeps_its_kernels_mass_on_the_kept_side(distance):
         # image's edges; a wholly kept voxel goes through the footprint table (2e-3, conftest.REGULAR_TOL)
         # and pcvr's post filter, which conserves mass at whole strides (1e-3 measured 2e-5).
         assert image_mass(img, cam) == pytest.approx(expected, abs=2e-3 * volume_mass(values, xf)), method
-        if method != "exact":
+        if method == "pcvr":  # a plane seen at 60 degrees from face-on: the cut voxel goes per pixel
             assert stats["voxels_cut"] == (1 if abs(distance) < RADIUS else 0)
 
 

@@ -80,7 +80,7 @@ struct XrayStats {
     uint64_t blocks_total = 0;
     uint64_t blocks_culled = 0;
     uint64_t blocks_clipped = 0;   ///< wholly outside their grid's clip region
-    uint64_t voxels_cut = 0;       ///< kernels a clip plane crosses, integrated per pixel (not in voxels_splatted)
+    uint64_t voxels_cut = 0;       ///< kernels a clip plane seen near edge-on crosses, integrated per pixel (not in voxels_splatted)
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
     std::vector<double> strides;   ///< pixels between subgrid nodes, one per depth band (fractional when automatic)

@@ -55,7 +55,9 @@ struct SplatParams {
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,
 /// inside the clip range) and adds the window taps written to `*taps` when given. Advances `control`
 /// by one unit per block and stops with Cancelled. Of the blocks the plan marks cut, the voxels whose
-/// kernels straddle params.clip go to `*cut` instead (src/splat/cut_splat.h), and those outside nowhere.
+/// kernels straddle params.clip are splatted with their kept footprints where those are smooth at the
+/// target's nodes and go to `*cut` (to be integrated per pixel) where not (src/splat/cut_splat.h); those
+/// outside go nowhere.
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
                       const ViewProjection& view, const SplatParams& params, SplatGrid& target,
                       RenderControl& control, uint64_t* taps = nullptr, std::vector<CutVoxel>* cut = nullptr);

@@ -135,7 +135,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.antialias = params.antialias;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
-    // The voxels a clip plane cuts are integrated per pixel, straight into the image.
+    // The voxels a clip plane cuts where their kept footprints have sharp edges are integrated per pixel,
+    // straight into the image (src/splat/cut_splat.h).
     std::vector<std::vector<CutVoxel>> cut(planned.size());
     for (const auto& [stride, unused] : strides) {
         SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
