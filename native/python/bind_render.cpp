@@ -47,35 +47,40 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
                           const std::string& splat_kernel, const std::string& post_filter, int stride, int threads,
                           nb::handle density_scale, nb::handle progress, nb::handle cancel, nb::handle stats,
                           int pixel_step, double footprint_tolerance, std::optional<uint64_t> memory_limit,
-                          bool antialias, nb::handle level, nb::handle attenuation) {
+                          bool antialias, nb::handle level, nb::handle attenuation, nb::handle clip_planes, nb::handle clip_box) {
     // Grids and streamed grids, in any mix; scales follow the sequence's order.
     const nb::list items = nb::isinstance<Grid>(grid_arg) || nb::isinstance<GridStream>(grid_arg)
                                ? nb::list(nb::make_tuple(grid_arg))
                                : grid_sequence(grid_arg, "render_xray");
     const std::vector<double> scales = scales_from_python(density_scale, items.size(), "render_xray");
     const std::vector<const AttenuationMap*> maps = attenuation_from_python(attenuation, items.size());
+    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, items.size(), "render_xray");
     std::vector<Grid> grids;
     std::vector<std::shared_ptr<GridStream>> streams;
     std::vector<double> grid_scales, stream_scales;
     std::vector<const AttenuationMap*> grid_maps, stream_maps;
+    std::vector<const ClipRegion*> grid_clips, stream_clips;
+    auto clip_of = [&](size_t i) { return clips[i].keeps_everything() ? nullptr : &clips[i]; };
     for (size_t i = 0; i < items.size(); ++i) {
         if (nb::isinstance<GridStream>(items[i])) {
             streams.push_back(nb::cast<std::shared_ptr<GridStream>>(items[i]));
             stream_scales.push_back(scales[i]);
             stream_maps.push_back(maps[i]);
+            stream_clips.push_back(clip_of(i));
         } else {
             if (!nb::isinstance<Grid>(items[i]))
                 throw nb::type_error("render_xray: `grid` must be a pcvr_native.Grid or GridStream, or a sequence of them");
             grids.push_back(nb::cast<Grid>(items[i]));
             grid_scales.push_back(scales[i]);
             grid_maps.push_back(maps[i]);
+            grid_clips.push_back(clip_of(i));
         }
     }
     std::vector<WeightedGrid> weighted;
-    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], grid_scales[i], 0, grid_maps[i]});
+    for (size_t i = 0; i < grids.size(); ++i) weighted.push_back({&grids[i], grid_scales[i], 0, grid_maps[i], grid_clips[i]});
     std::vector<WeightedStream> weighted_streams;
     for (size_t i = 0; i < streams.size(); ++i)
-        weighted_streams.push_back({streams[i].get(), stream_scales[i], stream_maps[i]});
+        weighted_streams.push_back({streams[i].get(), stream_scales[i], stream_maps[i], stream_clips[i]});
 
     XrayParams params;
     params.method = xray_method_from_name(method);
@@ -102,6 +107,8 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["voxels"] = xs.voxels_splatted;
         stats["blocks"] = xs.blocks_total;
         stats["blocks_culled"] = xs.blocks_culled;
+        stats["blocks_clipped"] = xs.blocks_clipped;
+        stats["voxels_cut"] = xs.voxels_cut;
         stats["magnification"] = xs.min_magnification;
         stats["magnification_max"] = xs.max_magnification;
         stats["strides"] = strides;
@@ -166,7 +173,7 @@ void bind_render(nb::module_& m) {
           "post_filter"_a = "bilinear", "stride"_a = 0, "threads"_a = 0, nb::kw_only(), "density_scale"_a = 1.0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), "pixel_step"_a = 1,
           "footprint_tolerance"_a = kFootprintTolerance, "memory_limit"_a = nb::none(), "antialias"_a = true,
-          "level"_a = "auto", "attenuation"_a = nb::none(),
+          "level"_a = "auto", "attenuation"_a = nb::none(), "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(),
           "X-ray (line integral) image of one grid or a sequence of grids: float32 (height, width), row 0 on top.\n"
           "A GridStream (stream_vdb) stands wherever a Grid may: it is read a batch at a time, and memory_limit\n"
           "then bounds the batch's voxels (half the limit) as well as the buffers (the other half).\n"
@@ -180,7 +187,8 @@ void bind_render(nb::module_& m) {
           "most 1/32 of a pixel (which keeps the image within 0.1% of level 0's), or a level k >= 0 (0: the grid itself); stats['level'] says which.\n"
           "attenuation: an AttenuationMap (or one per grid, None for none) applied to every active voxel before\n"
           "splatting: the image integrates the attenuation, e.g. AttenuationMap.hounsfield(0.0206) for a CT in HU\n"
-          "(mu per world unit: 0.0206 per mm, water at 70 keV).");
+          "(mu per world unit: 0.0206 per mm, water at 70 keV).\n"
+          CLIP_DOC);
     m.def("default_memory_limit", &default_memory_limit,
           "Bytes a render may use when memory_limit is None: the memory this machine (or its cgroup) has available.");
 

@@ -93,6 +93,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     for (int v : s.strides) strides.append(v);
     stats["blocks"] = s.blocks_total;
     stats["blocks_outside"] = s.blocks_outside;
+    stats["blocks_clipped"] = s.blocks_clipped;
     stats["blocks_transparent"] = s.blocks_transparent;
     stats["bricks_transparent"] = s.bricks_transparent;
     stats["blocks_listed"] = s.blocks_listed;
@@ -130,7 +131,8 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             const std::string& splat_kernel, const std::string& post_filter, int stride,
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                            int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level) {
+                            int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
+                            nb::handle clip_planes, nb::handle clip_box) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -158,9 +160,10 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
             throw nb::value_error("render_shaded: shading must be one Shading or one per grid");
     }
 
+    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.grids.size(), "render_shaded");
     std::vector<ShadedVolume> volumes;
     for (size_t i = 0; i < parts.grids.size(); ++i)
-        volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i]});
+        volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i], &clips[i]});
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     RgbaImage image;
@@ -180,11 +183,12 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
 nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
                          const std::string& post_filter, int stride, double sheet_spacing, int threads, nb::handle progress,
                          nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                         nb::handle level) {
+                         nb::handle level, nb::handle clip_planes, nb::handle clip_box) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_mip", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false, level);
+    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.grids.size(), "render_mip");
     std::vector<ShadedVolume> volumes;
-    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], nullptr, parts.scales[i]});
+    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], nullptr, parts.scales[i], nullptr, &clips[i]});
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     MipImage image;
@@ -269,6 +273,7 @@ void bind_shaded(nb::module_& m) {
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
+          "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(),
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -276,15 +281,18 @@ void bind_shaded(nb::module_& m) {
           "None: Shading()'s defaults).\n"
           "level: the level of detail (Grid.level(k, 'mean_over_background')) every grid is rendered from, sheets\n"
           "sheet_spacing of its voxels apart; 'auto': each grid's coarsest level whose voxels project small enough\n"
-          "to leave the image as level 0's; stats['level'] says which.");
+          "to leave the image as level 0's; stats['level'] says which.\n" CLIP_DOC
+          " Samples count for the share of their stretch of ray inside; cut faces are lit by the plane's normal.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
-          "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1, "level"_a = 0,
+          "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1, "level"_a = 0, "clip_planes"_a = nb::none(),
+          "clip_box"_a = nb::none(),
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
           "reconstructed density along each ray, never below the largest grid background\n"
           "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.\n"
-          "level: as in render_shaded, from levels of maxima (Grid.level(k, 'max_over_background')).");
+          "level: as in render_shaded, from levels of maxima (Grid.level(k, 'max_over_background')).\n" CLIP_DOC
+          " A sample counts where its point lies inside.");
 }
 
 }  // namespace pcvr::python

@@ -14,6 +14,8 @@
 #include <thread>
 #include <vector>
 
+#include "bindings.h"
+#include "pcvr/clip_region.h"
 #include "pcvr/errors.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
@@ -53,6 +55,93 @@ inline std::vector<double> scales_from_python(nb::handle scales, size_t count, c
     if (out.size() != count)
         throw nb::value_error((std::string(function) + ": density_scale must be one number or one per grid").c_str());
     return out;
+}
+
+/// The clip keywords' docstring, shared by every render function.
+#define CLIP_DOC                                                                                                     \
+    "clip_planes: world-space planes (a, b, c, d), each keeping a*x + b*y + c*z + d >= 0, for every grid, or one\n"  \
+    "list of them (or None) per grid. clip_box: a 4 x 4 world-to-box matrix keeping the box's [-1, 1]^3 (an\n"       \
+    "object's inverted world matrix crops to that object's cube), or one (or None) per grid. Planes and box\n"       \
+    "intersect, and cut the reconstructed field exactly (a kernel half across a plane counts half);\n"             \
+    "stats['blocks_clipped'] counts the blocks wholly outside."
+
+/// One plane (a, b, c, d), or nothing when `item` is not a sequence of four numbers.
+inline std::optional<ClipPlane> plane_from_python(nb::handle item) {
+    if (item.is_none() || nb::isinstance<nb::str>(item)) return std::nullopt;
+    try {
+        std::vector<double> numbers;
+        for (nb::handle x : item) {
+            if (!nb::isinstance<nb::float_>(x) && !nb::isinstance<nb::int_>(x) && !nb::hasattr(x, "__float__")) return std::nullopt;
+            numbers.push_back(nb::cast<double>(x));
+        }
+        if (numbers.size() != 4) return std::nullopt;
+        return ClipPlane{{numbers[0], numbers[1], numbers[2]}, numbers[3]};
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+/// A sequence of planes, or TypeError naming `function`.
+inline std::vector<ClipPlane> planes_from_python(nb::handle planes, const char* function) {
+    std::vector<ClipPlane> out;
+    if (planes.is_none()) return out;
+    try {
+        for (nb::handle item : planes) {
+            const std::optional<ClipPlane> plane = plane_from_python(item);
+            if (!plane) throw std::invalid_argument("");
+            out.push_back(*plane);
+        }
+    } catch (const std::exception&) {
+        throw nb::type_error((std::string(function) + ": clip_planes must be planes (a, b, c, d), or one list of them (or None) per grid").c_str());
+    }
+    return out;
+}
+
+/// Each grid's clip region from `clip_planes` (planes for every grid, or one list of planes or None per
+/// grid) and `clip_box` (a 4 x 4 world-to-box matrix for every grid, or one matrix or None per grid).
+inline std::vector<ClipRegion> clip_regions_from_python(nb::handle clip_planes, nb::handle clip_box, size_t count, const char* function) {
+    const std::string name(function);
+    std::vector<std::vector<ClipPlane>> planes(count);
+    if (!clip_planes.is_none()) {
+        const nb::list items = nb::list(clip_planes);
+        bool per_grid = false;
+        for (nb::handle item : items) per_grid |= !plane_from_python(item);
+        if (!per_grid) {
+            planes.assign(count, planes_from_python(clip_planes, function));
+        } else {
+            if (items.size() != count)
+                throw nb::value_error((name + ": clip_planes must be planes (a, b, c, d) for every grid, or one list of them (or None) per grid (" +
+                                       std::to_string(count) + ")").c_str());
+            for (size_t i = 0; i < count; ++i) planes[i] = planes_from_python(items[i], function);
+        }
+    }
+    std::vector<std::optional<Mat4>> boxes(count);
+    if (!clip_box.is_none()) {
+        std::optional<Mat4> shared;
+        try {
+            shared = mat4_from_python(clip_box, "clip_box");
+        } catch (const std::exception&) {
+        }
+        if (shared) {
+            boxes.assign(count, shared);
+        } else {
+            const nb::list items = nb::list(clip_box);
+            if (items.size() != count)
+                throw nb::value_error((name + ": clip_box must be a 4 x 4 world-to-box matrix, or one (or None) per grid (" +
+                                       std::to_string(count) + ")").c_str());
+            for (size_t i = 0; i < count; ++i)
+                if (!items[i].is_none()) boxes[i] = mat4_from_python(items[i], "clip_box");
+        }
+    }
+    std::vector<ClipRegion> regions;
+    for (size_t i = 0; i < count; ++i) {
+        try {
+            regions.push_back(ClipRegion::from(planes[i], boxes[i] ? &*boxes[i] : nullptr));
+        } catch (const InvalidArgument& e) {
+            throw InvalidArgument(name + (count > 1 ? " (grid " + std::to_string(i) + ")" : std::string()) + ": " + e.what());
+        }
+    }
+    return regions;
 }
 
 /// `level` is "auto" (-1) or a level of detail from 0 to 30.

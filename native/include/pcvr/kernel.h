@@ -37,6 +37,9 @@ public:
     /// Analytic line integral of the normalised kernel along a line at distance rho from its centre,
     /// in index units: integral of h(sqrt(rho^2 + s^2)) ds. No tables: used by the exact reference.
     double line_integral(double rho) const;
+    /// The part of it from s0 to s1 along the line (s = 0 where the line passes closest to the
+    /// centre): what a line cut by a clip plane keeps. Analytic, like line_integral.
+    double segment_integral(double rho, double s0, double s1) const;
     /// Per-axis second moment, index units^2 (how much the kernel blurs).
     double variance() const { return variance_; }
     /// False for the box, whose footprint 2 sqrt(R^2 - rho^2) has an infinite slope at its rim:

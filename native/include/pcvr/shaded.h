@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "pcvr/camera.h"
+#include "pcvr/clip_region.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
 #include "pcvr/shading.h"
@@ -78,6 +79,10 @@ struct ShadedVolume {
     const TransferFunction* transfer_function;
     double density_scale = 1.0;
     const Shading* material = nullptr;
+    /// When set, only the part of the reconstructed field inside it is seen (world space): samples count
+    /// for the share of their stretch of ray inside, and cut faces are lit by the plane's normal
+    /// (src/shaded/sample_clip.h).
+    const ClipRegion* clip = nullptr;
 
     /// The render's lights with this volume's material.
     Lighting lit_by(const Lighting& lighting) const {
@@ -90,6 +95,7 @@ struct ShadedVolume {
 struct ShadedStats {
     uint64_t blocks_total = 0;
     uint64_t blocks_outside = 0;      ///< outside the view or the clip range
+    uint64_t blocks_clipped = 0;      ///< wholly outside their grid's clip region
     uint64_t blocks_transparent = 0;  ///< values (with their neighbours') transparent under the transfer function
     uint64_t bricks_transparent = 0;  ///< 4^3 bricks of the listed blocks left out the same way
     uint64_t blocks_listed = 0;       ///< (block, tile) pairs to splat

@@ -9,8 +9,10 @@
 /// | "exact"           | analytic, per pixel, double precision (reference)               |
 ///
 /// The image is the integral of the reconstructed density along each pixel's ray in world units.
-/// Clipping is per voxel: a voxel contributes its whole footprint when its centre lies between the
-/// camera's clip planes. Grids are summed, so overlapping volumes add.
+/// The camera's near and far planes clip per voxel: a voxel contributes its whole footprint when its
+/// centre lies between them. A grid's clip region (clip planes, crop box: pcvr/clip_region.h) cuts its
+/// reconstructed field exactly: each ray integrates the kept part of every kernel (src/splat/cut_splat.h).
+/// Grids are summed, so overlapping volumes add.
 #pragma once
 
 #include <algorithm>
@@ -19,6 +21,7 @@
 
 #include "pcvr/attenuation_map.h"
 #include "pcvr/camera.h"
+#include "pcvr/clip_region.h"
 #include "pcvr/grid.h"
 #include "pcvr/grid_stream.h"
 #include "pcvr/render_control.h"
@@ -42,6 +45,8 @@ struct WeightedGrid {
     int level = 0;
     /// When set, the X-ray integrates the attenuation its values map to (Hounsfield units to mu).
     const AttenuationMap* attenuation = nullptr;
+    /// When set, only the part of the reconstructed field inside it is integrated (world space).
+    const ClipRegion* clip = nullptr;
 };
 
 enum class XrayMethod { Regular, Pcvr, BilinearSpread, Exact };
@@ -74,6 +79,8 @@ struct XrayStats {
     uint64_t voxels_splatted = 0;
     uint64_t blocks_total = 0;
     uint64_t blocks_culled = 0;
+    uint64_t blocks_clipped = 0;   ///< wholly outside their grid's clip region
+    uint64_t voxels_cut = 0;       ///< kernels a clip plane seen near edge-on crosses, integrated per pixel (not in voxels_splatted)
     double min_magnification = 0;  ///< pixels per voxel over the splatted blocks
     double max_magnification = 0;
     std::vector<double> strides;   ///< pixels between subgrid nodes, one per depth band (fractional when automatic)
@@ -104,6 +111,7 @@ struct WeightedStream {
     const GridStream* stream;
     double density_scale = 1.0;
     const AttenuationMap* attenuation = nullptr;  ///< applied to every batch (see WeightedGrid)
+    const ClipRegion* clip = nullptr;             ///< see WeightedGrid
 };
 
 /// render_xray of `grids` and the streamed grids (src/xray/streamed_xray.cpp): X-ray images add, so each

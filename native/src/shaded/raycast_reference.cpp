@@ -4,12 +4,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <unordered_map>
 
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/transfer_function.h"
 #include "shaded/compositing.h"
+#include "shaded/sample_clip.h"
+#include "shaded/shaded_levels.h"
 #include "shaded/sheet_walk.h"
 #include "shaded/slab_splat.h"
 
@@ -53,6 +56,7 @@ struct RayGrid {
     std::array<double, 6> box;  // index bounding box widened by the kernel radius
     const ClassificationTable* classification;  // null for MIP
     const Shader* shader;                       // null for MIP
+    std::optional<SampleClip> clip;             // relative to the geometry's origin0
 };
 
 struct DensitySample {
@@ -148,16 +152,16 @@ struct Marcher {
             const Shader* shader = nullptr;
             if (lighting) {
                 const TransferFunction& tf = *v.transfer_function;
-                const Mat4& m = grid.index_to_world();
-                const double unit = tf.unit_distance > 0 ? tf.unit_distance
-                                                         : std::min({length(m.column(0)), length(m.column(1)), length(m.column(2))});
+                const double unit = tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid);
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
                 shaders.emplace_back(v.lit_by(*lighting), geometry.origin0);
                 shader = &shaders.back();
             }
+            std::optional<SampleClip> clip;
+            if (v.clip && !v.clip->keeps_everything()) clip.emplace(*v.clip, geometry.origin0, smallest_voxel_spacing(grid));
             grids.push_back({&grid, to_index, VoxelLookup(grid), v.density_scale,
-                             {b[0] - R, b[1] - R, b[2] - R, b[3] + R, b[4] + R, b[5] + R}, table, shader});
+                             {b[0] - R, b[1] - R, b[2] - R, b[3] + R, b[4] + R, b[5] + R}, table, shader, std::move(clip)});
         }
         step = spacing * params.sheet_spacing;
         const Mat4& w2c = camera.world_to_camera();
@@ -213,14 +217,19 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
             double sigma_sum = 0;
             Vec3 emission;
             for (const RayGrid& g : m.grids) {
+                // The share of the sample's step inside the grid's clip region (sample_clip.h).
+                const Vec3 relative = x - m.geometry.origin0;
+                const double share = g.clip ? g.clip->share<double>(relative, dir * (0.5 * m.step)) : 1.0;
+                if (!(share > 0)) continue;
                 const DensitySample s = sample(g, m.kernel, x);
                 if (!s.reached) continue;
                 const ClassificationTable::Sample c = (*g.classification)(float(s.density));
                 if (!(c.extinction > 0)) continue;
-                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(scale_free(s.gradient)), to_eye,
-                                                  to_float(x - m.geometry.origin0));
-                sigma_sum += c.extinction;
-                emission = emission + Vec3{lit.x, lit.y, lit.z} * double(c.extinction);
+                const Vec3 gradient = g.clip ? g.clip->face_gradient<double>(relative, scale_free(s.gradient)) : scale_free(s.gradient);
+                const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(gradient), to_eye, to_float(relative));
+                const double extinction = c.extinction * share;
+                sigma_sum += extinction;
+                emission = emission + Vec3{lit.x, lit.y, lit.z} * extinction;
             }
             if (sigma_sum > 0) {
                 const float alpha = slab_opacity(float(sigma_sum), float(length_per_step));
@@ -243,6 +252,7 @@ void raycast_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera,
         double maximum = mip_background(volumes);
         m.march(px, py, [&](const Vec3& x, double) {
             for (const RayGrid& g : m.grids) {
+                if (g.clip && !g.clip->inside<double>(x - m.geometry.origin0)) continue;
                 const DensitySample s = sample(g, m.kernel, x);
                 if (s.reached) maximum = std::max(maximum, s.density);
             }

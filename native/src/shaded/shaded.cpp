@@ -240,6 +240,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         plan_params.clip_planes = false;
         // Nodes outside the image reach into it through the post-filter and the gradient's stencil.
         plan_params.margin_nodes = regular ? 1 : 3;
+        const ClipRegion index_clip = volumes[g].clip ? volumes[g].clip->in_index_space(volumes[g].grid->index_to_world()) : ClipRegion();
+        if (!index_clip.keeps_everything()) plan_params.clip = &index_clip;
         plans.push_back(plan_blocks(volumes[g].grid->blocks(), projections[g], plan_params));
         cap_strides(plans.back(), largest_stride);
         for (const auto& [stride, blocks] : plans.back().by_stride) smallest_stride = std::min(smallest_stride, int(stride));
@@ -251,6 +253,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::vector<std::unique_ptr<SlabView>> views;
     std::vector<std::unique_ptr<ClassificationTable>> classifications;
     std::vector<std::unique_ptr<Shader>> shaders;
+    std::vector<std::unique_ptr<SampleClip>> sample_clips;
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
         const Grid& grid = *volume.grid;
@@ -266,9 +269,15 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);
-        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale)});
+        const SampleClip* clip = nullptr;
+        if (volume.clip && !volume.clip->keeps_everything()) {
+            sample_clips.push_back(std::make_unique<SampleClip>(*volume.clip, geometry.origin0, smallest_voxel_spacing(grid)));
+            clip = sample_clips.back().get();
+        }
+        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale), clip});
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
+        stats.blocks_clipped += plan.blocks_clipped;
         const std::vector<BlockValueRange>* ranges = mip || !params.cull_transparent ? nullptr : &grid.block_value_ranges();
 
         // One layer per stride; its blocks in depth and under the transfer function, each listed in the

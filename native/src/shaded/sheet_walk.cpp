@@ -386,8 +386,9 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
                 // Zero means no voxel reaches: empty, not a density of 0.
                 const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
+                const int8x kept = setup.grids[gi].clip ? counted & setup.grids[gi].clip->inside<float8>(f.position) : counted;
                 const float8 density = peak / (spacing * sqrt8(dot(f.along, f.along))) + setup.grids[gi].background;
-                store8(most, select8(counted, max8(load8(most), density), load8(most)));
+                store8(most, select8(kept, max8(load8(most), density), load8(most)));
             }
     }
 }
@@ -425,6 +426,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         const GridState* grid;
         const ClassificationTable* classification;
         const Shader* shader;
+        const SampleClip* clip;
         float background;
         const float *before, *here, *after, *beyond;  // sheets s - 1 to s + 2
     };
@@ -437,7 +439,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         // Sheet s alone at t = 0; the cubic reaches s - 1 to s + 2 in between.
         if (!g.has(s) && !(t > 0 && (g.has(s - 1) || g.has(s + 1) || g.has(s + 2)))) continue;
         const WalkGrid& wg = setup.grids[gi];
-        sources[source_count++] = {&g, wg.classification, wg.shader, wg.background, g.sheet(s - 1), g.sheet(s), g.sheet(s + 1), g.sheet(s + 2)};
+        sources[source_count++] = {&g,           wg.classification, wg.shader,       wg.clip,        wg.background,
+                                   g.sheet(s - 1), g.sheet(s),        g.sheet(s + 1), g.sheet(s + 2)};
         box.include(tile_box(g.box(s), g.halo, rect));
         if (t > 0)
             for (int64_t k : {s - 1, s + 1, s + 2}) box.include(tile_box(g.box(k), g.halo, rect));
@@ -500,6 +503,10 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const float8 density = raw / slab_length + src.background;
                 int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
+                // The share of the sample's stretch of ray inside the grid's clip region.
+                const float8 kept = src.clip ? src.clip->share<float8>(f.position, f.along * float(half_extent)) : broadcast8(1.0f);
+                valid &= kept > 0;
+                if (!any8(valid)) continue;
                 const ClassificationTable::Samples c = (*src.classification)(density);
                 valid &= c.extinction > 0;
                 if (!any8(valid)) continue;
@@ -513,9 +520,10 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const float8 g2 =
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
                 const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
-                const Vec3x8 gradient = from_x * g1 + from_y * g2 + from_u * g3;
+                const Vec3x8 field_gradient = from_x * g1 + from_y * g2 + from_u * g3;
+                const Vec3x8 gradient = src.clip ? src.clip->face_gradient<float8>(f.position, field_gradient) : field_gradient;
                 lit_colours[lit_count] = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
-                extinctions[lit_count] = select8(valid, c.extinction, broadcast8(0.0f));
+                extinctions[lit_count] = select8(valid, c.extinction * kept, broadcast8(0.0f));
                 sigma_sum += extinctions[lit_count++];
             }
             // Overlapping grids mix as media do: extinctions add, colours weigh by their share of the

@@ -25,6 +25,7 @@
 #include "pcvr/transfer_function.h"
 #include "shaded/compositing.h"
 #include "shaded/occlusion_map.h"
+#include "shaded/sample_clip.h"
 #include "shaded/sheet_geometry.h"
 #include "shaded/sheet_buffer.h"
 #include "shaded/slab_splat.h"
@@ -40,6 +41,7 @@ struct WalkGrid {
     const Shader* shader;                       ///< null for MIP
     int gradient_step;
     float background;  ///< added to the sheets' densities (SlabSplatParams::background), scaled
+    const SampleClip* clip = nullptr;  ///< the grid's clip region, relative to SheetGeometry::origin0
 };
 
 /// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,

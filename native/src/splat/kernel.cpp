@@ -1,5 +1,6 @@
 #include "pcvr/kernel.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "pcvr/errors.h"
@@ -44,6 +45,22 @@ double raw_line_integral(KernelShape s, double rho, double radius) {
         return 2.0 * half - (half * radius + rho * rho * std::log((half + radius) / rho)) / radius;
     }
     return 2.0 * half;
+}
+
+// Integral of the raw profile along a line at distance rho, from s = 0 to s (|s| within the chord),
+// closed form: odd in s, and the whole line integral is twice its value at the chord's end.
+double raw_partial_integral(KernelShape shape, double rho, double s, double radius) {
+    if (is_gauss(shape)) {
+        const double a = gauss_alpha(shape);
+        return std::exp(-a * rho * rho) * 0.5 * std::sqrt(kPi / a) * std::erf(std::sqrt(a) * s);
+    }
+    if (shape == KernelShape::Linear) {
+        // integral of (1 - sqrt(rho^2 + t^2) / R) dt = s - (s q + rho^2 ln((s + q) / rho)) / (2R), q = sqrt(rho^2 + s^2)
+        const double q = std::sqrt(rho * rho + s * s), magnitude = std::abs(s);
+        const double log_term = rho > 0 ? rho * rho * std::log((magnitude + std::sqrt(rho * rho + s * s)) / rho) : 0.0;
+        return std::copysign(magnitude - (magnitude * q + log_term) / (2.0 * radius), s);
+    }
+    return s;
 }
 
 // 4 pi * integral of r^k * profile(r) dr over [0, radius], by composite Simpson (smooth enough).
@@ -96,6 +113,15 @@ double Kernel::derivative(double r) const {
 
 double Kernel::line_integral(double rho) const {
     return normalisation_ * raw_line_integral(shape_, std::abs(rho), radius_);
+}
+
+double Kernel::segment_integral(double rho, double s0, double s1) const {
+    rho = std::abs(rho);
+    if (rho >= radius_) return 0.0;
+    const double half = std::sqrt(radius_ * radius_ - rho * rho);
+    s0 = std::clamp(s0, -half, half), s1 = std::clamp(s1, -half, half);
+    if (!(s1 > s0)) return 0.0;
+    return normalisation_ * (raw_partial_integral(shape_, rho, s1, radius_) - raw_partial_integral(shape_, rho, s0, radius_));
 }
 
 FootprintTable::FootprintTable(const Kernel& kernel)

@@ -92,7 +92,7 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
 
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
                       const ViewProjection& view, const SplatParams& params, SplatGrid& target, RenderControl& control,
-                      uint64_t* taps) {
+                      uint64_t* taps, std::vector<CutVoxel>* cut) {
     const std::optional<PhaseSplat> phases = phase_splat(view, target, params);
     FootprintSplatParams footprints;
     footprints.view = &view;
@@ -106,6 +106,9 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::enumerable_thread_specific<SplatScratch> scratches;
+    tbb::enumerable_thread_specific<std::vector<CutVoxel>> cut_voxels;
+    std::optional<CutProfile> cut_profile;
+    if (params.clip) cut_profile.emplace(*params.kernel);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
         SplatGrid& grid = locals.local();
@@ -113,7 +116,24 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
         SplatScratch& scratch = scratches.local();
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
-            const VoxelBlock& block = grid_blocks[pb.index];
+            VoxelBlock kept;
+            if (pb.cut && params.clip) {
+                // Voxels a plane cuts: into the grid where their kept footprints are smooth at its nodes
+                // (or the nodes are the pixels), per pixel afterwards where not (src/splat/cut_splat.h).
+                std::vector<CutVoxel>& cut_here = cut_voxels.local();
+                const size_t before = cut_here.size();
+                kept = split_cut_block(grid_blocks[pb.index], *params.clip, params.kernel_radius, params.density_scale, cut_here);
+                size_t sharp = before;
+                for (size_t i = before; i < cut_here.size(); ++i) {
+                    if (cut == nullptr || target.stride() == 1.0 || cut_is_smooth(cut_here[i], view, *params.clip, params.kernel_radius))
+                        scratch.taps += splat_cut_voxel(cut_here[i], view, *params.clip, *cut_profile, grid);
+                    else
+                        cut_here[sharp++] = cut_here[i];
+                }
+                count += cut_here.size() - sharp;
+                cut_here.resize(sharp);
+            }
+            const VoxelBlock& block = pb.cut && params.clip ? kept : grid_blocks[pb.index];
             const uint64_t n = phases ? splat_block_phases(block, phases->map, phases->table, pb.needs_clip_test ? &view : nullptr, grid, scratch)
                                : pb.exact_footprints ? splat_block_near_eye(block, pb, footprints, params.footprint_tolerance, grid, scratch)
                                                      : splat_block_footprints(block, pb, footprints, grid, scratch);
@@ -130,6 +150,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     });
     control.throw_if_cancelled();
     for (const SplatGrid& local : locals) target.add(local);
+    if (cut)
+        for (const std::vector<CutVoxel>& local : cut_voxels) cut->insert(cut->end(), local.begin(), local.end());
     uint64_t total = 0;
     for (uint64_t c : counts) total += c;
     if (taps)

@@ -25,6 +25,7 @@
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
 #include "pcvr/render_control.h"
+#include "splat/cut_splat.h"
 #include "splat/splat_grid.h"
 #include "view/block_plan.h"
 #include "view/view_projection.h"
@@ -47,13 +48,18 @@ struct SplatParams {
     /// The grid's level of detail (Grid::level): its voxels' footprints spread like the 8^level voxels
     /// they stand for (src/view/level_of_detail.h).
     int level = 0;
+    /// The grid's clip region in index space (pcvr/clip_region.h), for the blocks the plan marks cut.
+    const ClipRegion* clip = nullptr;
 };
 
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,
 /// inside the clip range) and adds the window taps written to `*taps` when given. Advances `control`
-/// by one unit per block and stops with Cancelled.
+/// by one unit per block and stops with Cancelled. Of the blocks the plan marks cut, the voxels whose
+/// kernels straddle params.clip are splatted with their kept footprints where those are smooth at the
+/// target's nodes and go to `*cut` (to be integrated per pixel) where not (src/splat/cut_splat.h); those
+/// outside go nowhere.
 uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vector<PlannedBlock>& blocks,
                       const ViewProjection& view, const SplatParams& params, SplatGrid& target,
-                      RenderControl& control, uint64_t* taps = nullptr);
+                      RenderControl& control, uint64_t* taps = nullptr, std::vector<CutVoxel>* cut = nullptr);
 
 }  // namespace pcvr

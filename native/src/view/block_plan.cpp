@@ -14,7 +14,7 @@ namespace pcvr {
 
 namespace {
 
-enum ClipSide : int { kInside = 0, kBeforeNear = 1, kBeyondFar = 2 };
+enum ClipRangeSide : int { kInside = 0, kBeforeNear = 1, kBeyondFar = 2 };
 
 // The near and far planes are half-spaces in homogeneous clip coordinates (z + w >= 0, w - z >= 0),
 // which makes "all corners beyond the same plane" a valid test for the whole block.
@@ -47,6 +47,7 @@ bool wants_fractional_strides(const BlockPlanParams& params) {
 /// What the plan decides about one block.
 struct BlockDecision {
     bool culled = false;
+    bool clipped = false;  // culled by BlockPlanParams::clip
     double stride = 1;  // fractional strides are set once the least magnification is known
     double mag_min = 0, mag_max = 0;  // pixels per voxel over its corners (0: none projectable)
     PlannedBlock planned{};
@@ -90,6 +91,16 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         mag_max = std::max(mag_max, m);
     }
     BlockDecision d;
+    const ClipSide cut_side = params.clip ? params.clip->box_side(
+                                                {double(block.origin[0]), double(block.origin[1]), double(block.origin[2])},
+                                                {double(block.origin[0] + VoxelBlock::kDim - 1), double(block.origin[1] + VoxelBlock::kDim - 1),
+                                                 double(block.origin[2] + VoxelBlock::kDim - 1)},
+                                                params.kernel_radius)
+                                          : ClipSide::Inside;
+    if (cut_side == ClipSide::Outside) {
+        d.culled = d.clipped = true;
+        return d;
+    }
     // Wholly before the near plane or beyond the far plane.
     if (params.clip_planes && sides_and != kInside && (sides_and & (kBeforeNear | kBeyondFar))) {
         d.culled = true;
@@ -114,7 +125,7 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         d.mag_min = mag_min;
         d.mag_max = mag_max;
     }
-    d.planned = {index, sides_or != kInside, exact, -1e30f, -1e30f, 1e30f, 1e30f};
+    d.planned = {index, sides_or != kInside, exact, cut_side == ClipSide::Straddles, -1e30f, -1e30f, 1e30f, 1e30f};
     if (all_projectable && !exact) {
         d.planned.min_x = float(x0 - ext_x);
         d.planned.min_y = float(y0 - ext_y);
@@ -147,7 +158,7 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
     double mag_min = std::numeric_limits<double>::infinity(), mag_max = 0;
     for (const BlockDecision& d : decisions) {
         if (d.culled) {
-            ++plan.blocks_culled;
+            ++(d.clipped ? plan.blocks_clipped : plan.blocks_culled);
             continue;
         }
         if (d.mag_max > 0) {

@@ -15,6 +15,7 @@
 #include <map>
 #include <vector>
 
+#include "pcvr/clip_region.h"
 #include "pcvr/grid.h"
 #include "pcvr/render_control.h"
 #include "pcvr/stride.h"
@@ -27,6 +28,7 @@ struct PlannedBlock {
     bool needs_clip_test;   ///< straddles a clip plane: test each voxel's centre
     bool exact_footprints;  ///< may hold voxels whose linearised footprint is off by more than
                             ///< BlockPlanParams::footprint_tolerance (src/splat/near_eye_splat.h)
+    bool cut = false;       ///< its kernels may straddle BlockPlanParams::clip (src/splat/cut_splat.h)
     /// Pixel bounds of everything the block's footprints can touch (the whole plane when unknown).
     float min_x, min_y, max_x, max_y;
 };
@@ -49,13 +51,17 @@ struct BlockPlanParams {
     /// near_eye_splat.h) exceeds this are marked exact_footprints, and their bounds left open
     /// (exact footprints reach further than linearised ones). Infinity: none.
     double footprint_tolerance = std::numeric_limits<double>::infinity();
+    /// The clip planes and crop box in the grid's index space (pcvr/clip_region.h): blocks whose
+    /// kernels lie wholly outside are dropped (BlockPlan::blocks_clipped), those that straddle marked cut.
+    const ClipRegion* clip = nullptr;
 };
 
 struct BlockPlan {
     /// stride (pixels between subgrid nodes; whole unless fractional_strides) -> blocks splatted at it
     std::map<double, std::vector<PlannedBlock>> by_stride;
     uint64_t blocks_total = 0;
-    uint64_t blocks_culled = 0;
+    uint64_t blocks_culled = 0;   ///< outside the view or the camera's clip range
+    uint64_t blocks_clipped = 0;  ///< wholly outside BlockPlanParams::clip
     double min_magnification = 0;  ///< over the kept blocks (pixels per voxel)
     double max_magnification = 0;
 };

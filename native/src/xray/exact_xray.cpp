@@ -63,6 +63,11 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
         if (!camera_to_index || !to_world.is_affine())
             throw GridError("grid '" + grid.name() + "': singular index-to-world transform");
         const IndexRays rays = rays_in_index_space(cam, *camera_to_index, pixel_step, cols, rows);
+        // With a clip region, each ray's kept interval (unit index-space parameter from its origin).
+        const ClipRegion clip = weighted.clip ? weighted.clip->in_index_space(to_world) : ClipRegion();
+        std::vector<RayInterval> kept;
+        if (!clip.keeps_everything())
+            for (size_t i = 0; i < rays.origin.size(); ++i) kept.push_back(clip.ray_interval(rays.origin[i], rays.direction[i], -1e300, 1e300));
         const Mat4 to_clip = cam.object_to_clip(to_world);
         const auto& blocks = grid.blocks();
 
@@ -78,6 +83,8 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
                     if (v == 0.0 || !std::isfinite(v)) continue;
                     const Vec3 c = voxel_position(block, offset);
                     if (!ViewProjection::inside_clip_range(to_clip * Vec4{c.x, c.y, c.z, 1.0})) continue;
+                    const ClipSide side = clip.sphere_side(c, radius);
+                    if (side == ClipSide::Outside) continue;
 
                     // Pixels whose rays can meet the kernel sphere: inside the projection of its bounding cube.
                     int c0 = 0, c1 = cols - 1, r0 = 0, r1 = rows - 1;
@@ -102,10 +109,15 @@ std::vector<double> render_exact_xray(const std::vector<WeightedGrid>& grids, co
                         for (int col = c0; col <= c1; ++col) {
                             const size_t i = size_t(r) * cols + col;
                             const Vec3 w = c - rays.origin[i];
-                            const Vec3 perp = w - rays.direction[i] * dot(w, rays.direction[i]);
+                            const double closest = dot(w, rays.direction[i]);
+                            const Vec3 perp = w - rays.direction[i] * closest;
                             const double rho2 = dot(perp, perp);
                             if (rho2 >= radius * radius) continue;
-                            acc[i] += v * kernel.line_integral(std::sqrt(rho2)) * rays.world_per_index[i];
+                            // A cut kernel keeps the part of the ray inside the region.
+                            const double integral = side == ClipSide::Inside ? kernel.line_integral(std::sqrt(rho2))
+                                                    : kept[i].empty()        ? 0.0
+                                                                             : kernel.segment_integral(std::sqrt(rho2), kept[i].lo - closest, kept[i].hi - closest);
+                            acc[i] += v * integral * rays.world_per_index[i];
                         }
                 }
             }

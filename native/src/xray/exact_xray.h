@@ -3,7 +3,8 @@
 ///
 /// Independent of the splatting path on purpose: no footprint table, no linearised ellipse, no
 /// subgrid. Each pixel's own ray (from the camera's inverse matrix) is intersected with each voxel's
-/// kernel sphere, and Kernel::line_integral gives the contribution. It is slow (O(voxels x footprint
+/// kernel sphere, and Kernel::line_integral gives the contribution (Kernel::segment_integral over the
+/// ray's interval inside the grid's clip region where a cut crosses the kernel). It is slow (O(voxels x footprint
 /// pixels) with special functions) and meant for tests and error measurements; `pixel_step` > 1
 /// evaluates only pixels (step * i, step * j) to make large comparisons affordable.
 #pragma once

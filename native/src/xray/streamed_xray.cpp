@@ -18,6 +18,8 @@ void accumulate(XrayStats& total, const XrayStats& part) {
     total.voxels_splatted += part.voxels_splatted;
     total.blocks_total += part.blocks_total;
     total.blocks_culled += part.blocks_culled;
+    total.blocks_clipped += part.blocks_clipped;
+    total.voxels_cut += part.voxels_cut;
     total.taps += part.taps;
     total.batches += part.batches;
     total.level = std::max(total.level, part.level);
@@ -94,14 +96,14 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
         if (level > 0 && !s.attenuation && s.stream->only_batches().empty() &&
             (s.stream->value_bytes() >> (3 * level)) <= batch_bytes) {
             const Grid coarse = s.stream->level(level, LevelReduction::MeanOverZero, &control);
-            render_part({WeightedGrid{&coarse, s.density_scale, level}}, s.stream->active_voxel_count(), part_params);
+            render_part({WeightedGrid{&coarse, s.density_scale, level, nullptr, s.clip}}, s.stream->active_voxel_count(), part_params);
             continue;
         }
         XrayParams batch_params = part_params;
         batch_params.level = level;  // every batch the same level
         uint64_t streamed = 0;
         s.stream->for_each_batch(batch_bytes, [&](const GridStream::Batch& batch) {
-            render_part({WeightedGrid{&batch.grid, s.density_scale, 0, s.attenuation}}, batch.voxels_done - streamed,
+            render_part({WeightedGrid{&batch.grid, s.density_scale, 0, s.attenuation, s.clip}}, batch.voxels_done - streamed,
                         batch_params);
             streamed = batch.voxels_done;
         });

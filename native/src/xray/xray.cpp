@@ -12,6 +12,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
+#include "splat/cut_splat.h"
 #include "splat/post_convolution.h"
 #include "splat/splatter.h"
 #include "view/block_plan.h"
@@ -38,6 +39,7 @@ struct PlannedGrid {
     const Grid* level_grid;  ///< the level of detail of source->grid that is splatted
     int level;
     ViewProjection view;
+    ClipRegion clip;  ///< the grid's clip region in the level's index space (keeps everything without one)
     BlockPlan plan;
 };
 
@@ -77,6 +79,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     plan_params.footprint_tolerance = tolerance;
 
     std::vector<PlannedGrid> planned;
+    planned.reserve(grids.size());  // splat params point at their clip regions
+    bool any_cut = false;
     std::map<double, bool> strides;
     uint64_t planned_blocks = 0;
     std::vector<Grid> levels;
@@ -88,15 +92,19 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         const int level = g.level + chosen;
         stats.level = std::max(stats.level, level);
         ViewProjection view(cam, levels.back().index_to_world());
+        ClipRegion clip = g.clip ? g.clip->in_index_space(levels.back().index_to_world()) : ClipRegion();
+        plan_params.clip = clip.keeps_everything() ? nullptr : &clip;
         BlockPlan plan = plan_blocks(levels.back().blocks(), view, plan_params, &control);
         stats.blocks_total += plan.blocks_total;
         stats.blocks_culled += plan.blocks_culled;
+        stats.blocks_clipped += plan.blocks_clipped;
         stats.include_magnification(plan.min_magnification, plan.max_magnification);
         for (const auto& [stride, blocks] : plan.by_stride) {
             strides[stride] = true;
             planned_blocks += blocks.size();
         }
-        planned.push_back({&g, &levels.back(), level, std::move(view), std::move(plan)});
+        any_cut |= plan_params.clip != nullptr;
+        planned.push_back({&g, &levels.back(), level, std::move(view), std::move(clip), std::move(plan)});
     }
     // The image, and for one band at a time a splat grid per worker plus the one they are added into;
     // the finest stride's grid is the largest.
@@ -110,6 +118,8 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         budget.add(name.str(),
                    uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
     }
+    if (any_cut) budget.add("image of the voxels clip planes cut, one per thread",
+                            uint64_t(tbb::this_task_arena::max_concurrency()) * cam.width() * cam.height() * sizeof(float));
     check_memory(budget, cam, stats);
     ImageAccumulator image(cam.width(), cam.height());
     control.begin_phase(planned_blocks, 0.0, 0.97);
@@ -125,21 +135,30 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     splat.antialias = params.antialias;
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
+    // The voxels a clip plane cuts where their kept footprints have sharp edges are integrated per pixel,
+    // straight into the image (src/splat/cut_splat.h).
+    std::vector<std::vector<CutVoxel>> cut(planned.size());
     for (const auto& [stride, unused] : strides) {
         SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
-        for (const PlannedGrid& pg : planned) {
+        for (size_t k = 0; k < planned.size(); ++k) {
+            const PlannedGrid& pg = planned[k];
             auto it = pg.plan.by_stride.find(stride);
             if (it == pg.plan.by_stride.end()) continue;
             splat.density_scale = float(pg.source->density_scale * range);
             splat.level = pg.level;
+            splat.clip = pg.clip.keeps_everything() ? nullptr : &pg.clip;
             stats.voxels_splatted +=
-                splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control, &stats.taps);
+                splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control, &stats.taps, &cut[k]);
         }
         if (regular)
             add_unfiltered(target, image);
         else
             post_convolve(target, post_shape, image, control);
         stats.strides.push_back(stride);
+    }
+    for (size_t k = 0; k < planned.size(); ++k) {
+        stats.voxels_cut += cut[k].size();
+        stats.taps += splat_cut_voxels(cut[k], planned[k].view, planned[k].clip, kernel, image, control);
     }
     if (range != 1.0) {
         // A power of two: multiplying in float rounds exactly as dividing in double did (once, and

@@ -1,0 +1,99 @@
+/// @file sample_clip.h
+/// @brief A grid's clip region at the shaded samples: the share of each sample's stretch of ray that is
+/// kept, and the cut face's normal.
+///
+/// A sample stands for a stretch of its ray (a slab of a sheet, a ray caster's step): it counts for the
+/// share of that stretch on the kept side of every plane, as a sample half in front of the camera's near
+/// plane counts half (sheet_walk.h), so a cut is exact to within a sample's stretch and moves smoothly.
+/// The density's gradient at a cut face is that of the uncut field, which inside bone or tissue is weak
+/// and points anywhere: samples within `face_depth` (world, a voxel) of a plane are lit with the plane's
+/// normal instead, so a cut face shows as a flat surface under the lights. The sheet walk (eight lanes)
+/// and the ray caster (one sample) share these formulas: T is float8 or double.
+#pragma once
+
+#include <algorithm>
+#include <type_traits>
+#include <vector>
+
+#include "pcvr/clip_region.h"
+#include "pcvr/lanes.h"
+
+namespace pcvr {
+
+class SampleClip {
+public:
+    /// `world`'s planes with unit normals, relative to `origin` (positions passed in are relative to it).
+    SampleClip(const ClipRegion& world, const Vec3& origin, double face_depth) : face_depth_(face_depth) {
+        for (const ClipPlane& p : world.planes()) {
+            const double unit = 1.0 / length(p.normal);
+            planes_.push_back({p.normal * unit, p.at(origin) * unit});
+        }
+    }
+
+    /// The share of the stretch position - half_stretch to position + half_stretch that lies inside.
+    template <class T, class V>
+    T share(const V& position, const V& half_stretch) const {
+        const T one = constant<T>(1.0), zero = constant<T>(0.0);
+        T lo = -one, hi = one;
+        for (const ClipPlane& p : planes_) {
+            const T value = at<T>(p, position), rate = at<T>(p, half_stretch) - constant<T>(p.offset);
+            // value + rate tau >= 0 for tau in [-1, 1]; a stretch along the plane is wholly in or out.
+            const T bound = -value / rate;
+            lo = pick(rate > zero, larger(lo, bound), lo);
+            hi = pick(rate < zero, smaller(hi, bound), hi);
+            hi = pick((rate == zero) & (value < zero), -one - one, hi);
+        }
+        const T kept = (smaller(hi, one) - larger(lo, -one)) * constant<T>(0.5);
+        return larger(smaller(kept, one), zero);
+    }
+
+    /// `gradient`, or the normal of the nearest plane where a sample lies within face_depth of it.
+    template <class T, class V>
+    V face_gradient(const V& position, const V& gradient) const {
+        V out = gradient;
+        T nearest = constant<T>(face_depth_);
+        for (const ClipPlane& p : planes_) {
+            const T distance = at<T>(p, position);
+            const auto closer = distance < nearest;
+            nearest = pick(closer, distance, nearest);
+            out = {pick(closer, constant<T>(p.normal.x), out.x), pick(closer, constant<T>(p.normal.y), out.y),
+                   pick(closer, constant<T>(p.normal.z), out.z)};
+        }
+        return out;
+    }
+
+    /// True (per lane) where the position itself lies inside.
+    template <class T, class V>
+    auto inside(const V& position) const {
+        const T zero = constant<T>(0.0);
+        auto kept = zero == zero;
+        for (const ClipPlane& p : planes_) kept = kept & (at<T>(p, position) >= zero);
+        return kept;
+    }
+
+private:
+    template <class T>
+    static T constant(double x) {
+        if constexpr (std::is_same_v<T, double>)
+            return x;
+        else
+            return broadcast8(float(x));
+    }
+    /// The plane's value at a position (relative to the origin).
+    template <class T, class V>
+    static T at(const ClipPlane& p, const V& v) {
+        return v.x * constant<T>(p.normal.x) + v.y * constant<T>(p.normal.y) + v.z * constant<T>(p.normal.z) + constant<T>(p.offset);
+    }
+    // Lane-wise choices that read the same for one double and for eight floats.
+    static double pick(bool c, double a, double b) { return c ? a : b; }
+    static float8 pick(int8x c, float8 a, float8 b) { return select8(c, a, b); }
+    static double larger(double a, double b) { return std::max(a, b); }
+    static float8 larger(float8 a, float8 b) { return max8(a, b); }
+    static double smaller(double a, double b) { return std::min(a, b); }
+    static float8 smaller(float8 a, float8 b) { return min8(a, b); }
+
+    std::vector<ClipPlane> planes_;
+    double face_depth_;
+};
+
+}  // namespace pcvr
