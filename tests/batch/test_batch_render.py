@@ -161,12 +161,12 @@ def test_job_file_clips_as_the_command_line_does(tmp_path, sequence):
     clip = {"clip_box": [0.6, 1.2, 1.2, 0.6, 2.0, 2.0], "clip_plane": [[0.0, 0.0, 1.0, -0.8]]}
     jobs_file = tmp_path / "jobs.json"
     jobs_file.write_text(json.dumps({"options": {"magnification": 1.0, **clip}, "jobs": [
-        {"input": str(sequence / "smoke_0001.vdb"), "output": "batch/f.exr"}]}))
+        {"input": str(sequence / "smoke_0001.vdb"), "output": "batch.exr"}]}))
     assert cli.main(["render", str(jobs_file), "-o", str(tmp_path / "results.json")]) == 0
     single = ["render", str(sequence / "smoke_0001.vdb"), "--magnification", "1"]
     clip_argv = ["--clip-box", *map(str, clip["clip_box"]), "--clip-plane", *map(str, clip["clip_plane"][0])]
-    assert cli.main(single + ["-o", str(tmp_path / "single" / "f.exr")] + clip_argv) == 0
-    assert cli.main(single + ["-o", str(tmp_path / "whole" / "f.exr")]) == 0
-    cut = bh.images(tmp_path / "single")
-    bh.assert_same_images(bh.images(tmp_path / "batch"), cut)
-    assert cut["f.exr"][..., 4].sum() < 0.8 * bh.images(tmp_path / "whole")["f.exr"][..., 4].sum()
+    assert cli.main(single + ["-o", str(tmp_path / "single.exr")] + clip_argv) == 0
+    assert cli.main(single + ["-o", str(tmp_path / "whole.exr")]) == 0
+    batch, cut, whole = (image_io.read_passes(str(tmp_path / f"{name}.exr"))[""] for name in ("batch", "single", "whole"))
+    np.testing.assert_array_equal(batch, cut)
+    assert cut[..., 4].sum() < 0.8 * whole[..., 4].sum()
