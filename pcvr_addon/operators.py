@@ -139,6 +139,21 @@ class PCVR_OT_transfer_function_new(VolumeOperator, Operator):
         return {'FINISHED'}
 
 
+class PCVR_OT_gradient_opacity_new(VolumeOperator, Operator):
+    """Give the volume a gradient-opacity ramp of its own: a copy of the one it has, or the default"""
+    bl_idname = "pcvr.gradient_opacity_new"
+    bl_label = "New Gradient Opacity"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        settings = context.volume.pcvr
+        if settings.gradient_opacity is not None:
+            settings.gradient_opacity = settings.gradient_opacity.copy()
+        else:
+            settings.ensure_gradient_opacity()
+        return {'FINISHED'}
+
+
 class PCVR_OT_transfer_function_range_from_grid(VolumeOperator, Operator):
     """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
     or its lowest value to its highest"""
@@ -172,6 +187,7 @@ classes = (
     PCVR_OT_transfer_function_new,
     PCVR_OT_transfer_function_range_from_grid,
     PCVR_OT_transfer_function_preset_add,
+    PCVR_OT_gradient_opacity_new,
 )
 
 
