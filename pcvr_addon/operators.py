@@ -124,34 +124,34 @@ class VolumeOperator:
         return getattr(context, "volume", None) is not None
 
 
-class PCVR_OT_transfer_function_new(VolumeOperator, Operator):
+class RampTextureNew(VolumeOperator):
+    """The New button of a ramp texture the volume's settings point to (their member `ramp_texture`): a copy of
+    the one it has, or one holding the default ramp (the settings' ensure_<ramp_texture>)."""
+    bl_options = {'REGISTER', 'UNDO'}
+    ramp_texture = ""
+
+    def execute(self, context):
+        settings = context.volume.pcvr
+        texture = getattr(settings, self.ramp_texture)
+        if texture is not None:
+            setattr(settings, self.ramp_texture, texture.copy())
+        else:
+            getattr(settings, f"ensure_{self.ramp_texture}")()
+        return {'FINISHED'}
+
+
+class PCVR_OT_transfer_function_new(RampTextureNew, Operator):
     """Give the volume a transfer function of its own: a copy of the one it has, or the default grey ramp"""
     bl_idname = "pcvr.transfer_function_new"
     bl_label = "New Transfer Function"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    def execute(self, context):
-        settings = context.volume.pcvr
-        if settings.transfer_function is not None:
-            settings.transfer_function = settings.transfer_function.copy()
-        else:
-            settings.ensure_transfer_function()
-        return {'FINISHED'}
+    ramp_texture = "transfer_function"
 
 
-class PCVR_OT_gradient_opacity_new(VolumeOperator, Operator):
+class PCVR_OT_gradient_opacity_new(RampTextureNew, Operator):
     """Give the volume a gradient-opacity ramp of its own: a copy of the one it has, or the default"""
     bl_idname = "pcvr.gradient_opacity_new"
     bl_label = "New Gradient Opacity"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    def execute(self, context):
-        settings = context.volume.pcvr
-        if settings.gradient_opacity is not None:
-            settings.gradient_opacity = settings.gradient_opacity.copy()
-        else:
-            settings.ensure_gradient_opacity()
-        return {'FINISHED'}
+    ramp_texture = "gradient_opacity"
 
 
 class PCVR_OT_transfer_function_range_from_grid(VolumeOperator, Operator):
