@@ -218,6 +218,13 @@ class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
 
 
+def ramp_texture_property(name, description):
+    """A pointer to a Texture whose colour ramp the volume's settings use (a Texture is an ID: see
+    transfer_function.py)."""
+    return PointerProperty(name=name, description=description, type=bpy.types.Texture,
+                           poll=lambda _self, texture: texture.use_color_ramp, update=tag_changed)
+
+
 class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     owner = bpy.types.Volume
     label = "Volume"
@@ -256,12 +263,9 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
 
     # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
-    transfer_function: PointerProperty(
+    transfer_function: ramp_texture_property(
         name="Transfer Function",
         description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
-        type=bpy.types.Texture,
-        poll=lambda _self, texture: texture.use_color_ramp,
-        update=tag_changed,
     )
     use_grid_range: BoolProperty(
         name="Range from Grid",
@@ -297,13 +301,10 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=False,
         update=tag_changed,
     )
-    gradient_opacity: PointerProperty(
+    gradient_opacity: ramp_texture_property(
         name="Gradient Opacity",
         description="Texture whose colour ramp's alpha is the opacity factor over gradient magnitudes 0 to Max "
                     "Gradient",
-        type=bpy.types.Texture,
-        poll=lambda _self, texture: texture.use_color_ramp,
-        update=tag_changed,
     )
     gradient_max: FloatProperty(
         name="Max Gradient",
