@@ -1,6 +1,11 @@
 """Gradient opacity in Blender: a second ramp's alpha over gradient magnitudes 0..Max Gradient reaches
 pcvr_native.TransferFunction's gradient and gradient_opacity; 3D Slicer's gradientOpacity; presets keep it."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import bpy
 import numpy as np
 import pcvr_native as pn
@@ -8,7 +13,9 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import scene_inputs, transfer_function
+from pcvr_addon import image_io, presets, scene_inputs, transfer_function
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
@@ -102,3 +109,28 @@ def test_user_presets_keep_the_gradient_opacity(tmp_path, monkeypatch, blob_obje
     assert not volume.pcvr.use_gradient_opacity
     volume.pcvr.apply_preset("Edges")
     assert scene_inputs.ramp_inputs(volume.pcvr) == saved
+
+
+def test_the_command_line_preset_carries_it(tmp_path):
+    """A Slicer preset with a gradient opacity, saved as the user's, renders through --preset with it."""
+    scripts = tmp_path / "scripts"
+    folder = scripts / "presets" / presets.SUBDIR
+    folder.mkdir(parents=True)
+    bone = (Path(presets.SHIPPED) / "CT_Bone.py").read_text()
+    assert "gradient_opacity=[4, 0, 1, 255, 1]" in bone
+    # Transparent where the head's density is uniform, whole from 5000 HU per world unit (its bone edges reach
+    # tens of thousands: 32 voxels over 2 units).
+    (folder / "Bone_Edges.py").write_text(bone.replace("gradient_opacity=[4, 0, 1, 255, 1]",
+                                                       "gradient_opacity=[4, 0, 0, 5000, 1]"))
+    head = ls.head_vdb(tmp_path / "head.vdb")
+    images = {}
+    for name in ("CT Bone", "Bone Edges"):
+        output = tmp_path / f"{name}.exr"
+        run = subprocess.run([sys.executable, "-m", "pcvr_addon", "render", head, "-o", output, "--mode", "shaded",
+                              "--preset", name, "--magnification", "1"], cwd=ROOT, capture_output=True, text=True,
+                             timeout=120, env={**os.environ, "BLENDER_USER_SCRIPTS": str(scripts)})
+        assert run.returncode == 0, run.stdout + run.stderr
+        images[name] = image_io.read_passes(str(output))[""][..., :3]
+    difference = np.abs(images["Bone Edges"] - images["CT Bone"]).mean() / images["CT Bone"].mean()
+    # Measured: 26% of the mean colour.
+    assert difference > 0.1
