@@ -51,6 +51,18 @@ def test_the_gradient_magnitude_is_density_per_world_unit(scene, projection, met
     assert np.abs(alpha - expected).max() < 0.02, (alpha, expected)
 
 
+@pytest.mark.parametrize("scale", [1e-12, 1e9])
+@pytest.mark.parametrize("method", ["pcvr", "raycast"])
+def test_the_magnitude_holds_at_extreme_scales(method, scale):
+    """Voxels 1e-12 and 1e9 world units wide, the slope and the magnitudes scaled to match: the same alpha
+    (measured: within 0.001 of the scale-1 scene's); the walk divides its frame's determinant out first."""
+    scaled = ramp(slope=3.0 / scale, spacing=tuple(np.multiply((0.5, 0.8, 0.35), scale)))
+    tf = band_tf(scaled.band, OPACITY, UNIT * scale, gradient=[2.0 / scale, 4.0 / scale], gradient_opacity=[1.0, 0.0])
+    image = pn.render_shaded(scaled.grid, ramp_camera(scaled, "ortho"), tf, lights=[SUN], method=method,
+                             opacity_cutoff=1.0, sheet_spacing=0.1 if method == "raycast" else 1.0)
+    assert np.abs(middle(image)[..., 3] - band_alpha(scaled, OPACITY, 0.5, UNIT * scale)).max() < 0.02
+
+
 def test_constant_factors_equal_a_scaled_opacity(scene):
     """A factor f everywhere is the transfer function with opacity a f: exactly, since the factor applies
     before the opacity becomes an extinction."""
