@@ -78,7 +78,7 @@ public:
         const float8 y = clamp8((magnitude - gradient_first_) * gradient_scale_, 0.0f, float(kGradientEntries));
         const int8x j = __builtin_convertvector(y, int8x);
         const float8 f = lerp_entries(gradient_factor_, j, y - __builtin_convertvector(j, float8));
-        // a is below 1 (see kMostOpacity), so the logarithm is finite.
+        // The table caps a at 1 - 1e-7, so the logarithm is finite.
         return min8(-log1p8(-a * f) * per_unit_distance_, broadcast8(1e30f));
     }
     float extinction(float density, float magnitude) const { return extinction(broadcast8(density), broadcast8(magnitude))[0]; }
