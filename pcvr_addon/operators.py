@@ -154,21 +154,40 @@ class PCVR_OT_gradient_opacity_new(RampTextureNew, Operator):
     ramp_texture = "gradient_opacity"
 
 
-class PCVR_OT_transfer_function_range_from_grid(VolumeOperator, Operator):
-    """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
-    or its lowest value to its highest"""
-    bl_idname = "pcvr.transfer_function_range_from_grid"
-    bl_label = "Range from Grid Values"
+class FromGridOperator(VolumeOperator):
+    """Sets the active volume's settings from what its grid holds now (`apply`), read through the cache."""
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
         grid = volume_grid(self, context, context.object)
         if grid is None:
             return {'CANCELLED'}
-        settings = context.object.data.pcvr
+        self.apply(context.object.data.pcvr, grid)
+        return {'FINISHED'}
+
+
+class PCVR_OT_transfer_function_range_from_grid(FromGridOperator, Operator):
+    """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
+    or its lowest value to its highest"""
+    bl_idname = "pcvr.transfer_function_range_from_grid"
+    bl_label = "Range from Grid Values"
+
+    @staticmethod
+    def apply(settings, grid):
         settings.tf_min, settings.tf_max = transfer_function.grid_range(grid.value_range, settings.density_scale)
         settings.use_grid_range = False
-        return {'FINISHED'}
+
+
+class PCVR_OT_gradient_max_from_grid(FromGridOperator, Operator):
+    """Set Max Gradient to that of a sharp edge across the whole range of the volume's grid (times the density
+    scale): the steepest boundaries reach the ramp's right end"""
+    bl_idname = "pcvr.gradient_max_from_grid"
+    bl_label = "Max Gradient from Grid"
+
+    @staticmethod
+    def apply(settings, grid):
+        settings.gradient_max = transfer_function.edge_gradient(grid.value_range, settings.density_scale,
+                                                                grid.index_to_world)
 
 
 class PCVR_OT_transfer_function_preset_add(VolumeOperator, AddPresetBase, Operator):
@@ -188,6 +207,7 @@ classes = (
     PCVR_OT_transfer_function_range_from_grid,
     PCVR_OT_transfer_function_preset_add,
     PCVR_OT_gradient_opacity_new,
+    PCVR_OT_gradient_max_from_grid,
 )
 
 

@@ -160,6 +160,14 @@ def smallest_voxel_spacing(index_to_world):
     return float(np.linalg.norm(np.asarray(index_to_world)[:3, :3], axis=0).min())
 
 
+def edge_gradient(value_range, density_scale, index_to_world):
+    """|gradient| per world unit of a sharp edge across a grid's whole range (grid_range): the range over two of
+    its shortest voxel spacings, as the kernels spread a one-voxel step. A start for the gradient opacity's
+    Max Gradient."""
+    low, high = grid_range(value_range, density_scale)
+    return (high - low) / (2.0 * smallest_voxel_spacing(index_to_world))
+
+
 # -------------------------------------------------------------------------------------------------
 # 3D Slicer's volume-rendering presets (Modules/Loadable/VolumeRendering/Resources/presets.xml) give VTK's
 # transfer functions: a scalar opacity [count, x0, a0, x1, a1, ...] and a colour transfer function
