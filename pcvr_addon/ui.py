@@ -245,6 +245,7 @@ class PCVR_DATA_PT_gradient_opacity(VolumeSheetPanel, Panel):
         else:
             layout.label(text="Transparent where uniform, opaque from Max Gradient", icon='INFO')
         property_split(layout).prop(settings, "gradient_max")
+        layout.operator("pcvr.gradient_max_from_grid", icon='IMPORT')
 
 
 class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):

@@ -73,6 +73,19 @@ def test_new_operator_copies_or_makes_the_default(blob_object):
     assert volume.pcvr.gradient_opacity not in (None, first)
 
 
+def test_max_gradient_from_grid(tmp_path):
+    path = ls.head_vdb(tmp_path / "head.vdb")
+    low, high = pn.read_vdb(path).value_range
+    obj = bs.add_volume("Head", path, scale=(2, 2, 2))
+    bpy.context.view_layer.objects.active = obj
+    obj.data.pcvr.density_scale = 3.0
+    with bpy.context.temp_override(volume=obj.data, object=obj):
+        assert bpy.ops.pcvr.gradient_max_from_grid() == {'FINISHED'}
+    # The head's values (air is its inactive background), tripled, across two voxels: 32 over 2 units, doubled.
+    assert low < 0 < high
+    assert obj.data.pcvr.gradient_max == pytest.approx(3 * (high - low) / (2 * 2 * 2 / 32), rel=1e-6)
+
+
 def test_slicer_gradient_opacity():
     gradient_max, elements = transfer_function.slicer_gradient_ramp([6, 0, 0, 10, 0.5, 40, 1])
     assert gradient_max == 40.0

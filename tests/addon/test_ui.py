@@ -171,7 +171,8 @@ def test_panels_of_each_mode(tmp_path, mode):
         assert draw(ui.PCVR_DATA_PT_shading, context) == ["ambient", "diffuse", "specular", "shininess"]
         assert draw(ui.PCVR_DATA_PT_gradient_opacity, context, "draw_header") == ["use_gradient_opacity"]
         gradient = draw(ui.PCVR_DATA_PT_gradient_opacity, context)
-        assert gradient[:2] == ["gradient_opacity", "pcvr.gradient_opacity_new"] and gradient[-1] == "gradient_max"
+        assert gradient[:2] == ["gradient_opacity", "pcvr.gradient_opacity_new"]
+        assert gradient[-2:] == ["gradient_max", "pcvr.gradient_max_from_grid"]
         obj.data.pcvr.ensure_gradient_opacity()
         assert "color_ramp" in draw(ui.PCVR_DATA_PT_gradient_opacity, context)
         lit = draw(ui.PCVR_LIGHT_PT_light, context)
