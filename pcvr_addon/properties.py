@@ -308,8 +308,8 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
     gradient_max: FloatProperty(
         name="Max Gradient",
-        description="Gradient magnitude at the right end of the gradient-opacity ramp, in density units per world "
-                    "unit (the ramp's last factor holds beyond)",
+        description="Gradient magnitude at the right end of the gradient-opacity ramp, in density units (times the "
+                    "density scale) per world unit; the ramp's last factor holds beyond",
         min=1e-9, soft_max=1000.0,
         default=1.0,
         update=tag_changed,
