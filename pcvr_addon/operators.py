@@ -124,36 +124,70 @@ class VolumeOperator:
         return getattr(context, "volume", None) is not None
 
 
-class PCVR_OT_transfer_function_new(VolumeOperator, Operator):
-    """Give the volume a transfer function of its own: a copy of the one it has, or the default grey ramp"""
-    bl_idname = "pcvr.transfer_function_new"
-    bl_label = "New Transfer Function"
+class RampTextureNew(VolumeOperator):
+    """The New button of a ramp texture the volume's settings point to (their member `ramp_texture`): a copy of
+    the one it has, or one holding the default ramp (the settings' ensure_<ramp_texture>)."""
     bl_options = {'REGISTER', 'UNDO'}
+    ramp_texture = ""
 
     def execute(self, context):
         settings = context.volume.pcvr
-        if settings.transfer_function is not None:
-            settings.transfer_function = settings.transfer_function.copy()
+        texture = getattr(settings, self.ramp_texture)
+        if texture is not None:
+            setattr(settings, self.ramp_texture, texture.copy())
         else:
-            settings.ensure_transfer_function()
+            getattr(settings, f"ensure_{self.ramp_texture}")()
         return {'FINISHED'}
 
 
-class PCVR_OT_transfer_function_range_from_grid(VolumeOperator, Operator):
-    """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
-    or its lowest value to its highest"""
-    bl_idname = "pcvr.transfer_function_range_from_grid"
-    bl_label = "Range from Grid Values"
+class PCVR_OT_transfer_function_new(RampTextureNew, Operator):
+    """Give the volume a transfer function of its own: a copy of the one it has, or the default grey ramp"""
+    bl_idname = "pcvr.transfer_function_new"
+    bl_label = "New Transfer Function"
+    ramp_texture = "transfer_function"
+
+
+class PCVR_OT_gradient_opacity_new(RampTextureNew, Operator):
+    """Give the volume a gradient-opacity ramp of its own: a copy of the one it has, or the default"""
+    bl_idname = "pcvr.gradient_opacity_new"
+    bl_label = "New Gradient Opacity"
+    ramp_texture = "gradient_opacity"
+
+
+class FromGridOperator(VolumeOperator):
+    """Sets the active volume's settings from what its grid holds now (`apply`), read through the cache."""
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
         grid = volume_grid(self, context, context.object)
         if grid is None:
             return {'CANCELLED'}
-        settings = context.object.data.pcvr
+        self.apply(context.object.data.pcvr, grid)
+        return {'FINISHED'}
+
+
+class PCVR_OT_transfer_function_range_from_grid(FromGridOperator, Operator):
+    """Spread the colour ramp over the values the volume's grid holds now (times the density scale), from 0
+    or its lowest value to its highest"""
+    bl_idname = "pcvr.transfer_function_range_from_grid"
+    bl_label = "Range from Grid Values"
+
+    @staticmethod
+    def apply(settings, grid):
         settings.tf_min, settings.tf_max = transfer_function.grid_range(grid.value_range, settings.density_scale)
         settings.use_grid_range = False
-        return {'FINISHED'}
+
+
+class PCVR_OT_gradient_max_from_grid(FromGridOperator, Operator):
+    """Set Max Gradient to that of a sharp edge across the whole range of the volume's grid (times the density
+    scale): the steepest boundaries reach the ramp's right end"""
+    bl_idname = "pcvr.gradient_max_from_grid"
+    bl_label = "Max Gradient from Grid"
+
+    @staticmethod
+    def apply(settings, grid):
+        settings.gradient_max = transfer_function.edge_gradient(grid.value_range, settings.density_scale,
+                                                                grid.index_to_world)
 
 
 class PCVR_OT_transfer_function_preset_add(VolumeOperator, AddPresetBase, Operator):
@@ -262,6 +296,8 @@ classes = (
     PCVR_OT_transfer_function_new,
     PCVR_OT_transfer_function_range_from_grid,
     PCVR_OT_transfer_function_preset_add,
+    PCVR_OT_gradient_opacity_new,
+    PCVR_OT_gradient_max_from_grid,
     PCVR_OT_add_crop_box,
     PCVR_OT_add_clip_plane,
     PCVR_OT_remove_clip_plane,

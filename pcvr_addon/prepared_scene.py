@@ -223,7 +223,8 @@ def native_transfer_function(volume):
     # The opacity's unit is the volume's own voxel, also where a coarser level stands in for it.
     voxel = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / 2 ** volume.level
     unit_distance = voxel / ramp.opacity_scale
-    return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance)
+    return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance,
+                                        gradient=ramp.gradient, gradient_opacity=ramp.gradient_opacity)
 
 
 def _native_lighting(prepared):

@@ -14,7 +14,7 @@ import re
 
 import bpy
 
-from .transfer_function import ramp_elements
+from .transfer_function import DEFAULT_GRADIENT_RAMP, DEFAULT_RAMP, ramp_elements
 from .typed import as_typed
 
 SUBDIR = os.path.join("pcvr", "transfer_function")
@@ -65,11 +65,17 @@ def apply(volume, name):
         bpy.utils.execfile(path)
 
 
+def _elements(ramp, default=DEFAULT_RAMP):
+    """A ramp's elements as the lines of a Python list."""
+    return "".join(f"        ({as_typed(position)!r}, {tuple(as_typed(c) for c in rgba)!r}),\n"
+                   for position, rgba in ramp_elements(ramp, default))
+
+
 def write(settings, filepath):
-    """Save the transfer function and material of `settings` (a volume's PCVR settings) as a preset file."""
-    ramp = settings.ramp
-    elements = "".join(f"        ({as_typed(position)!r}, {tuple(as_typed(c) for c in rgba)!r}),\n"
-                       for position, rgba in ramp_elements(ramp))
+    """Save the transfer function, gradient opacity and material of `settings` (a volume's PCVR settings) as a
+    preset file."""
+    ramp, gradient_ramp = settings.ramp, settings.gradient_ramp
+    elements = _elements(ramp)
     interpolation = ramp.interpolation if ramp else 'LINEAR'
     color_mode = ramp.color_mode if ramp else 'RGB'
     with open(filepath, "w", encoding="utf-8") as file:
@@ -86,5 +92,13 @@ def write(settings, filepath):
             f"settings.use_grid_range = {settings.use_grid_range!r}\n"
             f"settings.use_shading = {settings.use_shading!r}\n"
             f"settings.opacity_scale = {as_typed(settings.opacity_scale)!r}\n"
+            "settings.set_gradient_opacity(\n"
+            f"    gradient_max={as_typed(settings.gradient_max)!r},\n"
+            "    elements=[\n"
+            f"{_elements(gradient_ramp, DEFAULT_GRADIENT_RAMP)}"
+            "    ],\n"
+            f"    interpolation={(gradient_ramp.interpolation if gradient_ramp else 'LINEAR')!r},\n"
+            ")\n"
+            f"settings.use_gradient_opacity = {settings.use_gradient_opacity!r}\n"
             f"settings.set_material(ambient={as_typed(settings.ambient)!r}, diffuse={as_typed(settings.diffuse)!r}, "
             f"specular={as_typed(settings.specular)!r}, shininess={as_typed(settings.shininess)!r})\n")

@@ -219,6 +219,13 @@ class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
 
 
+def ramp_texture_property(name, description):
+    """A pointer to a Texture whose colour ramp the volume's settings use (a Texture is an ID: see
+    transfer_function.py)."""
+    return PointerProperty(name=name, description=description, type=bpy.types.Texture,
+                           poll=lambda _self, texture: texture.use_color_ramp, update=tag_changed)
+
+
 class PCVRClipPlane(bpy.types.PropertyGroup):
     """One clip plane of a volume: an object whose local +Z side is kept."""
     object: PointerProperty(
@@ -299,12 +306,9 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     )
 
     # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
-    transfer_function: PointerProperty(
+    transfer_function: ramp_texture_property(
         name="Transfer Function",
         description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
-        type=bpy.types.Texture,
-        poll=lambda _self, texture: texture.use_color_ramp,
-        update=tag_changed,
     )
     use_grid_range: BoolProperty(
         name="Range from Grid",
@@ -329,6 +333,27 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Opacity Scale",
         description="Multiplier of the extinction: 2 makes a voxel as opaque as two were",
         min=0.001, soft_max=10.0,
+        default=1.0,
+        update=tag_changed,
+    )
+    # Gradient opacity (shaded mode): the opacity times a ramp's alpha over |gradient|; see transfer_function.py.
+    use_gradient_opacity: BoolProperty(
+        name="Gradient Opacity",
+        description="Scale the opacity by a function of how fast the density changes: boundaries stay, uniform "
+                    "regions fade (VTK's and 3D Slicer's gradient opacity)",
+        default=False,
+        update=tag_changed,
+    )
+    gradient_opacity: ramp_texture_property(
+        name="Gradient Opacity",
+        description="Texture whose colour ramp's alpha is the opacity factor over gradient magnitudes 0 to Max "
+                    "Gradient",
+    )
+    gradient_max: FloatProperty(
+        name="Max Gradient",
+        description="Gradient magnitude at the right end of the gradient-opacity ramp, in density units (times the "
+                    "density scale) per world unit; the ramp's last factor holds beyond",
+        min=1e-9, soft_max=1000.0,
         default=1.0,
         update=tag_changed,
     )
@@ -367,12 +392,32 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         texture = self.transfer_function
         return texture.color_ramp if texture is not None and texture.use_color_ramp else None
 
+    @property
+    def gradient_ramp(self):
+        """The ColorRamp of the gradient opacity, or None (DEFAULT_GRADIENT_RAMP applies)."""
+        texture = self.gradient_opacity
+        return texture.color_ramp if texture is not None and texture.use_color_ramp else None
+
+    def _ensure_texture(self, name, label, elements):
+        """The texture that property `name` points to, a new one holding `elements` when there is none."""
+        if getattr(self, name) is None:
+            setattr(self, name, transfer_function.new_ramp_texture(bpy.data.textures, f"{self.id_data.name} {label}",
+                                                                    elements))
+        return getattr(self, name)
+
     def ensure_transfer_function(self):
         """The transfer function's texture, a new one holding the default ramp when the volume has none."""
-        if self.transfer_function is None:
-            self.transfer_function = transfer_function.new_ramp_texture(
-                bpy.data.textures, f"{self.id_data.name} Transfer Function")
-        return self.transfer_function
+        return self._ensure_texture("transfer_function", "Transfer Function", transfer_function.DEFAULT_RAMP)
+
+    def ensure_gradient_opacity(self):
+        """The gradient opacity's texture, a new one holding the default ramp when the volume has none."""
+        return self._ensure_texture("gradient_opacity", "Gradient Opacity", transfer_function.DEFAULT_GRADIENT_RAMP)
+
+    def set_gradient_opacity(self, gradient_max, elements, interpolation='LINEAR'):
+        """The gradient-opacity ramp `elements`, (position, rgba) pairs, over magnitudes 0 to gradient_max. What
+        presets call (use_gradient_opacity is theirs to set)."""
+        transfer_function.set_ramp(self.ensure_gradient_opacity().color_ramp, elements, interpolation)
+        self.gradient_max = gradient_max
 
     def set_transfer_function(self, tf_min, tf_max, elements, interpolation='LINEAR', color_mode='RGB'):
         """The ramp `elements`, (position, rgba) pairs, over densities tf_min to tf_max (range no longer
@@ -385,11 +430,15 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         self.ambient, self.diffuse, self.specular, self.shininess = ambient, diffuse, specular, shininess
 
     def apply_slicer_preset(self, scalar_opacity, color_transfer, shade, ambient, diffuse, specular,
-                            specular_power):
+                            specular_power, gradient_opacity=None):
         """A 3D Slicer volume-rendering preset, its numbers as presets.xml has them (see
-        transfer_function.slicer_ramp); the opacity scale returns to 1."""
+        transfer_function.slicer_ramp and slicer_gradient_ramp); the opacity scale returns to 1."""
         tf_min, tf_max, elements = transfer_function.slicer_ramp(scalar_opacity, color_transfer)
+        gradient = None if gradient_opacity is None else transfer_function.slicer_gradient_ramp(gradient_opacity)
         self.set_transfer_function(tf_min, tf_max, elements)
+        if gradient is not None:
+            self.set_gradient_opacity(*gradient)
+        self.use_gradient_opacity = gradient is not None
         self.set_material(ambient, diffuse, specular, specular_power)
         self.use_shading = shade
         self.opacity_scale = 1.0

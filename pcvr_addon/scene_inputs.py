@@ -38,6 +38,8 @@ class RampInputs:
     tf_min: float
     tf_max: float
     opacity_scale: float
+    gradient: tuple = ()          # gradient opacity (shaded mode): increasing |gradient| per world unit, or none
+    gradient_opacity: tuple = ()  # the opacity factor at each
 
 
 @dataclass(frozen=True)
@@ -134,7 +136,17 @@ def ramp_inputs(settings):
         tf_min=settings.tf_min,
         tf_max=settings.tf_max,
         opacity_scale=settings.opacity_scale,
+        **gradient_opacity_inputs(settings),
     )
+
+
+def gradient_opacity_inputs(settings):
+    """RampInputs' gradient and gradient_opacity of a volume's PCVR settings (none when not used)."""
+    if not settings.use_gradient_opacity:
+        return {}
+    positions, rgba = transfer_function.ramp_points(settings.gradient_ramp, transfer_function.DEFAULT_GRADIENT_RAMP)
+    gradient, factors = transfer_function.gradient_points(positions, rgba, settings.gradient_max)
+    return {"gradient": tuple(map(float, gradient)), "gradient_opacity": tuple(map(float, factors))}
 
 
 def material(settings):

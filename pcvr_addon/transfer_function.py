@@ -26,6 +26,14 @@ DEFAULT_RAMP = (
     (1.0, (1.0, 1.0, 1.0, 0.05)),
 )
 
+# Gradient opacity (shaded mode): a second ramp whose alpha is the factor on the opacity over gradient
+# magnitudes 0..gradient_max (density units per world unit; the ends hold beyond). By default uniform regions
+# vanish and boundaries keep their opacity. Its colour is unused.
+DEFAULT_GRADIENT_RAMP = (
+    (0.0, (1.0, 1.0, 1.0, 0.0)),
+    (1.0, (1.0, 1.0, 1.0, 1.0)),
+)
+
 # Blender's colour ramps hold at most this many elements.
 MAX_ELEMENTS = 32
 
@@ -47,10 +55,10 @@ class ControlPoints:
         return np.stack(channels, axis=-1)
 
 
-def ramp_elements(ramp):
-    """The (position, rgba) pairs of a ColorRamp, or DEFAULT_RAMP's when `ramp` is None."""
+def ramp_elements(ramp, default=DEFAULT_RAMP):
+    """The (position, rgba) pairs of a ColorRamp, or `default`'s when `ramp` is None."""
     if ramp is None:
-        return [(position, tuple(rgba)) for position, rgba in DEFAULT_RAMP]
+        return [(position, tuple(rgba)) for position, rgba in default]
     return [(element.position, tuple(element.color)) for element in ramp.elements]
 
 
@@ -73,11 +81,11 @@ def _sampled(ramp):
     return positions, np.array([ramp.evaluate(float(p)) for p in positions], dtype=np.float64)
 
 
-def ramp_points(ramp):
-    """(positions in 0..1, rgba) of `ramp` (a ColorRamp, or None for DEFAULT_RAMP) as control points: its
+def ramp_points(ramp, default=DEFAULT_RAMP):
+    """(positions in 0..1, rgba) of `ramp` (a ColorRamp, or None for `default`) as control points: its
     elements where it is linear in RGB, else samples. Reads Blender data: call on Blender's main thread."""
     if ramp is None or (ramp.interpolation == 'LINEAR' and ramp.color_mode == 'RGB'):
-        elements = ramp_elements(ramp)
+        elements = ramp_elements(ramp, default)
         positions = [position for position, _rgba in elements]
         rgba = np.array([colour for _position, colour in elements], dtype=np.float64)
         return np.asarray(positions, dtype=np.float64), rgba
@@ -99,6 +107,15 @@ def control_points(ramp, tf_min, tf_max):
     """The control points of `ramp` (a ColorRamp, or None for DEFAULT_RAMP) over densities tf_min..tf_max.
     Raises ValueError when the range is empty."""
     return points_over_range(*ramp_points(ramp), tf_min, tf_max)
+
+
+def gradient_points(positions, rgba, gradient_max):
+    """(gradient magnitudes, factors) of a gradient-opacity ramp's points (see ramp_points): positions 0..1
+    spread over magnitudes 0..gradient_max, the factor the alpha. Raises ValueError unless gradient_max > 0."""
+    if not gradient_max > 0:
+        raise ValueError(f"the gradient opacity's Max Gradient must be positive, not {gradient_max:g}")
+    gradient = _strictly_increasing(np.asarray(positions, dtype=np.float64) * gradient_max, gradient_max)
+    return gradient, np.clip(np.asarray(rgba, dtype=np.float64)[:, 3], 0.0, 1.0)
 
 
 def set_ramp(ramp, elements, interpolation='LINEAR', color_mode='RGB'):
@@ -143,10 +160,19 @@ def smallest_voxel_spacing(index_to_world):
     return float(np.linalg.norm(np.asarray(index_to_world)[:3, :3], axis=0).min())
 
 
+def edge_gradient(value_range, density_scale, index_to_world):
+    """|gradient| per world unit of a sharp edge across a grid's whole range (grid_range): the range over two of
+    its shortest voxel spacings, as the kernels spread a one-voxel step. A start for the gradient opacity's
+    Max Gradient."""
+    low, high = grid_range(value_range, density_scale)
+    return (high - low) / (2.0 * smallest_voxel_spacing(index_to_world))
+
+
 # -------------------------------------------------------------------------------------------------
 # 3D Slicer's volume-rendering presets (Modules/Loadable/VolumeRendering/Resources/presets.xml) give VTK's
 # transfer functions: a scalar opacity [count, x0, a0, x1, a1, ...] and a colour transfer function
-# [count, x0, r0, g0, b0, ...], each piecewise linear over the scalar x. VTK blends their colours as they
+# [count, x0, r0, g0, b0, ...], each piecewise linear over the scalar x, and a gradient opacity
+# [count, g0, f0, g1, f1, ...] over the gradient magnitude g. VTK blends their colours as they
 # are shown on screen, without colour management, so they are display (sRGB) values, decoded here to the
 # linear values of Blender's ramps: under the Standard view transform a preset shows Slicer's colours.
 
@@ -178,3 +204,19 @@ def slicer_ramp(scalar_opacity, color_transfer):
     positions = (scalars - tf_min) / (tf_max - tf_min)
     elements = [(float(p), (*map(float, c), float(a))) for p, c, a in zip(positions, rgb, alpha)]
     return tf_min, tf_max, elements
+
+
+def slicer_gradient_ramp(gradient_opacity):
+    """(gradient_max, elements) of a gradient-opacity ramp that holds a Slicer preset's gradientOpacity, or None
+    where its factor is 1 at every point (every preset Slicer ships): no modulation, the cheaper render."""
+    points = _vtk_points(gradient_opacity, 2)
+    gradient, factor = points[:, 0], points[:, 1]
+    if np.all(factor == 1.0):
+        return None
+    if len(points) > MAX_ELEMENTS:
+        raise ValueError(f"the preset's gradient opacity has {len(points)} points; a colour ramp holds {MAX_ELEMENTS}")
+    if gradient[0] < 0 or np.any(np.diff(gradient) <= 0) or np.any((factor < 0) | (factor > 1)):
+        raise ValueError("a gradient opacity needs increasing magnitudes from 0 up and factors in [0, 1]")
+    gradient_max = float(gradient[-1]) if gradient[-1] > 0 else 1.0
+    elements = [(float(g / gradient_max), (1.0, 1.0, 1.0, float(f))) for g, f in points]
+    return gradient_max, elements

@@ -266,6 +266,27 @@ class PCVR_DATA_PT_transfer_function(VolumeSheetPanel, Panel):
             layout.prop(settings, "opacity_scale")
 
 
+class PCVR_DATA_PT_gradient_opacity(VolumeSheetPanel, Panel):
+    bl_label = "Gradient Opacity"
+    bl_options = {'DEFAULT_CLOSED'}
+    modes = {'SHADED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.volume.pcvr, "use_gradient_opacity", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.volume.pcvr
+        layout.active = settings.use_gradient_opacity
+        layout.template_ID(settings, "gradient_opacity", new="pcvr.gradient_opacity_new")
+        if settings.gradient_ramp is not None:
+            layout.template_color_ramp(settings.gradient_opacity, "color_ramp", expand=True)
+        else:
+            layout.label(text="Transparent where uniform, opaque from Max Gradient", icon='INFO')
+        property_split(layout).prop(settings, "gradient_max")
+        layout.operator("pcvr.gradient_max_from_grid", icon='IMPORT')
+
+
 class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
     bl_label = "Shading"
     modes = {'SHADED'}
@@ -379,6 +400,7 @@ classes = (
     PCVR_DATA_PT_clipping,
     PCVR_PT_transfer_function_presets,
     PCVR_DATA_PT_transfer_function,
+    PCVR_DATA_PT_gradient_opacity,
     PCVR_DATA_PT_shading,
     PCVR_LIGHT_PT_light,
     PCVR_WORLD_PT_ambient,

@@ -36,15 +36,29 @@ Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double s
     return light;
 }
 
-TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std::optional<double> unit_distance) {
+/// A sequence of numbers (None: none) as doubles.
+std::vector<double> doubles_from_python(nb::handle values) {
+    std::vector<double> out;
+    if (values.is_none()) return out;
+    nb::object flat = nb::module_::import_("numpy").attr("asarray")(values, "dtype"_a = "float64").attr("reshape")(-1);
+    for (size_t i = 0, n = nb::len(flat); i < n; ++i) out.push_back(nb::cast<double>(flat[nb::int_(i)]));
+    return out;
+}
+
+nb::list doubles_to_python(const std::vector<double>& values) {
+    nb::list out;
+    for (double v : values) out.append(v);
+    return out;
+}
+
+TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std::optional<double> unit_distance, nb::handle gradient,
+                                        nb::handle gradient_opacity) {
     nb::module_ np = nb::module_::import_("numpy");
-    nb::object d = np.attr("asarray")(density, "dtype"_a = "float64").attr("reshape")(-1);
     nb::object c = np.attr("asarray")(rgba, "dtype"_a = "float64");
-    const size_t n = nb::len(d);
     if (nb::cast<int>(c.attr("ndim")) != 2 || nb::cast<size_t>(c.attr("shape")[nb::int_(1)]) != 4)
         throw InvalidArgument("TransferFunction: rgba must be a list of [r, g, b, a] rows");
     TransferFunction tf;
-    for (size_t i = 0; i < n; ++i) tf.density.push_back(nb::cast<double>(d[nb::int_(i)]));
+    tf.density = doubles_from_python(density);
     const size_t rows = nb::cast<size_t>(c.attr("shape")[nb::int_(0)]);
     for (size_t i = 0; i < rows; ++i) {
         nb::object row = c[nb::int_(i)];
@@ -53,6 +67,8 @@ TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std
     }
     tf.unit_distance = unit_distance.value_or(0.0);
     if (unit_distance && !(*unit_distance > 0)) throw InvalidArgument("TransferFunction: unit_distance must be positive or None");
+    tf.gradient = doubles_from_python(gradient);
+    tf.gradient_opacity = doubles_from_python(gradient_opacity);
     tf.validate();
     return tf;
 }
@@ -204,17 +220,20 @@ void bind_shaded(nb::module_& m) {
     nb::class_<TransferFunction>(m, "TransferFunction",
                                  "Density -> colour and opacity: piecewise linear over increasing control points. Colours are\n"
                                  "linear RGB; an opacity is that of a slab `unit_distance` world units thick (None: the\n"
-                                 "grid's smallest voxel spacing), corrected for each sample's actual thickness.")
+                                 "grid's smallest voxel spacing), corrected for each sample's actual thickness.\n"
+                                 "gradient and gradient_opacity (both or neither): increasing magnitudes of the density's\n"
+                                 "gradient (density units per world unit) and factors in [0, 1], piecewise linear, the end\n"
+                                 "values beyond the ends. A sample's opacity a becomes a * factor(|gradient|) before the\n"
+                                 "correction, as if the transfer function said a * factor there (VTK's gradient opacity).")
         .def("__init__",
-             [](TransferFunction* self, nb::handle density, nb::handle rgba, std::optional<double> unit_distance) {
-                 new (self) TransferFunction(make_transfer_function(density, rgba, unit_distance));
+             [](TransferFunction* self, nb::handle density, nb::handle rgba, std::optional<double> unit_distance, nb::handle gradient,
+                nb::handle gradient_opacity) {
+                 new (self) TransferFunction(make_transfer_function(density, rgba, unit_distance, gradient, gradient_opacity));
              },
-             "density"_a, "rgba"_a, "unit_distance"_a = nb::none())
-        .def_prop_ro("density", [](const TransferFunction& tf) {
-            nb::list out;
-            for (double d : tf.density) out.append(d);
-            return out;
-        })
+             "density"_a, "rgba"_a, "unit_distance"_a = nb::none(), "gradient"_a = nb::none(), "gradient_opacity"_a = nb::none())
+        .def_prop_ro("density", [](const TransferFunction& tf) { return doubles_to_python(tf.density); })
+        .def_prop_ro("gradient", [](const TransferFunction& tf) { return doubles_to_python(tf.gradient); })
+        .def_prop_ro("gradient_opacity", [](const TransferFunction& tf) { return doubles_to_python(tf.gradient_opacity); })
         .def_prop_ro("rgba", [](const TransferFunction& tf) {
             nb::list out;
             for (const auto& c : tf.rgba) out.append(nb::make_tuple(c[0], c[1], c[2], c[3]));

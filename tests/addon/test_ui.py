@@ -158,6 +158,7 @@ def test_panels_of_each_mode(tmp_path, mode):
     sheets = mode in {'SHADED', 'MIP'}
     assert ui.PCVR_DATA_PT_transfer_function.poll(context) == sheets
     assert ui.PCVR_DATA_PT_shading.poll(context) == (mode == 'SHADED')
+    assert ui.PCVR_DATA_PT_gradient_opacity.poll(context) == (mode == 'SHADED')
     assert ui.PCVR_LIGHT_PT_light.poll(context) == (mode == 'SHADED')
     assert ui.PCVR_WORLD_PT_ambient.poll(context) == sheets
     if not sheets:
@@ -173,6 +174,12 @@ def test_panels_of_each_mode(tmp_path, mode):
     if mode == 'SHADED':
         assert draw(ui.PCVR_DATA_PT_shading, context, "draw_header") == ["use_shading"]
         assert draw(ui.PCVR_DATA_PT_shading, context) == ["ambient", "diffuse", "specular", "shininess"]
+        assert draw(ui.PCVR_DATA_PT_gradient_opacity, context, "draw_header") == ["use_gradient_opacity"]
+        gradient = draw(ui.PCVR_DATA_PT_gradient_opacity, context)
+        assert gradient[:2] == ["gradient_opacity", "pcvr.gradient_opacity_new"]
+        assert gradient[-2:] == ["gradient_max", "pcvr.gradient_max_from_grid"]
+        obj.data.pcvr.ensure_gradient_opacity()
+        assert "color_ramp" in draw(ui.PCVR_DATA_PT_gradient_opacity, context)
         lit = draw(ui.PCVR_LIGHT_PT_light, context)
         assert {"type", "color", "energy"} <= set(lit) and "Lights as a point light: no cone, no size" in lit
     world_drawn = draw(ui.PCVR_WORLD_PT_ambient, context)

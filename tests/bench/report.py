@@ -14,6 +14,7 @@ from pathlib import Path
 import analysis_report
 import batch_bench
 import big_volume_bench
+import clipping_bench
 import ct_head
 import evidence_report
 import magnification_curve
@@ -437,6 +438,7 @@ def write(results: dict, output: Path) -> None:
     lines += analysis_report.kernel_section(results.get("kernel_search"))
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += ct_head.section(results.get("ct_head"))
+    lines += clipping_bench.section(results.get("clipping"))
     lines += viewport_bench.section(results.get("viewport"))
     lines += minification_bench.section(results.get("minification"))
     lines += shaded_levels.section(results.get("shaded_levels"))

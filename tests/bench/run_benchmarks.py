@@ -19,6 +19,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |
 | CT head     | ct_head.py       | shaded rendering of a real CT head (Debian's invesalius-examples) against VTK |
+| cut open    | clipping_bench.py | X-ray and shaded time and error of the CT head whole, cropped to half, cut by a plane |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -90,6 +91,7 @@ STANDALONE_PARTS = [
     ("big_volume", "big_volume_bench", "big volumes"),
     ("batch", "batch_bench", "batches over Dask"),
     ("ct_head", "ct_head", "shaded rendering of a real CT head against VTK"),
+    ("clipping", "clipping_bench", "cut open: crop boxes and clip planes"),
 ]
 
 
@@ -470,6 +472,8 @@ def parse_args(argv=None):
                    help="skip frames/s and DRRs/s of batches in one process and on Dask workers")
     p.add_argument("--no-ct-head", dest="ct_head", action="store_false",
                    help="skip the real CT head against VTK")
+    p.add_argument("--no-clipping", dest="clipping", action="store_false",
+                   help="skip the CT head whole, cropped and cut by a plane")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.

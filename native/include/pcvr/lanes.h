@@ -91,6 +91,40 @@ inline float8 exp8(float8 x) {
     return p * scale;
 }
 
+/// ln x to about 2 ulp for finite x > 0 (Cephes' logf): x = m 2^e with m in [sqrt(1/2), sqrt(2)), a
+/// degree-9 polynomial in m - 1 and e ln 2 added in two parts.
+inline float8 log8(float8 x) {
+    int8x bits;
+    std::memcpy(&bits, &x, sizeof bits);
+    int8x e = ((bits >> 23) & 0xff) - 126;
+    bits = (bits & int32_t(0x807fffff)) | 0x3f000000;  // the mantissa in [1/2, 1)
+    float8 m;
+    std::memcpy(&m, &bits, sizeof m);
+    const int8x small = m < 0.707106781f;
+    e += small;  // -1 where true
+    m = select8(small, m + m, m) - 1.0f;
+    const float8 z = m * m;
+    float8 p = broadcast8(7.0376836292e-2f);
+    p = p * m - 1.1514610310e-1f;
+    p = p * m + 1.1676998740e-1f;
+    p = p * m - 1.2420140846e-1f;
+    p = p * m + 1.4249322787e-1f;
+    p = p * m - 1.6668057665e-1f;
+    p = p * m + 2.0000714765e-1f;
+    p = p * m - 2.4999993993e-1f;
+    p = p * m + 3.3333331174e-1f;
+    const float8 n = __builtin_convertvector(e, float8);
+    return m + (p * m * z + n * -2.12194440e-4f - 0.5f * z) + n * 0.693359375f;
+}
+
+/// ln(1 + x) for x > -1, accurate for small |x| too: ln u scaled by x / (u - 1), which undoes the
+/// rounding of u = 1 + x (Goldberg's trick).
+inline float8 log1p8(float8 x) {
+    const float8 u = 1.0f + x;
+    const int8x exact = u == 1.0f;
+    return select8(exact, x, log8(u) * (x / select8(exact, broadcast8(1.0f), u - 1.0f)));
+}
+
 /// Three vectors of eight lanes: eight 3-D points or directions.
 struct Vec3x8 {
     float8 x, y, z;

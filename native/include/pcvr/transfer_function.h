@@ -10,6 +10,14 @@
 /// correction: halving the sample spacing leaves the image unchanged). The table also says which
 /// density ranges are wholly transparent, so that blocks of voxels that cannot become visible are
 /// skipped before they are splatted (what Open VKL's transfer functions report as value ranges).
+///
+/// Gradient opacity (VTK's GradientOpacity, the `gradientOpacity` of 3D Slicer's presets): optional
+/// control points over increasing gradient magnitude |grad density|, in density units per world unit,
+/// each with a factor in [0, 1] (piecewise linear, the end values beyond the ends). The factor f scales
+/// the opacity per unit_distance before it becomes an extinction, exactly as if the transfer function's
+/// opacity at that density were a f: extinction = -ln(1 - a f) / unit_distance, so opacity correction
+/// still leaves the image independent of the sample spacing. Since f <= 1 it only removes opacity:
+/// the transparent ranges stay valid.
 #pragma once
 
 #include <array>
@@ -23,9 +31,14 @@ struct TransferFunction {
     std::vector<double> density;               ///< strictly increasing control points
     std::vector<std::array<double, 4>> rgba;   ///< linear RGB (>= 0) and opacity in [0, 1], one per point
     double unit_distance = 0;                  ///< world units; 0 = the smallest voxel spacing of its grid
+    std::vector<double> gradient;              ///< strictly increasing |gradient| points (>= 0); empty: no modulation
+    std::vector<double> gradient_opacity;      ///< opacity factor in [0, 1], one per gradient point
+
+    bool has_gradient_opacity() const { return !gradient.empty(); }
 
     /// Throws InvalidArgument naming the problem: no points, sizes that differ, densities not
-    /// increasing, non-finite numbers, colours below 0, opacities outside [0, 1], unit_distance < 0.
+    /// increasing, non-finite numbers, colours below 0, opacities outside [0, 1], unit_distance < 0,
+    /// and the same for the gradient points (negative magnitudes too) and their factors.
     void validate() const;
 };
 
@@ -49,16 +62,26 @@ public:
         const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
         const int8x i = __builtin_convertvector(x, int8x);
         const float8 f = x - __builtin_convertvector(i, float8);
-        auto lerp = [&](const std::vector<float>& channel) {
-            const float8 a = gather8(channel.data(), i), b = gather8(channel.data() + 1, i);
-            return a + f * (b - a);
-        };
-        return {lerp(red_), lerp(green_), lerp(blue_), lerp(extinction_)};
+        return {lerp_entries(red_, i, f), lerp_entries(green_, i, f), lerp_entries(blue_, i, f), lerp_entries(extinction_, i, f)};
     }
     Sample operator()(float density) const {
         const Samples s = (*this)(broadcast8(density));
         return {s.red[0], s.green[0], s.blue[0], s.extinction[0]};
     }
+    bool has_gradient_opacity() const { return !gradient_factor_.empty(); }
+    /// The extinctions of samples with opacity per unit distance a(density) times the gradient factor
+    /// at |gradient| `magnitude`: -ln(1 - a f) / unit_distance. Only for tables with gradient opacity.
+    float8 extinction(float8 density, float8 magnitude) const {
+        const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
+        const int8x i = __builtin_convertvector(x, int8x);
+        const float8 a = lerp_entries(opacity_, i, x - __builtin_convertvector(i, float8));
+        const float8 y = clamp8((magnitude - gradient_first_) * gradient_scale_, 0.0f, float(kGradientEntries));
+        const int8x j = __builtin_convertvector(y, int8x);
+        const float8 f = lerp_entries(gradient_factor_, j, y - __builtin_convertvector(j, float8));
+        // The table caps a at 1 - 1e-7, so the logarithm is finite.
+        return min8(-log1p8(-a * f) * per_unit_distance_, broadcast8(1e30f));
+    }
+    float extinction(float density, float magnitude) const { return extinction(broadcast8(density), broadcast8(magnitude))[0]; }
     /// True when every density in [lo, hi] has zero opacity.
     bool transparent(double lo, double hi) const;
     /// Lanes whose density may be visible: inside the span between the first and the last density
@@ -66,11 +89,21 @@ public:
     int8x maybe_opaque(float8 density) const { return (density > opaque_from_) & (density < opaque_to_); }
 
 private:
+    static constexpr int kGradientEntries = 1024;
+    static float8 lerp_entries(const std::vector<float>& table, int8x i, float8 f) {
+        const float8 a = gather8(table.data(), i), b = gather8(table.data() + 1, i);
+        return a + f * (b - a);
+    }
+
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.
     std::vector<float> red_, green_, blue_, extinction_;
     std::vector<int> next_opaque_;  // per entry: the first entry at or after it with extinction > 0
     float opaque_from_, opaque_to_;  // densities outside (opaque_from, opaque_to) have no opacity
+    // Gradient opacity only (empty without): the opacity per unit distance beside the extinction, and
+    // the factor over kGradientEntries + 2 magnitudes from gradient_first by 1 / gradient_scale.
+    std::vector<float> opacity_, gradient_factor_;
+    float gradient_first_ = 0, gradient_scale_ = 0, per_unit_distance_ = 0;
 };
 
 }  // namespace pcvr

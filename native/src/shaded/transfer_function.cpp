@@ -33,7 +33,32 @@ void TransferFunction::validate() const {
     }
     if (!(unit_distance >= 0) || !std::isfinite(unit_distance))
         throw InvalidArgument(what + "unit_distance must be positive (or None for the voxel spacing)");
+    if (gradient.size() != gradient_opacity.size())
+        throw InvalidArgument(what + std::to_string(gradient.size()) + " gradient magnitudes but " +
+                              std::to_string(gradient_opacity.size()) + " gradient_opacity values (one per magnitude)");
+    for (size_t i = 0; i < gradient.size(); ++i) {
+        const std::string point = "gradient point " + std::to_string(i);
+        if (!std::isfinite(gradient[i]) || gradient[i] < 0)
+            throw InvalidArgument(what + point + ": the gradient magnitude must be finite and not negative");
+        if (i > 0 && !(gradient[i] > gradient[i - 1]))
+            throw InvalidArgument(what + "gradient magnitudes must increase (" + point + ": " + std::to_string(gradient[i]) +
+                                  " after " + std::to_string(gradient[i - 1]) + ")");
+        if (!(gradient_opacity[i] >= 0 && gradient_opacity[i] <= 1))
+            throw InvalidArgument(what + point + ": gradient_opacity must lie in [0, 1]");
+    }
 }
+
+namespace {
+/// The gradient opacity factor at |gradient| m: piecewise linear, the end values beyond the ends.
+double gradient_factor_at(const TransferFunction& tf, double m) {
+    const auto& g = tf.gradient;
+    const auto& o = tf.gradient_opacity;
+    if (m <= g.front()) return o.front();
+    if (m >= g.back()) return o.back();
+    const size_t k = size_t(std::upper_bound(g.begin(), g.end(), m) - g.begin());  // g[k - 1] <= m < g[k]
+    return o[k - 1] + (m - g[k - 1]) / (g[k] - g[k - 1]) * (o[k] - o[k - 1]);
+}
+}  // namespace
 
 ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit_distance) {
     tf.validate();
@@ -60,8 +85,19 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
         blue_[e] = float(v[2]);
         // Capped where a unit_distance of 1e-300 would make it infinite: opaque in any sample anyway.
         extinction_[e] = float(std::min(-std::log1p(-opacity) / unit_distance, 1e30));
+        if (tf.has_gradient_opacity()) opacity_.push_back(float(opacity));
     }
     for (auto* channel : {&red_, &green_, &blue_, &extinction_}) (*channel)[kEntries + 1] = (*channel)[kEntries];
+    if (tf.has_gradient_opacity()) {
+        opacity_.push_back(opacity_.back());
+        per_unit_distance_ = float(std::min(1.0 / unit_distance, 1e30));
+        const double g0 = tf.gradient.front(), g1 = tf.gradient.back();
+        const double g_step = g1 > g0 ? (g1 - g0) / kGradientEntries : 1.0;
+        gradient_first_ = float(g0);
+        gradient_scale_ = float(1.0 / g_step);
+        for (int e = 0; e <= kGradientEntries; ++e) gradient_factor_.push_back(float(gradient_factor_at(tf, g0 + e * g_step)));
+        gradient_factor_.push_back(gradient_factor_.back());
+    }
 
     next_opaque_.resize(kEntries + 2);
     int next = kEntries + 2;

@@ -41,6 +41,9 @@ VoxelBlock split_cut_block(const VoxelBlock& block, const ClipRegion& clip, doub
 
 namespace {
 
+using Quadratic2 = CutSplatter::Quadratic2;
+using Linear2 = CutSplatter::Linear2;
+
 /// The pixels whose rays can meet a kernel: the projection of its bounding cube, or the whole image
 /// when part of the cube lies behind the eye.
 struct PixelSpan {
@@ -62,111 +65,156 @@ PixelSpan kernel_pixels(const Vec3& c, double radius, const ViewProjection& view
             clamp_to_int(std::floor(x1), -1, cam.width() - 1), clamp_to_int(std::floor(y1), -1, cam.height() - 1)};
 }
 
-/// One pixel row of a voxel's cut footprint. Along the row the ray through pixel x has origin
-/// o(x) = o + x o1 and direction D(x) = D + x D1 in index space (affine: orthographic rays share D,
-/// perspective ones o), so everything a tap needs is a polynomial in x of degree two at most: with
-/// w = centre - o(x), the parameter of closest approach w.D / D.D, rho^2 = w.w - (w.D)^2 / D.D, each
-/// plane's crossing t = -(n.o(x) + d) / n.D(x), and the world length per index length. Evaluated per
-/// tap by Horner, instead of building each pixel's ray (measured 5x).
-struct CutRow {
-    struct Quadratic {
-        double c0, c1, c2;
-        double at(double x) const { return c0 + x * (c1 + x * c2); }
-    };
-    struct Linear {
-        double c0, c1;
-        double at(double x) const { return c0 + x * c1; }
-    };
-    Quadratic wd, dd, ww, world;  // w.D, D.D, w.w, W.W (W the world direction)
-    std::vector<Linear> value, rate;  // per plane: n.o(x) + d, n.D(x)
+/// (a0 + x ax + y ay) . (b0 + x bx + y by) as a quadratic in (x, y).
+Quadratic2 product(const Vec3& a0, const Vec3& ax, const Vec3& ay, const Vec3& b0, const Vec3& bx, const Vec3& by) {
+    return {dot(a0, b0), dot(a0, bx) + dot(ax, b0), dot(a0, by) + dot(ay, b0), dot(ax, bx), dot(ax, by) + dot(ay, bx), dot(ay, by)};
+}
 
-    /// Row `y` of the view for the voxel at `centre` (reused row after row: the vectors keep their memory).
-    void set(const Vec3& centre, const ViewProjection& view, int y, const ClipRegion& clip) {
-        const Ray ray = view.index_ray(0, y), next = view.index_ray(1, y);
-        const Ray step{next.origin - ray.origin, next.direction - ray.direction};
-        const Vec3 world0 = view.world_direction(0, y), world1 = view.world_direction(1, y) - world0;
-        const Vec3 w0 = centre - ray.origin, w1 = -step.origin;
-        const Vec3 &d0 = ray.direction, &d1 = step.direction;
-        wd = {dot(w0, d0), dot(w0, d1) + dot(w1, d0), dot(w1, d1)};
-        dd = {dot(d0, d0), 2.0 * dot(d0, d1), dot(d1, d1)};
-        ww = {dot(w0, w0), 2.0 * dot(w0, w1), dot(w1, w1)};
-        world = {dot(world0, world0), 2.0 * dot(world0, world1), dot(world1, world1)};
-        value.clear(), rate.clear();
-        for (const ClipPlane& p : clip.planes()) {
-            value.push_back({p.at(ray.origin), dot(p.normal, step.origin)});
-            rate.push_back({dot(p.normal, d0), dot(p.normal, d1)});
+struct Quadratic {
+    double c0, c1, c2;
+    double at(double x) const { return c0 + x * (c1 + x * c2); }
+};
+struct Linear {
+    double c0, c1;
+    double at(double x) const { return c0 + x * c1; }
+};
+Quadratic on_row(const Quadratic2& q, double y) { return {q.c00 + y * (q.c01 + y * q.c02), q.c10 + y * q.c11, q.c20}; }
+Linear on_row(const Linear2& l, double y) { return {l.c0 + y * l.cy, l.cx}; }
+
+/// One row of a voxel's cut footprint: w.D, D.D, w.w and W.W as quadratics in the column x (w = centre
+/// - o(x)), and the planes that pass within the kernel's radius (the others leave its chord whole). With
+/// parallel rays a plane's crossing t = -(n.o + d) / n.D is linear in x: the crossings that bound t from
+/// below and from above, and the planes the rays run along (kept where n.o + d >= 0); otherwise n.o + d
+/// and n.D per plane. The vectors keep their memory from row to row.
+}  // namespace
+
+struct CutScratch::Row {
+    Quadratic wd, dd, ww, world;
+    std::vector<Linear> lower, upper, along, value, rate;
+
+    /// The columns [lo, hi] (pixel coordinates) where a parallel row's rays pass within `radius`:
+    /// rho^2 dd = ww dd - wd^2 < radius^2 dd, a quadratic in x (wd is linear there).
+    bool disc(double radius, double& lo, double& hi) const {
+        const double a = ww.c2 * dd.c0 - wd.c1 * wd.c1, b = ww.c1 * dd.c0 - 2.0 * wd.c0 * wd.c1;
+        const double c = (ww.c0 - radius * radius) * dd.c0 - wd.c0 * wd.c0;
+        const double disc = b * b - 4.0 * a * c;
+        if (!(a > 0) || !(disc > 0)) return false;
+        const double root = std::sqrt(disc);
+        lo = (-b - root) / (2.0 * a), hi = (-b + root) / (2.0 * a);
+        return true;
+    }
+
+    /// The kept interval [lo, hi] of the ray's parameter t at column x; empty when lo >= hi.
+    void kept(double x, double& lo, double& hi) const {
+        lo = -1e300, hi = 1e300;
+        for (const Linear& l : lower) lo = std::max(lo, l.at(x));
+        for (const Linear& u : upper) hi = std::min(hi, u.at(x));
+        for (const Linear& a : along)
+            if (a.at(x) < 0) hi = -1e300;
+        for (size_t k = 0; k < value.size(); ++k) {
+            const double v = value[k].at(x), r = rate[k].at(x);
+            if (r > 0)
+                lo = std::max(lo, -v / r);
+            else if (r < 0)
+                hi = std::min(hi, -v / r);
+            else if (v < 0)
+                hi = -1e300;
         }
     }
 };
 
+CutScratch::CutScratch() : row(std::make_unique<Row>()) {}
+CutScratch::~CutScratch() = default;
 
-/// Where one cut voxel's kept integrals go: the lattice of points x = scale (column + first_column),
-/// y = scale (row + first_row) in pixel coordinates (the image's pixels, or a subgrid's nodes).
-struct CutLattice {
-    double scale;
-    int first_column, first_row, columns, rows;
-};
+CutSplatter::CutSplatter(const ViewProjection& view, const ClipRegion& clip, const Kernel& kernel)
+    : view_(view), clip_(clip), profile_(kernel) {
+    const Ray r0 = view.index_ray(0, 0), rx = view.index_ray(1, 0), ry = view.index_ray(0, 1);
+    o0_ = r0.origin, ox_ = rx.origin - r0.origin, oy_ = ry.origin - r0.origin;
+    d0_ = r0.direction, dx_ = rx.direction - r0.direction, dy_ = ry.direction - r0.direction;
+    parallel_ = view.orthographic();
+    if (parallel_) dx_ = dy_ = {0, 0, 0};
+    const Vec3 w0 = view.world_direction(0, 0), wx = view.world_direction(1, 0) - w0, wy = view.world_direction(0, 1) - w0;
+    dd_ = product(d0_, dx_, dy_, d0_, dx_, dy_);
+    world_ = parallel_ ? Quadratic2{dot(w0, w0)} : product(w0, wx, wy, w0, wx, wy);
+    for (const ClipPlane& p : clip.planes()) {
+        plane_value_.push_back({p.at(o0_), dot(p.normal, ox_), dot(p.normal, oy_)});
+        plane_rate_.push_back({dot(p.normal, d0_), dot(p.normal, dx_), dot(p.normal, dy_)});
+    }
+}
 
-/// Adds one voxel's kept line integrals at the lattice points whose rays meet its kernel into
-/// `out(row)` (a pointer to the row's first entry); returns the taps evaluated.
+bool CutSplatter::smooth(const CutVoxel& voxel) const {
+    const Vec3 towards = view_.orthographic() ? d0_ : voxel.centre - view_.eye();
+    const double along = length(towards);
+    for (const ClipPlane& p : clip_.planes())
+        if (std::abs(p.at(voxel.centre)) < profile_.radius() && std::abs(dot(p.normal, towards)) < kSmoothCut * along) return false;
+    return true;
+}
+
 template <class RowOf>
-uint64_t add_cut_footprint(const CutVoxel& v, const ViewProjection& view, const ClipRegion& clip, const CutProfile& profile,
-                           const CutLattice& at, CutRow& row, RowOf&& out) {
-    const double radius = profile.radius();
-    if (!ViewProjection::inside_clip_range(view.to_clip(v.centre))) return 0;
-    const PixelSpan span = kernel_pixels(v.centre, radius, view);
+uint64_t CutSplatter::add(const CutVoxel& v, const Lattice& at, CutScratch& scratch, RowOf&& out) const {
+    const double radius = profile_.radius(), radius2 = radius * radius;
+    if (!ViewProjection::inside_clip_range(view_.to_clip(v.centre))) return 0;
+    const PixelSpan span = kernel_pixels(v.centre, radius, view_);
     const int c0 = clamp_to_int(std::ceil(span.x0 / at.scale) - at.first_column, 0, at.columns);
     const int c1 = clamp_to_int(std::floor(span.x1 / at.scale) - at.first_column, -1, at.columns - 1);
     const int r0 = clamp_to_int(std::ceil(span.y0 / at.scale) - at.first_row, 0, at.rows);
     const int r1 = clamp_to_int(std::floor(span.y1 / at.scale) - at.first_row, -1, at.rows - 1);
-    const double radius2 = radius * radius;
+    // w = centre - o(x, y): w.D and w.w over the image, and the planes near this kernel.
+    const Vec3 w0 = v.centre - o0_;
+    const Quadratic2 wd = product(w0, -ox_, -oy_, d0_, dx_, dy_), ww = product(w0, -ox_, -oy_, w0, -ox_, -oy_);
+    std::vector<size_t>& near = scratch.near;
+    near.clear();
+    for (size_t k = 0; k < clip_.planes().size(); ++k)
+        if (std::abs(clip_.planes()[k].at(v.centre)) < radius) near.push_back(k);
+    CutScratch::Row& row = *scratch.row;
     uint64_t taps = 0;
     for (int r = r0; r <= r1; ++r) {
-        row.set(v.centre, view, at.scale * (r + at.first_row), clip);
+        const double y = at.scale * (r + at.first_row);
+        row.wd = on_row(wd, y), row.dd = on_row(dd_, y), row.ww = on_row(ww, y), row.world = on_row(world_, y);
+        for (auto* list : {&row.lower, &row.upper, &row.along, &row.value, &row.rate}) list->clear();
+        for (size_t k : near) {
+            const Linear value = on_row(plane_value_[k], y), rate = on_row(plane_rate_[k], y);
+            if (!parallel_)
+                row.value.push_back(value), row.rate.push_back(rate);
+            else if (rate.c0 != 0.0)
+                (rate.c0 > 0 ? row.lower : row.upper).push_back({-value.c0 / rate.c0, -value.c1 / rate.c0});
+            else
+                row.along.push_back(value);
+        }
+        int first = c0, last = c1;
+        if (parallel_) {  // the disc's columns only
+            double lo, hi;
+            if (!row.disc(radius, lo, hi)) continue;
+            first = std::max(first, clamp_to_int(std::floor(lo / at.scale) - at.first_column, c0, c1 + 1));
+            last = std::min(last, clamp_to_int(std::ceil(hi / at.scale) - at.first_column, c0 - 1, c1));
+        }
         auto* values = out(r);
-        for (int c = c0; c <= c1; ++c) {
+        // Parallel rays: D.D and W.W are the same along the row, and so the divisions and roots.
+        const double row_inverse = 1.0 / row.dd.c0, row_length = std::sqrt(row.dd.c0);
+        const double row_scale = v.amplitude * std::sqrt(row.world.c0 * row_inverse);
+        for (int c = first; c <= last; ++c) {
             const double x = at.scale * (c + at.first_column);
-            const double dd = row.dd.at(x), wd = row.wd.at(x), inverse = 1.0 / dd;
-            const double rho2 = row.ww.at(x) - wd * wd * inverse;
+            const double dd = parallel_ ? row.dd.c0 : row.dd.at(x), inverse = parallel_ ? row_inverse : 1.0 / dd;
+            const double wd_x = row.wd.at(x), rho2 = row.ww.at(x) - wd_x * wd_x * inverse;
             if (!(rho2 < radius2)) continue;
             ++taps;
             // The kept interval of t (the ray's parameter) and where t passes the centre.
-            double lo = -1e300, hi = 1e300;
-            for (size_t k = 0; k < row.value.size(); ++k) {
-                const double value = row.value[k].at(x), rate = row.rate[k].at(x);
-                if (rate > 0)
-                    lo = std::max(lo, -value / rate);
-                else if (rate < 0)
-                    hi = std::min(hi, -value / rate);
-                else if (value < 0)
-                    hi = -1e300;
-            }
+            double lo, hi;
+            row.kept(x, lo, hi);
             if (!(lo < hi)) continue;
             // In index units along the ray from its closest approach, and world length per index length.
-            const double closest = wd * inverse, index_length = std::sqrt(dd);
-            values[c] += v.amplitude * std::sqrt(row.world.at(x) * inverse) *
-                         profile(std::max(rho2, 0.0), (lo - closest) * index_length, (hi - closest) * index_length);
+            const double closest = wd_x * inverse, index_length = parallel_ ? row_length : std::sqrt(dd);
+            const double scale = parallel_ ? row_scale : v.amplitude * std::sqrt(row.world.at(x) * inverse);
+            values[c] += scale * profile_(std::max(rho2, 0.0), (lo - closest) * index_length, (hi - closest) * index_length);
         }
     }
     return taps;
 }
 
-}  // namespace
-
-bool cut_is_smooth(const CutVoxel& voxel, const ViewProjection& view, const ClipRegion& clip, double radius) {
-    const Vec3 towards = view.orthographic() ? view.index_ray(0, 0).direction : voxel.centre - view.eye();
-    const double along = length(towards);
-    for (const ClipPlane& p : clip.planes())
-        if (std::abs(p.at(voxel.centre)) < radius && std::abs(dot(p.normal, towards)) < kSmoothCut * along) return false;
-    return true;
-}
-
-uint64_t splat_cut_voxel(const CutVoxel& voxel, const ViewProjection& view, const ClipRegion& clip, const CutProfile& profile,
-                         SplatGrid& grid) {
-    const CutLattice nodes{grid.stride(), grid.first_node_x(), grid.first_node_y(), grid.columns(), grid.rows()};
-    thread_local CutRow row;
+uint64_t CutSplatter::splat(const CutVoxel& voxel, SplatGrid& grid, CutScratch& scratch) const {
+    const Lattice nodes{grid.stride(), grid.first_node_x(), grid.first_node_y(), grid.columns(), grid.rows()};
     int r_min = grid.rows(), r_max = -1;
-    const uint64_t taps = add_cut_footprint(voxel, view, clip, profile, nodes, row, [&](int r) {
+    const uint64_t taps = add(voxel, nodes, scratch, [&](int r) {
         r_min = std::min(r_min, r), r_max = std::max(r_max, r);
         return grid.row(r);
     });
@@ -174,20 +222,17 @@ uint64_t splat_cut_voxel(const CutVoxel& voxel, const ViewProjection& view, cons
     return taps;
 }
 
-uint64_t splat_cut_voxels(const std::vector<CutVoxel>& voxels, const ViewProjection& view, const ClipRegion& clip,
-                          const Kernel& kernel, ImageAccumulator& image, RenderControl& control) {
+uint64_t CutSplatter::splat(const std::vector<CutVoxel>& voxels, ImageAccumulator& image, RenderControl& control) const {
     if (voxels.empty()) return 0;
-    const CutProfile profile(kernel);
-    const CutLattice pixels{1.0, 0, 0, image.width, image.height};
+    const Lattice pixels{1.0, 0, 0, image.width, image.height};
     tbb::enumerable_thread_specific<std::vector<double>> locals([&] { return std::vector<double>(image.pixels.size(), 0.0); });
     tbb::enumerable_thread_specific<uint64_t> taps(0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, voxels.size(), 64), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
         std::vector<double>& out = locals.local();
-        CutRow row;
+        CutScratch scratch;
         for (size_t i = range.begin(); i != range.end(); ++i)
-            taps.local() += add_cut_footprint(voxels[i], view, clip, profile, pixels, row,
-                                              [&](int r) { return out.data() + size_t(r) * image.width; });
+            taps.local() += add(voxels[i], pixels, scratch, [&](int r) { return out.data() + size_t(r) * image.width; });
     });
     control.throw_if_cancelled();
     for (const std::vector<double>& local : locals)

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "pcvr/clip_region.h"
@@ -78,18 +79,60 @@ VoxelBlock split_cut_block(const VoxelBlock& block, const ClipRegion& clip, doub
 /// the subgrid; cuts seen more nearly edge-on, whose kept footprints have sharp edges, per pixel.
 constexpr double kSmoothCut = 0.866;
 
-/// True when every plane that crosses the voxel's kernel (of `radius`) is seen within kSmoothCut of face-on.
-bool cut_is_smooth(const CutVoxel& voxel, const ViewProjection& view, const ClipRegion& clip, double radius);
+/// A worker's memory for CutSplatter (the planes near a voxel, one row's terms), reused voxel after
+/// voxel: thread_local in a loaded module costs a call per access.
+struct CutScratch {
+    struct Row;
+    CutScratch();
+    ~CutScratch();
+    std::unique_ptr<Row> row;
+    std::vector<size_t> near;
+};
 
-/// Adds the voxel's kept line integral at every node of `grid` whose ray meets its kernel (a smooth
-/// cut, or a grid whose nodes are the pixels). Returns the taps evaluated.
-uint64_t splat_cut_voxel(const CutVoxel& voxel, const ViewProjection& view, const ClipRegion& clip, const CutProfile& profile,
-                         SplatGrid& grid);
+/// The cut voxels of one grid in one view. Pixel rays are affine in the pixel's coordinates, in origin
+/// and direction (orthographic rays share their direction, perspective ones their origin), so what a
+/// tap needs (where the ray passes the voxel, where it crosses each plane) is a polynomial of degree two
+/// at most in them: set up once per view, per voxel and per row, evaluated per tap by Horner.
+/// Thread-safe: one per view, shared by the workers.
+class CutSplatter {
+public:
+    /// `clip` in the grid's index space, as `view`.
+    CutSplatter(const ViewProjection& view, const ClipRegion& clip, const Kernel& kernel);
 
-/// Adds the kept line integral of each voxel's kernel to every pixel of `image` whose ray meets it
-/// (voxels whose centres lie outside the camera's near and far planes are skipped, as every splat
-/// does). Returns the number of pixel taps evaluated.
-uint64_t splat_cut_voxels(const std::vector<CutVoxel>& voxels, const ViewProjection& view, const ClipRegion& clip,
-                          const Kernel& kernel, ImageAccumulator& image, RenderControl& control);
+    /// True when every plane that crosses the voxel's kernel is seen within kSmoothCut of face-on.
+    bool smooth(const CutVoxel& voxel) const;
+    /// Adds the voxel's kept line integral at every node of `grid` whose ray meets its kernel (a smooth
+    /// cut, or a grid whose nodes are the pixels). Returns the taps evaluated.
+    uint64_t splat(const CutVoxel& voxel, SplatGrid& grid, CutScratch& scratch) const;
+    /// Adds each voxel's kept line integral to every pixel of `image` whose ray meets its kernel, in
+    /// parallel. Returns the taps evaluated.
+    uint64_t splat(const std::vector<CutVoxel>& voxels, ImageAccumulator& image, RenderControl& control) const;
+
+    /// c00 + c10 x + c01 y + c20 x^2 + c11 x y + c02 y^2, and the same of degree one.
+    struct Quadratic2 {
+        double c00 = 0, c10 = 0, c01 = 0, c20 = 0, c11 = 0, c02 = 0;
+    };
+    struct Linear2 {
+        double c0 = 0, cx = 0, cy = 0;
+    };
+    /// Where a voxel's kept integrals go: the points x = scale (column + first_column), y = scale (row +
+    /// first_row) in pixel coordinates (the image's pixels, or a subgrid's nodes).
+    struct Lattice {
+        double scale;
+        int first_column, first_row, columns, rows;
+    };
+
+private:
+    template <class RowOf>
+    uint64_t add(const CutVoxel& voxel, const Lattice& at, CutScratch& scratch, RowOf&& out) const;
+
+    const ViewProjection& view_;
+    const ClipRegion& clip_;
+    CutProfile profile_;
+    Vec3 o0_, ox_, oy_, d0_, dx_, dy_;  // pixel rays in index space: origin and direction, affine in (x, y)
+    bool parallel_;                     // orthographic: every ray has the same direction
+    Quadratic2 dd_, world_;             // D.D, and W.W (W the world direction)
+    std::vector<Linear2> plane_value_, plane_rate_;  // per plane, n.o + d and n.D
+};
 
 }  // namespace pcvr

@@ -107,8 +107,9 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     tbb::enumerable_thread_specific<SplatScratch> scratches;
     tbb::enumerable_thread_specific<std::vector<CutVoxel>> cut_voxels;
-    std::optional<CutProfile> cut_profile;
-    if (params.clip) cut_profile.emplace(*params.kernel);
+    tbb::enumerable_thread_specific<CutScratch> cut_scratches;
+    std::optional<CutSplatter> cuts;
+    if (params.clip) cuts.emplace(view, *params.clip, *params.kernel);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
         SplatGrid& grid = locals.local();
@@ -125,8 +126,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
                 kept = split_cut_block(grid_blocks[pb.index], *params.clip, params.kernel_radius, params.density_scale, cut_here);
                 size_t sharp = before;
                 for (size_t i = before; i < cut_here.size(); ++i) {
-                    if (cut == nullptr || target.stride() == 1.0 || cut_is_smooth(cut_here[i], view, *params.clip, params.kernel_radius))
-                        scratch.taps += splat_cut_voxel(cut_here[i], view, *params.clip, *cut_profile, grid);
+                    if (cut == nullptr || target.stride() == 1.0 || cuts->smooth(cut_here[i]))
+                        scratch.taps += cuts->splat(cut_here[i], grid, cut_scratches.local());
                     else
                         cut_here[sharp++] = cut_here[i];
                 }

@@ -158,7 +158,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     }
     for (size_t k = 0; k < planned.size(); ++k) {
         stats.voxels_cut += cut[k].size();
-        stats.taps += splat_cut_voxels(cut[k], planned[k].view, planned[k].clip, kernel, image, control);
+        stats.taps += CutSplatter(planned[k].view, planned[k].clip, kernel).splat(cut[k], image, control);
     }
     if (range != 1.0) {
         // A power of two: multiplying in float rounds exactly as dividing in double did (once, and

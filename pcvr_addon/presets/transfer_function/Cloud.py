@@ -12,5 +12,6 @@ settings.set_transfer_function(
     ],
 )
 settings.opacity_scale = 1.0
+settings.use_gradient_opacity = False
 settings.set_material(ambient=0.4, diffuse=0.8, specular=0.0, shininess=1.0)
 settings.use_shading = True

@@ -1,5 +1,5 @@
 # 3D Slicer's volume-rendering preset "MR-Angio", its numbers as published in Slicer's
-# Modules/Loadable/VolumeRendering/Resources/presets.xml (scalarOpacity, colorTransfer, shading).
+# Modules/Loadable/VolumeRendering/Resources/presets.xml (scalarOpacity, colorTransfer, gradientOpacity, shading).
 import bpy
 
 bpy.context.volume.pcvr.apply_slicer_preset(
@@ -17,5 +17,6 @@ bpy.context.volume.pcvr.apply_slicer_preset(
         190.112, 1, 0.866667, 0.733333,
         200.873, 0.937255, 0.937255, 0.937255,
         3661, 1, 1, 1],
+    gradient_opacity=[4, 0, 1, 255, 1],
     shade=True, ambient=0.2, diffuse=1, specular=0, specular_power=1,
 )

@@ -1,5 +1,5 @@
 # 3D Slicer's volume-rendering preset "MR-T2-Brain", its numbers as published in Slicer's
-# Modules/Loadable/VolumeRendering/Resources/presets.xml (scalarOpacity, colorTransfer, shading).
+# Modules/Loadable/VolumeRendering/Resources/presets.xml (scalarOpacity, colorTransfer, gradientOpacity, shading).
 import bpy
 
 bpy.context.volume.pcvr.apply_slicer_preset(
@@ -14,5 +14,6 @@ bpy.context.volume.pcvr.apply_slicer_preset(
         98.7223, 0.956863, 0.839216, 0.192157,
         412.406, 0, 0.592157, 0.807843,
         641, 1, 1, 1],
+    gradient_opacity=[4, 0, 1, 160.25, 1],
     shade=True, ambient=0.3, diffuse=0.6, specular=0.5, specular_power=40,
 )
