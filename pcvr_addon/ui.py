@@ -183,16 +183,20 @@ class PCVR_UL_clip_planes(UIList):
         row.prop(item, "object", text="", emboss=False, icon='EMPTY_SINGLE_ARROW')
 
 
-class PCVR_DATA_PT_clipping(PCVRButtonsPanel, Panel):
-    """The volume's crop box and clip planes (every mode)."""
-    bl_label = "Clipping"
+class VolumeSubPanel(PCVRButtonsPanel):
+    """A sub-panel of the volume's PCVR panel."""
     bl_context = "data"
     bl_parent_id = "PCVR_DATA_PT_volume"
-    bl_options = {'DEFAULT_CLOSED'}
 
     @classmethod
     def poll(cls, context):
         return context.volume and super().poll(context)
+
+
+class PCVR_DATA_PT_clipping(VolumeSubPanel, Panel):
+    """The volume's crop box and clip planes (every mode)."""
+    bl_label = "Clipping"
+    bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
         layout = property_split(self.layout)
@@ -229,15 +233,13 @@ class PCVR_PT_transfer_function_presets(PresetPanel, Panel):
                        display_name=presets.display_name)
 
 
-class VolumeSheetPanel(PCVRButtonsPanel):
+class VolumeSheetPanel(VolumeSubPanel):
     """A sub-panel of the volume's PCVR panel for the shaded and MIP modes."""
-    bl_context = "data"
-    bl_parent_id = "PCVR_DATA_PT_volume"
     modes = {'SHADED', 'MIP'}
 
     @classmethod
     def poll(cls, context):
-        return context.volume and super().poll(context) and context.scene.pcvr.mode in cls.modes
+        return super().poll(context) and context.scene.pcvr.mode in cls.modes
 
 
 class PCVR_DATA_PT_transfer_function(VolumeSheetPanel, Panel):
