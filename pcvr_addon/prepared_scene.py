@@ -5,6 +5,7 @@ in world space, with their transfer functions, lights and materials made into pc
 render of the scene re-uses, from any view; it runs on any thread (Blender's data was read before, by
 scene_inputs.read)."""
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from . import cache, clipping, scene_inputs, transfer_function, volumes
@@ -117,6 +118,11 @@ class PreparedScene:
         """The native renders' clip keywords for the grids of all volumes, one entry each."""
         return clipping.native_arguments([volume.inputs.clipping for volume in self.volumes])
 
+    def with_inputs(self, inputs):
+        """The same prepared scene for `inputs` that differ from its own in their clipping only."""
+        volumes = [dataclasses.replace(volume, inputs=inputs.volumes[volume.index]) for volume in self.volumes]
+        return dataclasses.replace(self, inputs=inputs, volumes=volumes)
+
     @property
     def streamed(self):
         """How many volumes are read from their files while rendering (X-ray of big volumes)."""
@@ -187,6 +193,24 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
     if inputs.mode == 'SHADED' and loaded:
         prepared.lighting = _native_lighting(prepared)
     return prepared
+
+
+class Preparer:
+    """prepare, re-using the last PreparedScene where only the clipping changed (a crop box or clip plane dragged
+    in the viewport): the cut costs nothing to prepare, while preparing again maps a volume in Hounsfield units to
+    attenuation anew (0.11 s for a 256^3 CT head, against 0.23 s for its 512^2 X-ray, 2 busy cores). Call it from
+    one thread."""
+
+    def __init__(self):
+        self._last = None   # (inputs without clipping, PreparedScene)
+
+    def __call__(self, inputs):
+        uncut = inputs.without_clipping()
+        if self._last is not None and self._last[0] == uncut:
+            return self._last[1].with_inputs(inputs)
+        prepared = prepare(inputs)
+        self._last = (uncut, prepared)
+        return prepared
 
 
 def _attenuate(volume, mu_water):

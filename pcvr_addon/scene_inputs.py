@@ -103,6 +103,11 @@ class RenderInputs:
     stream_above_mib: int | None = None
     centimetres_per_unit: float = 100.0  # the scene's length unit (attenuation is per unit length)
 
+    def without_clipping(self):
+        """The same inputs with no volume cut: what prepare_scene.prepare depends on."""
+        volumes = tuple(dataclasses.replace(volume, clipping=Clipping()) for volume in self.volumes)
+        return dataclasses.replace(self, volumes=volumes)
+
     def with_sheet_spacing(self, factor):
         """The same inputs with `factor` times the sheet spacing (a coarser, faster shaded or MIP image)."""
         if self.sheets is None or factor == 1:

@@ -11,6 +11,7 @@ the latest image.
 |---------------------------------------------------------|-------------------------------------|------------------|--------|
 | view: orbit, zoom, camera, region size                  | re-used                             | restarts coarse  | again  |
 | render inputs: a render setting, an object moved, a transfer function or light in shaded mode | again (grids from the cache) | restarts coarse | again |
+| a crop box or clip plane moved                          | re-used (prepared_scene.Preparer)   | restarts coarse  | again  |
 | display only: X-ray gain, transparent film, MIP colours | re-used                             | re-used          | again  |
 | nothing that shows (selecting an object)                | -                                   | -                | -      |
 

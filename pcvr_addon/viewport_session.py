@@ -37,7 +37,7 @@ class ViewportSession:
     def __init__(self, render_engine):
         reference = weakref.ref(render_engine)
         self.renderer = viewport.ProgressiveRenderer(
-            prepared_scene.prepare, native_render.render_viewport_step, passes.viewport_pixels,
+            prepared_scene.Preparer(), native_render.render_viewport_step, passes.viewport_pixels,
             on_image=lambda: _tag_redraw(reference), cost_key=lambda inputs: inputs.mode)
         self._exports = {}   # object name -> grid of a procedural volume, kept until its geometry changes
         self._texture = None

@@ -168,6 +168,10 @@ def test_bad_clipping_leaves_the_volume_out_and_others_render(tmp_path, rng, mak
 def test_viewport_renders_again_when_the_crop_object_moves(blob, monkeypatch):
     obj, grid = blob
     draws = vs.record_draws(monkeypatch)
+    prepares = []
+    prepare = prepared_scene.prepare
+    monkeypatch.setattr(prepared_scene, "prepare",
+                        lambda inputs, *args: prepares.append(inputs) or prepare(inputs, *args))
     engine = vs.StandInEngine()
     try:
         box = cs.crop(obj, cs.add_empty("Box", location=(0.5, 0.0, 0.0), scale=(0.5, 1.0, 1.0)))
@@ -178,9 +182,12 @@ def test_viewport_renders_again_when_the_crop_object_moves(blob, monkeypatch):
         engine.settle(context)
         image = engine.renderer.latest()
         assert image.step.scale == 1 and draws[-1][0] is image.pixels
-        assert engine.renderer.counts["prepares"] == 2
         assert not np.array_equal(image.pixels, before)
         np.testing.assert_array_equal(image.pixels, ls.combined(bs.render()))
+        assert len(prepares) == 2   # the viewport's first and F12's: the cut re-used the viewport's grid and objects
+        obj.location.x += 0.1
+        engine.settle(context)
+        assert len(prepares) == 3
     finally:
         engine.free()
 
