@@ -22,6 +22,8 @@ CutProfile::CutProfile(const Kernel& kernel)
         const double at = std::min(k / s_scale_, 2.0 * radius_) - radius_;  // G is odd
         along_.push_back(std::copysign(kernel.segment_integral(0.0, 0.0, std::abs(at)), at) / kernel.value(0.0));
     }
+    centre8_.assign(centre_.begin(), centre_.end());
+    along8_.assign(along_.begin(), along_.end());
 }
 
 VoxelBlock split_cut_block(const VoxelBlock& block, const ClipRegion& clip, double radius, double density_scale,
@@ -136,6 +138,20 @@ CutSplatter::CutSplatter(const ViewProjection& view, const ClipRegion& clip, con
     const Vec3 w0 = view.world_direction(0, 0), wx = view.world_direction(1, 0) - w0, wy = view.world_direction(0, 1) - w0;
     dd_ = product(d0_, dx_, dy_, d0_, dx_, dy_);
     world_ = parallel_ ? Quadratic2{dot(w0, w0)} : product(w0, wx, wy, w0, wx, wy);
+    if (parallel_) {  // pixel coordinates are affine in index space; a sphere's shadow reaches R |gradient|
+        const Camera& cam = view.camera();
+        auto pixel = [&](const Vec3& p) {
+            const Vec4 c = view.to_clip(p);
+            return std::pair<double, double>{cam.pixel_x(c.x / c.w), cam.pixel_y(c.y / c.w)};
+        };
+        const auto [x0, y0] = pixel({0, 0, 0});
+        const auto [xi, yi] = pixel({1, 0, 0});
+        const auto [xj, yj] = pixel({0, 1, 0});
+        const auto [xk, yk] = pixel({0, 0, 1});
+        pixel_x0_ = x0, pixel_y0_ = y0;
+        pixel_x_ = {xi - x0, xj - x0, xk - x0}, pixel_y_ = {yi - y0, yj - y0, yk - y0};
+        reach_x_ = kernel.radius() * length(pixel_x_), reach_y_ = kernel.radius() * length(pixel_y_);
+    }
     for (const ClipPlane& p : clip.planes()) {
         plane_value_.push_back({p.at(o0_), dot(p.normal, ox_), dot(p.normal, oy_)});
         plane_rate_.push_back({dot(p.normal, d0_), dot(p.normal, dx_), dot(p.normal, dy_)});
@@ -152,8 +168,13 @@ bool CutSplatter::smooth(const CutVoxel& voxel) const {
 
 template <class RowOf>
 uint64_t CutSplatter::add(const CutVoxel& v, const Lattice& at, CutScratch& scratch, RowOf&& out) const {
-    const double radius = profile_.radius(), radius2 = radius * radius;
     if (!ViewProjection::inside_clip_range(view_.to_clip(v.centre))) return 0;
+    return profile_.separable() ? add_lanes(v, at, scratch, out) : add_rows(v, at, scratch, out);
+}
+
+template <class RowOf>
+uint64_t CutSplatter::add_rows(const CutVoxel& v, const Lattice& at, CutScratch& scratch, RowOf&& out) const {
+    const double radius = profile_.radius(), radius2 = radius * radius;
     const PixelSpan span = kernel_pixels(v.centre, radius, view_);
     const int c0 = clamp_to_int(std::ceil(span.x0 / at.scale) - at.first_column, 0, at.columns);
     const int c1 = clamp_to_int(std::floor(span.x1 / at.scale) - at.first_column, -1, at.columns - 1);
@@ -211,6 +232,113 @@ uint64_t CutSplatter::add(const CutVoxel& v, const Lattice& at, CutScratch& scra
     return taps;
 }
 
+namespace {
+
+/// A polynomial of degree two in the lattice offsets (u, v) of a kernel's first lattice point, in float:
+/// set up in double where its terms are large, evaluated where its values are small.
+struct Poly2 {
+    float c, u, v, uu, uv, vv;
+    /// Its restriction to row v: c0 + c1 u + c2 u^2.
+    void row(float fv, float& c0, float& c1, float& c2) const { c0 = c + fv * (v + fv * vv), c1 = u + fv * uv, c2 = uu; }
+};
+
+/// (a + u au + v av) . (b + u bu + v bv).
+Poly2 dot2(const Vec3& a, const Vec3& au, const Vec3& av, const Vec3& b, const Vec3& bu, const Vec3& bv) {
+    return {float(dot(a, b)),           float(dot(au, b) + dot(a, bu)), float(dot(av, b) + dot(a, bv)),
+            float(dot(au, bu)),         float(dot(au, bv) + dot(av, bu)), float(dot(av, bv))};
+}
+
+/// One component (`axis`) of (a + u au + v av) x (b + u bu + v bv).
+Poly2 cross2(const Vec3& a, const Vec3& au, const Vec3& av, const Vec3& b, const Vec3& bu, const Vec3& bv, int axis) {
+    auto part = [axis](const Vec3& p, const Vec3& q) { return cross(p, q)[axis]; };
+    return {float(part(a, b)),   float(part(au, b) + part(a, bu)), float(part(av, b) + part(a, bv)),
+            float(part(au, bu)), float(part(au, bv) + part(av, bu)), float(part(av, bv))};
+}
+
+}  // namespace
+
+template <class RowOf>
+uint64_t CutSplatter::add_lanes(const CutVoxel& v, const Lattice& at, CutScratch& scratch, RowOf&& out) const {
+    const double radius = profile_.radius(), step = at.scale;
+    int c0, c1, r0, r1;
+    if (parallel_) {  // around the projected centre, R times each pixel axis' gradient
+        const double cx = pixel_x0_ + dot(pixel_x_, v.centre), cy = pixel_y0_ + dot(pixel_y_, v.centre);
+        c0 = clamp_to_int(std::ceil((cx - reach_x_) / step) - at.first_column, 0, at.columns);
+        c1 = clamp_to_int(std::floor((cx + reach_x_) / step) - at.first_column, -1, at.columns - 1);
+        r0 = clamp_to_int(std::ceil((cy - reach_y_) / step) - at.first_row, 0, at.rows);
+        r1 = clamp_to_int(std::floor((cy + reach_y_) / step) - at.first_row, -1, at.rows - 1);
+    } else {
+        const PixelSpan span = kernel_pixels(v.centre, radius, view_);
+        c0 = clamp_to_int(std::ceil(span.x0 / step) - at.first_column, 0, at.columns);
+        c1 = clamp_to_int(std::floor(span.x1 / step) - at.first_column, -1, at.columns - 1);
+        r0 = clamp_to_int(std::ceil(span.y0 / step) - at.first_row, 0, at.rows);
+        r1 = clamp_to_int(std::floor(span.y1 / step) - at.first_row, -1, at.rows - 1);
+    }
+    if (c0 > c1 || r0 > r1) return 0;
+    // The ray through lattice point (c0 + u, r0 + v): origin o + u o_u + v o_v, direction D + u D_u + v D_v
+    // (t along D), and w = centre - origin. rho^2 = |w x D|^2 / D.D, the closest approach t = w.D / D.D.
+    const double x0 = step * (c0 + at.first_column), y0 = step * (r0 + at.first_row);
+    const Vec3 o = o0_ + ox_ * x0 + oy_ * y0, d = d0_ + dx_ * x0 + dy_ * y0;
+    const Vec3 ou = ox_ * step, ov = oy_ * step, du = dx_ * step, dv = dy_ * step;
+    const Vec3 w = v.centre - o, wu = -ou, wv = -ov;
+    const Poly2 cx = cross2(w, wu, wv, d, du, dv, 0), cy = cross2(w, wu, wv, d, du, dv, 1), cz = cross2(w, wu, wv, d, du, dv, 2);
+    const Poly2 wd = dot2(w, wu, wv, d, du, dv), dd = dot2(d, du, dv, d, du, dv);
+    const Vec3 world = view_.world_direction(x0, y0), world_u = (view_.world_direction(x0 + 1, y0) - world) * step,
+               world_v = (view_.world_direction(x0, y0 + 1) - world) * step;
+    const Poly2 ww = dot2(world, world_u, world_v, world, world_u, world_v);
+    // The planes near the kernel: n.origin + offset and n.D, linear in (u, v).
+    struct Plane {
+        float value, value_u, value_v, rate, rate_u, rate_v;
+    };
+    Plane planes[8];
+    int n_planes = 0;
+    for (const ClipPlane& p : clip_.planes()) {
+        if (!(std::abs(p.at(v.centre)) < radius)) continue;
+        if (n_planes == 8) return add_rows(v, at, scratch, out);  // more than the lanes take
+        planes[n_planes++] = {float(p.at(o)), float(dot(p.normal, ou)), float(dot(p.normal, ov)),
+                              float(dot(p.normal, d)), float(dot(p.normal, du)), float(dot(p.normal, dv))};
+    }
+    const float r2 = float(radius * radius), amplitude = float(v.amplitude);
+    const int columns = c1 - c0 + 1;
+    uint64_t taps = 0;
+    for (int row = 0; row <= r1 - r0; ++row) {
+        const float fv = float(row);
+        float x[3], y[3], z[3], a[3], b[3], ws[3];
+        cx.row(fv, x[0], x[1], x[2]), cy.row(fv, y[0], y[1], y[2]), cz.row(fv, z[0], z[1], z[2]);
+        wd.row(fv, a[0], a[1], a[2]), dd.row(fv, b[0], b[1], b[2]), ww.row(fv, ws[0], ws[1], ws[2]);
+        auto* values = out(r0 + row) + c0;
+        for (int u0 = 0; u0 < columns; u0 += 8) {
+            const float8 u = broadcast8(float(u0)) + lane_index8();
+            auto at_u = [&u](const float (&q)[3]) { return q[0] + u * (q[1] + u * q[2]); };
+            const float8 ex = at_u(x), ey = at_u(y), ez = at_u(z), dd_u = at_u(b), inverse = 1.0f / dd_u;
+            const float8 rho2 = (ex * ex + ey * ey + ez * ez) * inverse;
+            int8x inside = (rho2 < r2) & (u < float(columns));
+            if (!any8(inside)) continue;
+            taps += uint64_t(__builtin_popcount(lane_mask(inside)));
+            // The kept interval of t, from the closest approach, in index units (|D| per unit of t).
+            const float8 closest = at_u(a) * inverse, length = sqrt8(dd_u);
+            const float8 half = sqrt8(max8(r2 - rho2, broadcast8(0.0f)));
+            float8 s0 = -half, s1 = half;
+            for (int k = 0; k < n_planes; ++k) {
+                const Plane& p = planes[k];
+                const float8 value = (p.value + fv * p.value_v) + u * p.value_u, rate = (p.rate + fv * p.rate_v) + u * p.rate_u;
+                const float8 end = (-value / rate - closest) * length;
+                s0 = select8(rate > 0, max8(s0, end), s0);
+                s1 = select8(rate < 0, min8(s1, end), s1);
+                inside &= (rate != 0) | (value >= 0);
+            }
+            s0 = min8(s0, half), s1 = max8(s1, -half);
+            inside &= s1 > s0;
+            if (!any8(inside)) continue;
+            // World length per index length: |W| / |D|.
+            const float8 scale = amplitude * sqrt8(max8(at_u(ws), broadcast8(0.0f)) * inverse);
+            const float8 kept = select8(inside, scale * profile_(max8(rho2, broadcast8(0.0f)), s0, s1), broadcast8(0.0f));
+            for (int j = 0; j < 8; ++j) values[u0 + j] += kept[j];
+        }
+    }
+    return taps;
+}
+
 uint64_t CutSplatter::splat(const CutVoxel& voxel, SplatGrid& grid, CutScratch& scratch) const {
     const Lattice nodes{grid.stride(), grid.first_node_x(), grid.first_node_y(), grid.columns(), grid.rows()};
     int r_min = grid.rows(), r_max = -1;
@@ -225,7 +353,8 @@ uint64_t CutSplatter::splat(const CutVoxel& voxel, SplatGrid& grid, CutScratch& 
 uint64_t CutSplatter::splat(const std::vector<CutVoxel>& voxels, ImageAccumulator& image, RenderControl& control) const {
     if (voxels.empty()) return 0;
     const Lattice pixels{1.0, 0, 0, image.width, image.height};
-    tbb::enumerable_thread_specific<std::vector<double>> locals([&] { return std::vector<double>(image.pixels.size(), 0.0); });
+    // Eight more: a row's vector of eight taps may reach past the image's last pixel (adding zeros).
+    tbb::enumerable_thread_specific<std::vector<double>> locals([&] { return std::vector<double>(image.pixels.size() + 8, 0.0); });
     tbb::enumerable_thread_specific<uint64_t> taps(0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, voxels.size(), 64), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
@@ -236,7 +365,7 @@ uint64_t CutSplatter::splat(const std::vector<CutVoxel>& voxels, ImageAccumulato
     });
     control.throw_if_cancelled();
     for (const std::vector<double>& local : locals)
-        for (size_t i = 0; i < local.size(); ++i) image.pixels[i] += float(local[i]);
+        for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] += float(local[i]);
     uint64_t total = 0;
     for (uint64_t t : taps) total += t;
     return total;

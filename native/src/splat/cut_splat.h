@@ -21,6 +21,7 @@
 #include "pcvr/clip_region.h"
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
+#include "pcvr/lanes.h"
 #include "pcvr/render_control.h"
 #include "splat/post_convolution.h"
 #include "splat/splat_grid.h"
@@ -51,8 +52,21 @@ public:
         if (!(s1 > s0)) return 0.0;
         return lerp(centre_, rho2 * rho2_scale_) * (lerp(along_, (s1 + radius_) * s_scale_) - lerp(along_, (s0 + radius_) * s_scale_));
     }
+    /// Eight at once, in float (Gaussians only): s0 and s1 already within the chord.
+    bool separable() const { return separable_; }
+    float8 operator()(float8 rho2, float8 s0, float8 s1) const {
+        return lerp8(centre8_.data(), rho2 * float(rho2_scale_)) *
+               (lerp8(along8_.data(), (s1 + float(radius_)) * float(s_scale_)) - lerp8(along8_.data(), (s0 + float(radius_)) * float(s_scale_)));
+    }
 
 private:
+    static float8 lerp8(const float* table, float8 x) {
+        x = clamp8(x, 0.0f, float(kEntries));
+        const int8x i = __builtin_convertvector(x, int8x);
+        const float8 f = x - __builtin_convertvector(i, float8);
+        const float8 a = gather8(table, i), b = gather8(table + 1, i);
+        return a + f * (b - a);
+    }
     static constexpr int kEntries = 4096;
     static double lerp(const std::vector<double>& table, double x) {
         x = std::clamp(x, 0.0, double(kEntries));
@@ -65,6 +79,7 @@ private:
     bool separable_;
     double rho2_scale_ = 0, s_scale_ = 0;
     std::vector<double> centre_, along_;  // h(sqrt(rho^2)); G(s) from -R to R
+    std::vector<float> centre8_, along8_;  // the same in float, for gathers
 };
 
 /// `block` with only the voxels whose kernels (of `radius`) lie wholly inside `clip` (index space)
@@ -125,6 +140,12 @@ public:
 private:
     template <class RowOf>
     uint64_t add(const CutVoxel& voxel, const Lattice& at, CutScratch& scratch, RowOf&& out) const;
+    /// Gaussians: eight taps at a time in float, every term a polynomial about the kernel's first lattice
+    /// point; other kernels (and kernels near more than eight planes) row by row in double.
+    template <class RowOf>
+    uint64_t add_lanes(const CutVoxel& voxel, const Lattice& at, CutScratch& scratch, RowOf&& out) const;
+    template <class RowOf>
+    uint64_t add_rows(const CutVoxel& voxel, const Lattice& at, CutScratch& scratch, RowOf&& out) const;
 
     const ViewProjection& view_;
     const ClipRegion& clip_;
@@ -132,6 +153,8 @@ private:
     Vec3 o0_, ox_, oy_, d0_, dx_, dy_;  // pixel rays in index space: origin and direction, affine in (x, y)
     bool parallel_;                     // orthographic: every ray has the same direction
     Quadratic2 dd_, world_;             // D.D, and W.W (W the world direction)
+    double pixel_x0_ = 0, pixel_y0_ = 0, reach_x_ = 0, reach_y_ = 0;  // orthographic: pixel = p0 + gradient . index
+    Vec3 pixel_x_, pixel_y_;
     std::vector<Linear2> plane_value_, plane_rate_;  // per plane, n.o + d and n.D
 };
 
