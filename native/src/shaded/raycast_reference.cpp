@@ -240,7 +240,10 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                                                      ? g.classification->extinction(float(s.density), float(rim * length(s.gradient)))
                                                      : c.extinction;
                 if (!(opacity_extinction > 0)) continue;
-                const Vec3 gradient = g.clip ? g.clip->face_gradient<double>(relative, scale_free(s.gradient)) : scale_free(s.gradient);
+                const Vec3 gradient =
+                    g.clip ? g.clip->face_gradient<double>(relative, scale_free(s.gradient),
+                                                           g.clip->weak_gradient(length(s.gradient), s.density - g.voxels.background() * g.scale))
+                           : scale_free(s.gradient);
                 const Vec3f lit = g.shader->shade({c.red, c.green, c.blue}, to_float(gradient), to_eye, to_float(relative));
                 const double extinction = double(opacity_extinction) * share;
                 sigma_sum += extinction;

@@ -363,6 +363,15 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
     return table.extinction(density, sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length));
 }
 
+/// The gradient a sample of a clipped grid is lit by (sample_clip.h), from the true magnitude of the
+/// scale-free one as gradient_opacity_extinction finds it. Out of line, as that one.
+[[gnu::noinline]] Vec3x8 cut_face_gradient(const SampleClip& clip, const Vec3x8& position, const Vec3x8& gradient, float8 departure,
+                                           const Vec3x8& ppx, const Vec3x8& from_x, float8 per_length, float slab_length) {
+    const Vec3x8 times_slab = gradient * (per_length / dot(ppx, from_x));
+    const float8 magnitude = sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length);
+    return clip.face_gradient<float8>(position, gradient, clip.weak_gradient(magnitude, departure));
+}
+
 }  // namespace
 
 bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
@@ -541,7 +550,9 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                     if (!any8(valid)) continue;
                 }
                 // A cut face is lit by the plane's normal (sample_clip.h); gradient opacity read the field's.
-                const Vec3x8 gradient = src.clip ? src.clip->face_gradient<float8>(f.position, field_gradient) : field_gradient;
+                const Vec3x8 gradient = src.clip ? cut_face_gradient(*src.clip, f.position, field_gradient, density - src.background,
+                                                                     ppx, from_x, per_length, slab_length)
+                                                 : field_gradient;
                 lit_colours[lit_count] = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
                 extinctions[lit_count] = select8(valid, extinction * kept, broadcast8(0.0f));
                 sigma_sum += extinctions[lit_count++];
