@@ -140,20 +140,27 @@ def test_splatting_methods_match_exact_with_the_same_cut(projection):
 
 
 def test_an_edge_on_cut_is_sharp():
-    """A plane seen edge-on: pixels whose rays lie wholly beyond it are empty; regular and exact are zero from
-    the first pixel centre beyond, pcvr within one subgrid stride (its post filter's reach)."""
+    """A plane seen edge-on by an orthographic camera: every ray is wholly kept or wholly cut, so the image is
+    the uncut one's on the kept side of the plane's line and zero beyond, from the first pixel centre beyond for
+    every method (pcvr masks its image with the line: no per-pixel work, and no post-filter reach across it),
+    with no voxel integrated per pixel. Near the edge pcvr is as near exact as uncut (measured 1.64% RMSE of
+    the kept side against 1.49% uncut; regular 2.0e-5 either way)."""
     values, xf, grid = smooth_volume(16, 0.5)
     cam = frame_ortho((values, xf), 4.0, direction=(0.0, 0.0, -1.0))
     plane = (1.0, 0.0, 0.0, -0.3)  # keeps x >= 0.3: a vertical edge in this top view
     columns = np.array([pixel_ray(cam, c, 0)[0][0] for c in range(cam.width)])
     beyond = columns < 0.3 - 1e-9
+    exact, exact_whole = render(grid, cam, "exact", clip_planes=[plane]), render(grid, cam, "exact")
     for method in ("exact", "regular", "pcvr"):
         stats = {}
         img = render(grid, cam, method, clip_planes=[plane], stats=stats)
-        reach = 0 if method != "pcvr" else int(np.ceil(max(stats["strides"])))
-        far = beyond & (columns < 0.3 - reach * cam.pixel_size[0] - 1e-9)
-        assert np.abs(img[:, far]).max() <= 1e-6 * img.max(), method
+        assert np.abs(img[:, beyond]).max() == 0.0, method
         assert img[:, ~beyond].max() > 0.5 * img.max()
+        if method == "exact":
+            continue
+        assert stats["voxels_cut"] == 0
+        whole = render(grid, cam, method)
+        assert rel_rmse(img[:, ~beyond], exact[:, ~beyond]) <= 1.2 * rel_rmse(whole, exact_whole) + 1e-4, method
 
 
 def test_a_crop_box_is_its_six_planes_and_culls_blocks():

@@ -155,15 +155,42 @@ CutSplatter::CutSplatter(const ViewProjection& view, const ClipRegion& clip, con
     for (const ClipPlane& p : clip.planes()) {
         plane_value_.push_back({p.at(o0_), dot(p.normal, ox_), dot(p.normal, oy_)});
         plane_rate_.push_back({dot(p.normal, d0_), dot(p.normal, dx_), dot(p.normal, dy_)});
+        // Index-space normals are unit: within 1e-9 radians of the rays (a kernel's kept share then moves
+        // by at most 2e-9 voxels across the image: the same to float).
+        edge_on_.push_back(parallel_ && std::abs(dot(p.normal, d0_)) <= 1e-9 * length(d0_));
     }
 }
 
 bool CutSplatter::smooth(const CutVoxel& voxel) const {
     const Vec3 towards = view_.orthographic() ? d0_ : voxel.centre - view_.eye();
     const double along = length(towards);
-    for (const ClipPlane& p : clip_.planes())
-        if (std::abs(p.at(voxel.centre)) < profile_.radius() && std::abs(dot(p.normal, towards)) < kSmoothCut * along) return false;
+    for (size_t k = 0; k < clip_.planes().size(); ++k) {
+        const ClipPlane& p = clip_.planes()[k];
+        if (!edge_on_[k] && std::abs(p.at(voxel.centre)) < profile_.radius() && std::abs(dot(p.normal, towards)) < kSmoothCut * along)
+            return false;
+    }
     return true;
+}
+
+ClipRegion CutSplatter::unmasked() const {
+    std::vector<ClipPlane> planes;
+    for (size_t k = 0; k < edge_on_.size(); ++k)
+        if (!edge_on_[k]) planes.push_back(clip_.planes()[k]);
+    return ClipRegion::from(planes);
+}
+
+bool CutSplatter::masks() const { return std::find(edge_on_.begin(), edge_on_.end(), char(1)) != edge_on_.end(); }
+
+void CutSplatter::mask(ImageAccumulator& image) const {
+    for (size_t k = 0; k < edge_on_.size(); ++k) {
+        if (!edge_on_[k]) continue;
+        const Linear2& value = plane_value_[k];  // the same all along each ray
+        for (int y = 0; y < image.height; ++y) {
+            float* row = image.pixels.data() + size_t(y) * image.width;
+            for (int x = 0; x < image.width; ++x)
+                if (value.c0 + value.cx * x + value.cy * y < 0) row[x] = 0.0f;
+        }
+    }
 }
 
 template <class RowOf>
@@ -186,7 +213,7 @@ uint64_t CutSplatter::add_rows(const CutVoxel& v, const Lattice& at, CutScratch&
     std::vector<size_t>& near = scratch.near;
     near.clear();
     for (size_t k = 0; k < clip_.planes().size(); ++k)
-        if (std::abs(clip_.planes()[k].at(v.centre)) < radius) near.push_back(k);
+        if (!edge_on_[k] && std::abs(clip_.planes()[k].at(v.centre)) < radius) near.push_back(k);
     CutScratch::Row& row = *scratch.row;
     uint64_t taps = 0;
     for (int r = r0; r <= r1; ++r) {
@@ -292,8 +319,9 @@ uint64_t CutSplatter::add_lanes(const CutVoxel& v, const Lattice& at, CutScratch
     };
     Plane planes[8];
     int n_planes = 0;
-    for (const ClipPlane& p : clip_.planes()) {
-        if (!(std::abs(p.at(v.centre)) < radius)) continue;
+    for (size_t k = 0; k < clip_.planes().size(); ++k) {
+        const ClipPlane& p = clip_.planes()[k];
+        if (edge_on_[k] || !(std::abs(p.at(v.centre)) < radius)) continue;
         if (n_planes == 8) return add_rows(v, at, scratch, out);  // more than the lanes take
         planes[n_planes++] = {float(p.at(o)), float(dot(p.normal, ou)), float(dot(p.normal, ov)),
                               float(dot(p.normal, d)), float(dot(p.normal, du)), float(dot(p.normal, dv))};

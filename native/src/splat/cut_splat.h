@@ -114,8 +114,19 @@ public:
     /// `clip` in the grid's index space, as `view`.
     CutSplatter(const ViewProjection& view, const ClipRegion& clip, const Kernel& kernel);
 
-    /// True when every plane that crosses the voxel's kernel is seen within kSmoothCut of face-on.
+    /// True when every plane that crosses the voxel's kernel is seen within kSmoothCut of face-on (or,
+    /// orthographic, exactly edge-on: see masks()).
     bool smooth(const CutVoxel& voxel) const;
+    /// Orthographic views of planes seen exactly edge-on: every ray runs along such a plane, wholly kept
+    /// or wholly cut, so a kernel it crosses keeps its whole footprint on the kept side of the plane's
+    /// line in the image and none beyond. Those planes are left out of the integrals (the footprints stay
+    /// smooth, and go into the subgrid), and the grid's image is multiplied by mask(): the edge is then
+    /// exact at every pixel, and costs nothing per voxel.
+    bool masks() const;
+    /// Zeroes the pixels whose rays lie beyond a plane seen edge-on.
+    void mask(ImageAccumulator& image) const;
+    /// The clip region less the planes seen edge-on: what the splats of a masked grid cut by.
+    ClipRegion unmasked() const;
     /// Adds the voxel's kept line integral at every node of `grid` whose ray meets its kernel (a smooth
     /// cut, or a grid whose nodes are the pixels). Returns the taps evaluated.
     uint64_t splat(const CutVoxel& voxel, SplatGrid& grid, CutScratch& scratch) const;
@@ -156,6 +167,7 @@ private:
     double pixel_x0_ = 0, pixel_y0_ = 0, reach_x_ = 0, reach_y_ = 0;  // orthographic: pixel = p0 + gradient . index
     Vec3 pixel_x_, pixel_y_;
     std::vector<Linear2> plane_value_, plane_rate_;  // per plane, n.o + d and n.D
+    std::vector<char> edge_on_;                     // per plane: seen exactly edge-on (orthographic)
 };
 
 }  // namespace pcvr

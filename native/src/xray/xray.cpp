@@ -7,6 +7,8 @@
 #include <cmath>
 #include <sstream>
 #include <string>
+#include <memory>
+#include <optional>
 #include <utility>
 
 #include "pcvr/errors.h"
@@ -118,8 +120,18 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         budget.add(name.str(),
                    uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
     }
-    if (any_cut) budget.add("image of the voxels clip planes cut, one per thread",
-                            uint64_t(tbb::this_task_arena::max_concurrency()) * cam.width() * cam.height() * sizeof(float));
+    // A grid cut by planes seen edge-on renders into an image of its own, which those planes then mask.
+    std::vector<std::unique_ptr<ImageAccumulator>> masked(planned.size());
+    size_t masked_grids = 0;
+    for (size_t k = 0; k < planned.size(); ++k)
+        masked_grids += !planned[k].clip.keeps_everything() && CutSplatter(planned[k].view, planned[k].clip, kernel).masks();
+    const uint64_t pixels = uint64_t(cam.width()) * cam.height();
+    if (any_cut) budget.add("images of the voxels clip planes cut, one per thread", uint64_t(tbb::this_task_arena::max_concurrency()) * pixels * sizeof(double));
+    if (masked_grids > 0 && !strides.empty()) {
+        const int workers = tbb::this_task_arena::max_concurrency();
+        budget.add("images and splat grids of the grids cut edge-on", masked_grids * (pixels * sizeof(float) +
+                   uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), strides.begin()->first, plan_params.margin_nodes)));
+    }
     check_memory(budget, cam, stats);
     ImageAccumulator image(cam.width(), cam.height());
     control.begin_phase(planned_blocks, 0.0, 0.97);
@@ -136,8 +148,23 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     // The voxels a clip plane cuts where their kept footprints have sharp edges are integrated per pixel,
-    // straight into the image (src/splat/cut_splat.h).
+    // straight into the image; a grid cut by planes seen edge-on renders into an image of its own, which
+    // those planes then mask (src/splat/cut_splat.h).
+    // Its voxels are cut by the other planes only: those the edge-on planes cross keep whole footprints.
     std::vector<std::vector<CutVoxel>> cut(planned.size());
+    std::vector<ClipRegion> splat_clips(planned.size());
+    for (size_t k = 0; k < planned.size(); ++k) {
+        if (planned[k].clip.keeps_everything()) continue;
+        const CutSplatter cuts(planned[k].view, planned[k].clip, kernel);
+        splat_clips[k] = cuts.masks() ? cuts.unmasked() : planned[k].clip;
+        if (cuts.masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
+    }
+    auto to_image = [&](const SplatGrid& grid, ImageAccumulator& out) {
+        if (regular)
+            add_unfiltered(grid, out);
+        else
+            post_convolve(grid, post_shape, out, control);
+    };
     for (const auto& [stride, unused] : strides) {
         SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
         for (size_t k = 0; k < planned.size(); ++k) {
@@ -146,19 +173,23 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             if (it == pg.plan.by_stride.end()) continue;
             splat.density_scale = float(pg.source->density_scale * range);
             splat.level = pg.level;
-            splat.clip = pg.clip.keeps_everything() ? nullptr : &pg.clip;
+            splat.clip = splat_clips[k].keeps_everything() ? nullptr : &splat_clips[k];
+            std::optional<SplatGrid> own;
+            if (masked[k]) own.emplace(target.zero_like());
             stats.voxels_splatted +=
-                splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, target, control, &stats.taps, &cut[k]);
+                splat_blocks(pg.level_grid->blocks(), it->second, pg.view, splat, own ? *own : target, control, &stats.taps, &cut[k]);
+            if (own) to_image(*own, *masked[k]);
         }
-        if (regular)
-            add_unfiltered(target, image);
-        else
-            post_convolve(target, post_shape, image, control);
+        to_image(target, image);
         stats.strides.push_back(stride);
     }
     for (size_t k = 0; k < planned.size(); ++k) {
         stats.voxels_cut += cut[k].size();
-        stats.taps += CutSplatter(planned[k].view, planned[k].clip, kernel).splat(cut[k], image, control);
+        const CutSplatter cuts(planned[k].view, planned[k].clip, kernel);
+        stats.taps += cuts.splat(cut[k], masked[k] ? *masked[k] : image, control);
+        if (!masked[k]) continue;
+        cuts.mask(*masked[k]);
+        for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] += masked[k]->pixels[i];
     }
     if (range != 1.0) {
         // A power of two: multiplying in float rounds exactly as dividing in double did (once, and
