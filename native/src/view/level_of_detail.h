@@ -34,6 +34,7 @@
 
 #include "pcvr/camera.h"
 #include "pcvr/grid.h"
+#include "pcvr/xray.h"
 #include "view/view_projection.h"
 
 namespace pcvr {
@@ -42,6 +43,14 @@ namespace pcvr {
 /// magnified): see the table above.
 constexpr double kLevelPixelsPerVoxel = 1.0 / 32.0;
 
+/// Where every voxel (of level 0) projects to at most this many pixels, an automatic level renders the
+/// image supersampled and box-averages it: see the table above.
+constexpr double kSupersampleBelowPixelsPerVoxel = 1.0 / 8.0;
+
+/// The largest side of a supersampled image (16 MiB of floats, per worker): larger views of finer voxels
+/// are zoomed out less than 1/8 anyway, or integrate the rest over the sub-pixels' areas.
+constexpr int kMaxSupersampledSide = 2048;
+
 /// The footprint variance (per axis, index units^2 of level k) of a level-k voxel whose kernel has
 /// variance `variance` at level 0.
 inline double level_kernel_variance(double variance, int level) {
@@ -49,10 +58,14 @@ inline double level_kernel_variance(double variance, int level) {
     return (variance + (voxels2 - 1.0) / 12.0) / voxels2;
 }
 
-/// The fewest and most pixels per voxel (along the voxel's most magnified direction) at the corners of
-/// the active index box `box`; nullopt when a corner lies behind a perspective eye.
+/// Which of a footprint's axes corner_pixels_per_voxel measures.
+enum class VoxelAxis { MostMagnified, LeastMagnified };
+
+/// The fewest and most pixels per voxel (along the voxel's most magnified direction, or its least) at the
+/// corners of the active index box `box`; nullopt when a corner lies behind a perspective eye.
 inline std::optional<std::pair<double, double>> corner_pixels_per_voxel(const std::array<int32_t, 6>& box,
-                                                                        const Mat4& index_to_world, const Camera& camera) {
+                                                                        const Mat4& index_to_world, const Camera& camera,
+                                                                        VoxelAxis axis = VoxelAxis::MostMagnified) {
     const ViewProjection view(camera, index_to_world);
     double fewest = std::numeric_limits<double>::infinity(), most = 0;
     for (int corner = 0; corner < 8; ++corner) {
@@ -60,9 +73,11 @@ inline std::optional<std::pair<double, double>> corner_pixels_per_voxel(const st
         Footprint f;
         if (!view.footprint_unclipped(p, f)) return std::nullopt;
         const double half_trace = 0.5 * (f.qxx + f.qyy);
-        const double smallest = half_trace - std::sqrt(0.25 * (f.qxx - f.qyy) * (f.qxx - f.qyy) + f.qxy * f.qxy);
+        const double spread = std::sqrt(0.25 * (f.qxx - f.qyy) * (f.qxx - f.qyy) + f.qxy * f.qxy);
+        const double smallest = half_trace - spread;
         if (!(smallest > 0)) return std::nullopt;
-        const double pixels = 1.0 / std::sqrt(smallest);
+        // The form's smallest eigenvalue (index^2 per pixel^2) is along the most magnified direction.
+        const double pixels = 1.0 / std::sqrt(axis == VoxelAxis::MostMagnified ? smallest : half_trace + spread);
         fewest = std::min(fewest, pixels);
         most = std::max(most, pixels);
     }
@@ -87,6 +102,33 @@ inline int automatic_level(const std::array<int32_t, 6>& box, const Mat4& index_
 inline int automatic_level(const Grid& grid, const Camera& camera, double pixels_per_voxel = kLevelPixelsPerVoxel) {
     if (grid.active_voxel_count() == 0) return 0;
     return automatic_level(grid.index_bbox(), grid.index_to_world(), camera, pixels_per_voxel);
+}
+
+/// Whether an X-ray with these parameters supersamples where zoomed out: an automatic level, footprints
+/// integrated over pixels, and a method whose sub-pixels are its footprints' samples (bilinear spreading's
+/// tents over them were 0.52% off the pixel means at 1/8, against 0.018% integrated pixel by pixel).
+inline bool may_supersample(const XrayParams& params) {
+    return params.level < 0 && params.antialias &&
+           (params.method == XrayMethod::Pcvr || params.method == XrayMethod::Regular);
+}
+
+/// The sub-pixels per pixel edge an automatic level 0 renders at, to be box-averaged down (see above):
+/// enough for a pixel per voxel along every voxel's least magnified direction, where every voxel of the
+/// active index box `box` projects to at most kSupersampleBelowPixelsPerVoxel; else 1. Bounded so the
+/// supersampled image stays within kMaxSupersampledSide (the voxels still finer are then integrated over
+/// the sub-pixels' areas, as without supersampling).
+inline int automatic_supersampling(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera) {
+    // In perspective the near voxels span more sub-pixels than the far ones need, and the splats cost
+    // more: measured 12% faster at most on 128^3 blobs, and 5 times as far from the pixel means.
+    if (!camera.orthographic()) return 1;
+    const auto most = corner_pixels_per_voxel(box, index_to_world, camera);
+    if (!most || most->second > kSupersampleBelowPixelsPerVoxel * (1 + 1e-6)) return 1;
+    const auto least = corner_pixels_per_voxel(box, index_to_world, camera, VoxelAxis::LeastMagnified);
+    if (!least) return 1;
+    const double wanted = std::ceil(1.0 / least->first * (1 - 1e-9));
+    const int fits = kMaxSupersampledSide / std::max(camera.width(), camera.height());
+    const int factor = int(std::min<double>(wanted, fits));
+    return factor >= 2 ? factor : 1;
 }
 
 }  // namespace pcvr
