@@ -34,7 +34,6 @@
 
 #include "pcvr/camera.h"
 #include "pcvr/grid.h"
-#include "pcvr/xray.h"
 #include "view/view_projection.h"
 
 namespace pcvr {
@@ -50,6 +49,11 @@ constexpr double kSupersampleBelowPixelsPerVoxel = 1.0 / 8.0;
 /// The largest side of a supersampled image (16 MiB of floats, per worker): larger views of finer voxels
 /// are zoomed out less than 1/8 anyway, or integrate the rest over the sub-pixels' areas.
 constexpr int kMaxSupersampledSide = 2048;
+
+/// Supersampling pays where the sub-pixels number at most this many per voxel splatted: a sub-pixel costs
+/// about 10 ns (its buffers, the post-convolution, the average), and a voxel integrated over pixels about
+/// 100 ns more than one splatted over sub-pixels (one core); half the break-even.
+constexpr double kSubPixelsPerVoxel = 4.0;
 
 /// The footprint variance (per axis, index units^2 of level k) of a level-k voxel whose kernel has
 /// variance `variance` at level 0.
@@ -104,14 +108,6 @@ inline int automatic_level(const Grid& grid, const Camera& camera, double pixels
     return automatic_level(grid.index_bbox(), grid.index_to_world(), camera, pixels_per_voxel);
 }
 
-/// Whether an X-ray with these parameters supersamples where zoomed out: an automatic level, footprints
-/// integrated over pixels, and a method whose sub-pixels are its footprints' samples (bilinear spreading's
-/// tents over them were 0.52% off the pixel means at 1/8, against 0.018% integrated pixel by pixel).
-inline bool may_supersample(const XrayParams& params) {
-    return params.level < 0 && params.antialias &&
-           (params.method == XrayMethod::Pcvr || params.method == XrayMethod::Regular);
-}
-
 /// The sub-pixels per pixel edge an automatic level 0 renders at, to be box-averaged down (see above):
 /// enough for a pixel per voxel along every voxel's least magnified direction, where every voxel of the
 /// active index box `box` projects to at most kSupersampleBelowPixelsPerVoxel; else 1. Bounded so the
@@ -129,6 +125,13 @@ inline int automatic_supersampling(const std::array<int32_t, 6>& box, const Mat4
     const int fits = kMaxSupersampledSide / std::max(camera.width(), camera.height());
     const int factor = int(std::min<double>(wanted, fits));
     return factor >= 2 ? factor : 1;
+}
+
+/// `factor`, where an image of `camera` supersampled by it costs less than integrating `voxels` over its
+/// pixels; else 1.
+inline int supersampling_that_pays(int factor, const Camera& camera, uint64_t voxels) {
+    const double sub_pixels = double(camera.width()) * camera.height() * factor * factor;
+    return sub_pixels <= kSubPixelsPerVoxel * double(voxels) ? factor : 1;
 }
 
 }  // namespace pcvr

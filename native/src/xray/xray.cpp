@@ -21,6 +21,7 @@
 
 #include "splat/near_eye_splat.h"
 #include "view/level_of_detail.h"
+#include "xray/supersampling.h"
 
 namespace pcvr {
 
@@ -176,14 +177,16 @@ int supersampling(const std::vector<WeightedGrid>& grids, const Camera& cam, con
     if (params.supersampling > 0) return params.supersampling;
     if (!may_supersample(params)) return 1;
     int factor = 1;
+    uint64_t voxels = 0;
     for (const WeightedGrid& g : grids) {
         if (g.grid->active_voxel_count() == 0) continue;
+        voxels += g.grid->active_voxel_count();
         if (g.level > 0 || automatic_level(*g.grid, cam) > 0) return 1;
         const int wanted = automatic_supersampling(g.grid->index_bbox(), g.grid->index_to_world(), cam);
         if (wanted == 1) return 1;
         factor = std::max(factor, wanted);
     }
-    return factor;
+    return supersampling_that_pays(factor, cam, voxels);
 }
 
 /// The mean of every sub x sub block of `fine`.
