@@ -118,6 +118,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["memory_bytes"] = xs.memory_bytes;
         stats["batches"] = xs.batches;
         stats["level"] = xs.level;
+        stats["supersampling"] = xs.supersampling;
     }
     auto* pixels = new ZeroedBuffer<float>(std::move(image.pixels));
     nb::capsule owner(pixels, [](void* p) noexcept { delete static_cast<ZeroedBuffer<float>*>(p); });

@@ -10,7 +10,9 @@ one thread; the calling thread's CPU time of one render is the least of REPS (th
 thread is what other work disturbs least, and it only adds to it). Throughput is active voxels per CPU second. Beside each render, the same camera
 renders the data set with one voxel kept per 8^3 block: the work that grows with the image (its buffers, the
 post-convolution of the tiles the volume covers) and not with the voxels. At the largest magnification the orthographic view is also timed on all cores (wall time, median of
-REPS_ALL_CORES), for the issue's aim in voxels per second.
+REPS_ALL_CORES), for the issue's aim in voxels per second. Zoomed out (1/64 to 1/2, orthographic), each render is
+timed as render_xray chooses (level and sub-pixels, src/view/level_of_detail.h) and from the same level integrated
+pixel by pixel (an explicit `level`, never supersampled: what the automatic choice did before it supersampled).
 
     python tests/bench/magnification_curve.py [--quick]     # prints the table
 """
@@ -36,6 +38,7 @@ DATASETS = ("blobs", "ct")
 NAMES = {"blobs": "Gaussian blobs", "ct": "CT head phantom, 1:1:2 voxels"}
 SIZE = 128
 MAGNIFICATIONS = [1.0 + 0.25 * i for i in range(29)]  # 1 to 8
+ZOOMED_OUT = (1 / 64, 1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2)
 REPS = 5
 REPS_ALL_CORES = 7
 # The magnifications whose rows the page's table shows (all are in the plot data).
@@ -85,12 +88,45 @@ def run(quick: bool, log) -> dict:
                              "cpu_s": seconds, "image_cpu_s": image_seconds, "mvoxels_per_s": active / seconds / 1e6,
                              "strides": list(stats["strides"]), "taps_per_voxel": stats.get("taps", 0) / max(1, stats["voxels"])})
             log(f"  {key} m={m:g}: ortho {1e3 * rows[-2]['cpu_s']:.1f} ms, perspective {1e3 * rows[-1]['cpu_s']:.1f} ms")
+        zoomed_out = [zoomed_out_row(grid, views.camera(views.oblique(values.shape, xf, m)), m, reps) for m in ZOOMED_OUT]
+        for row in zoomed_out:
+            log(f"  {key} m=1/{round(1 / row['magnification'])}: {1e3 * row['cpu_s']:.1f} ms, integrated per pixel "
+                f"{1e3 * row['integrated_cpu_s']:.1f} ms")
         largest = views.camera(views.oblique(values.shape, xf, mags[-1]))
         all_cores = wall_seconds(lambda: pn.render_xray(grid, largest, "pcvr"), 1 if quick else REPS_ALL_CORES)
-        out["datasets"][key] = {"name": NAMES[key], "active_voxels": active, "rows": rows,
+        out["datasets"][key] = {"name": NAMES[key], "active_voxels": active, "rows": rows, "zoomed_out": zoomed_out,
                                 "all_cores": {"magnification": mags[-1], "wall_s": all_cores, "cores": os.cpu_count(),
                                               "mvoxels_per_s": active / all_cores / 1e6}}
     return out
+
+
+def zoomed_out_row(grid, cam, m: float, reps: int) -> dict:
+    """One zoomed-out view: as render_xray chooses, and its level integrated pixel by pixel."""
+    import pcvr_native as pn
+    stats = {}
+    pn.render_xray(grid, cam, "pcvr", threads=1, stats=stats)
+    level = stats["level"]
+    return {"magnification": m, "width": cam.width, "height": cam.height, "level": level,
+            "supersampling": stats.get("supersampling", 1),
+            "cpu_s": least_cpu_seconds(lambda: pn.render_xray(grid, cam, "pcvr", threads=1), reps),
+            "integrated_cpu_s": least_cpu_seconds(lambda: pn.render_xray(grid, cam, "pcvr", threads=1, level=level), reps)}
+
+
+def zoomed_out_lines(entry) -> list[str]:
+    """The zoomed-out table of a data set, against its m = 1 orthographic time."""
+    rows = entry.get("zoomed_out")
+    if not rows:
+        return []
+    at_1 = next(r["cpu_s"] for r in entry["rows"] if r["projection"] == "ortho" and r["magnification"] == 1.0)
+    lines = [f"Zoomed out (orthographic; m = 1 takes {1e3 * at_1:.1f} ms): *sub-pixels* is the supersampling "
+             "render_xray chose (1: none), *integrated* the same level with every voxel integrated over the pixels "
+             "one by one.", "",
+             "| m | image | level | sub-pixels | ms | integrated ms | over m = 1 |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| 1/{round(1 / r['magnification'])} | {r['width']} x {r['height']} | {r['level']} | "
+                     f"{r['supersampling']} | {1e3 * r['cpu_s']:.1f} | {1e3 * r['integrated_cpu_s']:.1f} | "
+                     f"{r['cpu_s'] / at_1:.2f}x |")
+    return lines + [""]
 
 
 def ratios(rows) -> dict:
@@ -150,7 +186,7 @@ def section(results) -> list[str]:
                          f"{o['mvoxels_per_s']:.0f} | {_strides(o['strides'])} | {p['width']} x {p['height']} | "
                          f"{1e3 * p['cpu_s']:.1f} | {1e3 * p.get('image_cpu_s', 0):.1f} | {p['mvoxels_per_s']:.0f} | "
                          f"{_strides(p['strides'])} |")
-        lines += [""] + aims(entry, r) + [""]
+        lines += [""] + aims(entry, r) + [""] + zoomed_out_lines(entry)
     return lines
 
 
@@ -187,7 +223,7 @@ def aims(entry, r) -> list[str]:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--quick", action="store_true", help="64^3, magnifications 1 to 8 in steps of 1, one repetition")
+    p.add_argument("--quick", action="store_true", help="64^3, magnifications 1 to 8 in steps of 1 (and 1/64 to 1/2), one repetition")
     args = p.parse_args(argv)
     results = run(args.quick, lambda msg: print(msg, file=sys.stderr, flush=True))
     print("\n".join(section(results)))

@@ -13,8 +13,8 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | search      | kernel_search.py | splat kernel / post filter pairs, numpy prototype                       |
 | throughput  | this file        | PCVR's own speed, memory and limits on large volumes (below)             |
 | viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
-| zoomed out  | minification_bench.py | time and error against magnification from 1/16 to 8, every method |
-| magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective |
+| zoomed out  | minification_bench.py | time and error against magnification from 1/128 to 8, every method, and the sub-pixels chosen |
+| magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective, and 1/64 to 1/2 against integrating per pixel |
 | big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
 | shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |

@@ -221,6 +221,21 @@ def test_a_zoomed_out_stream_renders_its_level_from_memory(files, tmp_path):
         pn.render_xray(stream, cam, level=0)
 
 
+def test_a_zoomed_out_stream_is_supersampled_as_its_grid(files):
+    """At 1/24 of a pixel per voxel (1/9 along the voxels' longest projection), level 0, the whole grid renders
+    at 24 x 24 sub-pixels a pixel (src/view/level_of_detail.h); every batch of the stream takes the same, chosen over the whole stream's
+    box, so the batches' box-averaged images add up to the grid's."""
+    path = str(files / "field.vdb")
+    grid = pn.read_vdb(path)
+    cam = field_view(grid, "orthographic", magnification=1 / 24)
+    whole_stats, stream_stats = {}, {}
+    whole = pn.render_xray(grid, cam, stats=whole_stats)
+    streamed = pn.render_xray(pn.stream_vdb(path, batch_bytes=1), cam, stats=stream_stats)
+    assert stream_stats["batches"] == 7
+    assert (whole_stats["level"], whole_stats["supersampling"]) == (stream_stats["level"], stream_stats["supersampling"]) == (0, 24)
+    np.testing.assert_allclose(streamed, whole, rtol=0, atol=1e-6 * whole.max())
+
+
 REDUCTIONS = ["mean_over_zero", "mean_over_background", "max_over_background"]
 
 

@@ -73,6 +73,10 @@ struct XrayParams {
     /// Level of detail (Grid::level) each grid is rendered from; -1: the coarsest whose voxels project
     /// to at most 1/32 of a pixel (src/view/level_of_detail.h), 0 without antialias. `exact` always takes level 0.
     int level = -1;
+    /// Sub-pixels per pixel edge the image is splatted at and box-averaged down to: 0 automatic (zoomed
+    /// out, with level -1 and antialias: src/view/level_of_detail.h), 1 none. Streams set it so that
+    /// every batch takes the same; Python has no argument for it.
+    int supersampling = 0;
 };
 
 struct XrayStats {
@@ -85,6 +89,7 @@ struct XrayStats {
     double max_magnification = 0;
     std::vector<double> strides;   ///< pixels between subgrid nodes, one per depth band (fractional when automatic)
     uint64_t taps = 0;             ///< splat window taps written (work: taps / voxels_splatted per voxel)
+    int supersampling = 1;         ///< sub-pixels per pixel edge the image was splatted at (then box-averaged)
     int level = 0;                 ///< the coarsest level of detail a grid was rendered from
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
     uint64_t batches = 0;          ///< renders the streamed grids took (one per batch), and one for the others

@@ -8,6 +8,7 @@
 #include "pcvr/xray.h"
 
 #include "view/level_of_detail.h"
+#include "xray/supersampling.h"
 
 namespace pcvr {
 
@@ -23,6 +24,7 @@ void accumulate(XrayStats& total, const XrayStats& part) {
     total.taps += part.taps;
     total.batches += part.batches;
     total.level = std::max(total.level, part.level);
+    total.supersampling = std::max(total.supersampling, part.supersampling);
     total.memory_bytes = std::max(total.memory_bytes, part.memory_bytes);
     total.include_magnification(part.min_magnification, part.max_magnification);
     for (double stride : part.strides)
@@ -38,6 +40,18 @@ int stream_level(const GridStream& stream, const Camera& camera, const XrayParam
                       : params.antialias ? automatic_level(stream.index_bbox(), stream.index_to_world(), camera)
                                          : 0;
     return std::min(level, GridStream::kMaxLevel);
+}
+
+/// The sub-pixels per pixel edge a stream's batches render at: as render_xray chooses for a grid at an
+/// automatic level 0, over the whole stream's box, where it pays for the batches of `batch_bytes` (each
+/// batch supersamples the whole image).
+int stream_supersampling(const GridStream& stream, const Camera& camera, const XrayParams& params, int level,
+                         uint64_t batch_bytes) {
+    if (params.supersampling > 0) return params.supersampling;
+    if (!may_supersample(params) || level > 0 || stream.active_voxel_count() == 0) return 1;
+    const uint64_t batches = std::max<uint64_t>(stream.batch_count(batch_bytes), 1);
+    return supersampling_that_pays(automatic_supersampling(stream.index_bbox(), stream.index_to_world(), camera),
+                                   camera, stream.active_voxel_count() / batches);
 }
 
 }  // namespace
@@ -100,7 +114,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
             continue;
         }
         XrayParams batch_params = part_params;
-        batch_params.level = level;  // every batch the same level
+        batch_params.level = level;  // every batch the same level, and the same sub-pixels
+        batch_params.supersampling = stream_supersampling(*s.stream, camera, params, level, batch_bytes);
         uint64_t streamed = 0;
         s.stream->for_each_batch(batch_bytes, [&](const GridStream::Batch& batch) {
             render_part({WeightedGrid{&batch.grid, s.density_scale, 0, s.attenuation, s.clip}}, batch.voxels_done - streamed,

@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <utility>
+#include <vector>
 
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
@@ -22,6 +23,7 @@
 
 #include "splat/near_eye_splat.h"
 #include "view/level_of_detail.h"
+#include "xray/supersampling.h"
 
 namespace pcvr {
 
@@ -200,6 +202,66 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     return image;
 }
 
+/// The sub-pixels per pixel edge of a zoomed-out view (level_of_detail.h): enough for every grid, where
+/// every grid renders from an automatic level 0 and is zoomed out that far; else 1.
+int supersampling(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params) {
+    if (params.supersampling > 0) return params.supersampling;
+    if (!may_supersample(params)) return 1;
+    int factor = 1;
+    uint64_t voxels = 0;
+    for (const WeightedGrid& g : grids) {
+        if (g.grid->active_voxel_count() == 0) continue;
+        voxels += g.grid->active_voxel_count();
+        if (g.level > 0 || automatic_level(*g.grid, cam) > 0) return 1;
+        const int wanted = automatic_supersampling(g.grid->index_bbox(), g.grid->index_to_world(), cam);
+        if (wanted == 1) return 1;
+        factor = std::max(factor, wanted);
+    }
+    return supersampling_that_pays(factor, cam, voxels);
+}
+
+/// The mean of every sub x sub block of `fine`.
+ImageAccumulator box_averaged(const ImageAccumulator& fine, int sub) {
+    ImageAccumulator image(fine.width / sub, fine.height / sub);
+    const double inverse_area = 1.0 / (double(sub) * sub);
+    std::vector<double> sums(image.width);
+    for (int r = 0; r < image.height; ++r) {
+        std::fill(sums.begin(), sums.end(), 0.0);
+        for (int y = r * sub; y < (r + 1) * sub; ++y) {
+            const float* in = fine.pixels.data() + size_t(y) * fine.width;
+            for (int c = 0; c < image.width; ++c)
+                for (int x = c * sub; x < (c + 1) * sub; ++x) sums[c] += in[x];
+        }
+        for (int c = 0; c < image.width; ++c) image.pixels[size_t(r) * image.width + c] = float(sums[c] * inverse_area);
+    }
+    return image;
+}
+
+/// A zoomed-out view rendered at sub x sub sub-pixels a pixel, where every voxel spans a sub-pixel or more
+/// and is splatted as at magnification 1 (not integrated over pixels one by one, 5 to 7 times the work a
+/// voxel), then box-averaged to the pixels. Without the memory for the sub-pixels, the pixels themselves.
+ImageAccumulator render_supersampled(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
+                                     const Kernel& kernel, PostFilterShape post_shape, RenderControl& control,
+                                     XrayStats& stats, int sub) {
+    const Camera fine(cam.world_to_camera(), cam.projection(), cam.width() * sub, cam.height() * sub);
+    XrayParams at_level_0 = params;
+    at_level_0.level = 0;  // what the pixels chose: the sub-pixels would choose no other
+    // A node per sub-pixel: the post filter's fractional strides (1.02 and the like here) lost up to 0.09%
+    // of a one-pixel image's mass, stride 1 0.02%.
+    if (at_level_0.stride == 0) at_level_0.stride = 1;
+    const XrayStats before = stats;
+    try {
+        ImageAccumulator image = box_averaged(render_splatted(grids, fine, at_level_0, kernel, post_shape, control, stats), sub);
+        stats.min_magnification /= sub;
+        stats.max_magnification /= sub;
+        stats.supersampling = sub;
+        return image;
+    } catch (const OutOfMemory&) {
+        stats = before;
+        return render_splatted(grids, cam, at_level_0, kernel, post_shape, control, stats);
+    }
+}
+
 /// The inputs are finite (from_dense refuses others, non-finite voxels of files are skipped, cameras
 /// and density scales are checked), so a non-finite pixel is a line integral beyond float's range.
 void check_finite(const XrayImage& image, const std::vector<WeightedGrid>& grids) {
@@ -238,6 +300,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
     if (params.stride < 0 || params.stride > kMaxStride)
         throw InvalidArgument("stride must be 0 (automatic) or a number of pixels from 1 to " + std::to_string(kMaxStride));
     if (params.threads < 0) throw InvalidArgument("threads must be 0 (all cores) or positive");
+    if (params.supersampling < 0) throw InvalidArgument("supersampling must be 0 (automatic) or positive");
     if (params.pixel_step < 1) throw InvalidArgument("pixel_step must be at least 1");
     if (!(params.footprint_tolerance >= 0))
         throw InvalidArgument("footprint_tolerance must be a number >= 0 (infinity: linearised footprints only)");
@@ -268,7 +331,9 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
             for (const auto& g : grids) stats.voxels_splatted += g.grid->active_voxel_count();
             return;
         }
-        ImageAccumulator image = render_splatted(grids, cam, params, kernel, post_shape, control, stats);
+        const int sub = supersampling(grids, cam, params);
+        ImageAccumulator image = sub > 1 ? render_supersampled(grids, cam, params, kernel, post_shape, control, stats, sub)
+                                         : render_splatted(grids, cam, params, kernel, post_shape, control, stats);
         out.width = image.width;
         out.height = image.height;
         out.pixels = std::move(image.pixels);
