@@ -61,7 +61,14 @@ def format_stats(stats):
         streamed = (f" | Streamed {count} volume{'s' if count > 1 else ''} from "
                     f"{'their files' if count > 1 else 'its file'} in {batches} batch{'es' if batches > 1 else ''}")
     return (f"Voxels {stats['voxels']:,} | Magnification {magnification} px/voxel | Stride {strides} | "
-            f"Time {stats['seconds']:.2f} s{streamed}")
+            f"Time {stats['seconds']:.2f} s{streamed}{_automatic_choices(stats)}")
+
+
+def _automatic_choices(stats):
+    """What the renderer chose for itself zoomed out: a coarser level of detail, or sub-pixels it averaged."""
+    level = f" | Level of detail {stats['level']}" if stats.get("level") else ""
+    sub = stats.get("supersampling", 1)
+    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "")
 
 
 def status_line(mode, stats):
@@ -75,9 +82,8 @@ def format_sheet_stats(stats):
         return "No volume in view"
     culled = stats["blocks_outside"] + stats["blocks_transparent"]
     strides = format_strides(stats["strides"])
-    level = f" | Level of detail {stats['level']}" if stats.get("level") else ""
     return (f"Voxels {stats['voxels']:,} | Culled blocks {culled:,} of {stats['blocks']:,} | "
-            f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s{level}")
+            f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s{_automatic_choices(stats)}")
 
 
 def _share(part, whole):
@@ -100,6 +106,8 @@ def _mode_rows(mode, stats):
         return [("Voxels", f"{stats['voxels']:,}"),
                 ("Magnification", f"{stats['magnification']:.2f} - {stats['magnification_max']:.2f} px/voxel"),
                 ("Stride", format_strides(stats["strides"])),
+                ("Level of detail", f"{stats.get('level', 0)}"),
+                ("Supersampling", f"{stats.get('supersampling', 1)} x {stats.get('supersampling', 1)} sub-pixels"),
                 ("Time", f"{stats['seconds']:.3f} s")]
     seconds = [("Planning", "seconds_plan"), ("Splatting", "seconds_splat"),
                ("Post-convolution", "seconds_post_convolution"), ("Shading", "seconds_shading")]

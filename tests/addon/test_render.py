@@ -135,3 +135,7 @@ def test_status_line_from_native_statistics(blob_object):
     line = statistics.format_stats(stats)
     assert f"Voxels {stats['voxels']:,}" in line and "px/voxel" in line and "Stride" in line
     assert statistics.format_stats({}) == "No volume in view"
+    # The renderer's own choices zoomed out show: a coarser level, or the sub-pixels it averaged.
+    assert "Level of detail" not in line and "Supersampled" not in line
+    zoomed = statistics.format_stats({**stats, "level": 2, "supersampling": 16})
+    assert zoomed.endswith("| Level of detail 2 | Supersampled 16 x 16")

@@ -155,9 +155,10 @@ CutSplatter::CutSplatter(const ViewProjection& view, const ClipRegion& clip, con
     for (const ClipPlane& p : clip.planes()) {
         plane_value_.push_back({p.at(o0_), dot(p.normal, ox_), dot(p.normal, oy_)});
         plane_rate_.push_back({dot(p.normal, d0_), dot(p.normal, dx_), dot(p.normal, dy_)});
-        // Index-space normals are unit: within 1e-9 radians of the rays (a kernel's kept share then moves
-        // by at most 2e-9 voxels across the image: the same to float).
-        edge_on_.push_back(parallel_ && std::abs(dot(p.normal, d0_)) <= 1e-9 * length(d0_));
+        // Index-space normals are unit: within 1e-6 radians of the rays, which takes in planes from single-
+        // precision matrices (Blender's: a quarter turn leaves cos = 4e-8); a kernel's kept share would move
+        // by at most 4e-6 voxels across its footprint, below what float resolves of a footprint.
+        edge_on_.push_back(parallel_ && std::abs(dot(p.normal, d0_)) <= 1e-6 * length(d0_));
     }
 }
 
