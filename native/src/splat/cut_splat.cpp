@@ -83,13 +83,13 @@ struct Linear {
 Quadratic on_row(const Quadratic2& q, double y) { return {q.c00 + y * (q.c01 + y * q.c02), q.c10 + y * q.c11, q.c20}; }
 Linear on_row(const Linear2& l, double y) { return {l.c0 + y * l.cy, l.cx}; }
 
-/// One row of a voxel's cut footprint: w.D, D.D, w.w and W.W as quadratics in the column x (w = centre
-/// - o(x)), and the planes that pass within the kernel's radius (the others leave its chord whole). With
-/// parallel rays a plane's crossing t = -(n.o + d) / n.D is linear in x: the crossings that bound t from
-/// below and from above, and the planes the rays run along (kept where n.o + d >= 0); otherwise n.o + d
-/// and n.D per plane. The vectors keep their memory from row to row.
 }  // namespace
 
+/// One row of a voxel's cut footprint (the double path, add_rows): w.D, D.D, w.w and W.W as quadratics in
+/// the column x (w = centre - o(x)), and the planes that pass within the kernel's radius (the others leave
+/// its chord whole). With parallel rays a plane's crossing t = -(n.o + d) / n.D is linear in x: the
+/// crossings that bound t from below and from above, and the planes the rays run along (kept where
+/// n.o + d >= 0); otherwise n.o + d and n.D per plane. The vectors keep their memory from row to row.
 struct CutScratch::Row {
     Quadratic wd, dd, ww, world;
     std::vector<Linear> lower, upper, along, value, rate;
