@@ -350,26 +350,17 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
         {0, 0, rect.width() - 1, rect.height() - 1});
 }
 
-/// The extinctions of samples under gradient opacity (ClassificationTable::extinction), with |grad density|
-/// per world unit from composite_sample's scale-free gradient: there the frame [per_pixel_x, per_pixel_y,
-/// along] was scaled by per_length = 1 / |along| (ppx its first column), and the gradient's rows are those
-/// of its inverse times its determinant (from_x the first), while the sheets hold density times
-/// slab_length. The true gradient is per_length gradient / determinant / slab_length; dividing by the
-/// determinant first keeps tiny and huge voxels within float's range. Out of line: without gradient
-/// opacity the walk's loop stays as lean as it was.
-[[gnu::noinline]] float8 gradient_opacity_extinction(const ClassificationTable& table, float8 density, const Vec3x8& gradient,
-                                                     const Vec3x8& ppx, const Vec3x8& from_x, float8 per_length, float slab_length) {
+/// |grad density| per world unit from composite_sample's scale-free gradient, for gradient opacity
+/// (ClassificationTable::extinction) and a clipped grid's weak gradients (sample_clip.h): there the frame
+/// [per_pixel_x, per_pixel_y, along] was scaled by per_length = 1 / |along| (ppx its first column), and the
+/// gradient's rows are those of its inverse times its determinant (from_x the first), while the sheets hold
+/// density times slab_length. The true gradient is per_length gradient / determinant / slab_length; dividing
+/// by the determinant first keeps tiny and huge voxels within float's range. Out of line: without gradient
+/// opacity or clipping the walk's loop stays as lean as it was.
+[[gnu::noinline]] float8 gradient_magnitude(const Vec3x8& gradient, const Vec3x8& ppx, const Vec3x8& from_x, float8 per_length,
+                                            float slab_length) {
     const Vec3x8 times_slab = gradient * (per_length / dot(ppx, from_x));
-    return table.extinction(density, sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length));
-}
-
-/// The gradient a sample of a clipped grid is lit by (sample_clip.h), from the true magnitude of the
-/// scale-free one as gradient_opacity_extinction finds it. Out of line, as that one.
-[[gnu::noinline]] Vec3x8 cut_face_gradient(const SampleClip& clip, const Vec3x8& position, const Vec3x8& gradient, float8 departure,
-                                           const Vec3x8& ppx, const Vec3x8& from_x, float8 per_length, float slab_length) {
-    const Vec3x8 times_slab = gradient * (per_length / dot(ppx, from_x));
-    const float8 magnitude = sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length);
-    return clip.face_gradient<float8>(position, gradient, clip.weak_gradient(magnitude, departure));
+    return sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length);
 }
 
 }  // namespace
@@ -543,16 +534,21 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                     (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
                 const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
                 const Vec3x8 field_gradient = from_x * g1 + from_y * g2 + from_u * g3;
+                const bool gradient_opacity = src.classification->has_gradient_opacity();
+                const float8 magnitude = gradient_opacity || src.clip
+                                             ? gradient_magnitude(field_gradient, ppx, from_x, per_length, slab_length)
+                                             : broadcast8(0.0f);
                 float8 extinction = c.extinction;
-                if (src.classification->has_gradient_opacity()) {
-                    extinction = gradient_opacity_extinction(*src.classification, density, field_gradient, ppx, from_x, per_length, slab_length);
+                if (gradient_opacity) {
+                    extinction = src.classification->extinction(density, magnitude);
                     valid &= extinction > 0;
                     if (!any8(valid)) continue;
                 }
                 // A cut face is lit by the plane's normal (sample_clip.h); gradient opacity read the field's.
-                const Vec3x8 gradient = src.clip ? cut_face_gradient(*src.clip, f.position, field_gradient, density - src.background,
-                                                                     ppx, from_x, per_length, slab_length)
-                                                 : field_gradient;
+                const Vec3x8 gradient =
+                    src.clip ? src.clip->face_gradient<float8>(f.position, field_gradient,
+                                                               src.clip->weak_gradient(magnitude, density - src.background))
+                             : field_gradient;
                 lit_colours[lit_count] = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
                 extinctions[lit_count] = select8(valid, extinction * kept, broadcast8(0.0f));
                 sigma_sum += extinctions[lit_count++];
