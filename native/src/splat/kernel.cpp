@@ -57,7 +57,7 @@ double raw_partial_integral(KernelShape shape, double rho, double s, double radi
     if (shape == KernelShape::Linear) {
         // integral of (1 - sqrt(rho^2 + t^2) / R) dt = s - (s q + rho^2 ln((s + q) / rho)) / (2R), q = sqrt(rho^2 + s^2)
         const double q = std::sqrt(rho * rho + s * s), magnitude = std::abs(s);
-        const double log_term = rho > 0 ? rho * rho * std::log((magnitude + std::sqrt(rho * rho + s * s)) / rho) : 0.0;
+        const double log_term = rho > 0 ? rho * rho * std::log((magnitude + q) / rho) : 0.0;
         return std::copysign(magnitude - (magnitude * q + log_term) / (2.0 * radius), s);
     }
     return s;
