@@ -153,13 +153,17 @@ class PCVR_RENDER_PT_passes(PCVRButtonsPanel, Panel):
         col.prop(context.view_layer.pcvr, "use_pass_xray")
 
 
-class PCVR_DATA_PT_volume(PCVRButtonsPanel, Panel):
-    bl_label = "PCVR"
+class VolumePanel(PCVRButtonsPanel):
+    """A panel of the volume's data properties."""
     bl_context = "data"
 
     @classmethod
     def poll(cls, context):
         return context.volume and super().poll(context)
+
+
+class PCVR_DATA_PT_volume(VolumePanel, Panel):
+    bl_label = "PCVR"
 
     def draw(self, context):
         layout = property_split(self.layout)
@@ -183,14 +187,9 @@ class PCVR_UL_clip_planes(UIList):
         row.prop(item, "object", text="", emboss=False, icon='EMPTY_SINGLE_ARROW')
 
 
-class VolumeSubPanel(PCVRButtonsPanel):
+class VolumeSubPanel(VolumePanel):
     """A sub-panel of the volume's PCVR panel."""
-    bl_context = "data"
     bl_parent_id = "PCVR_DATA_PT_volume"
-
-    @classmethod
-    def poll(cls, context):
-        return context.volume and super().poll(context)
 
 
 class PCVR_DATA_PT_clipping(VolumeSubPanel, Panel):
