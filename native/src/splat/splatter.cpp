@@ -108,8 +108,6 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     tbb::enumerable_thread_specific<SplatScratch> scratches;
     tbb::enumerable_thread_specific<std::vector<CutVoxel>> cut_voxels;
     tbb::enumerable_thread_specific<CutScratch> cut_scratches;
-    std::optional<CutSplatter> cuts;
-    if (params.clip) cuts.emplace(view, *params.clip, *params.kernel);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks.size(), 4), [&](const tbb::blocked_range<size_t>& range) {
         control.throw_if_cancelled();
         SplatGrid& grid = locals.local();
@@ -118,7 +116,8 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
         for (size_t b = range.begin(); b != range.end(); ++b) {
             const PlannedBlock& pb = blocks[b];
             VoxelBlock kept;
-            if (pb.cut && params.clip) {
+            const bool cut_block = pb.cut && params.clip;
+            if (cut_block) {
                 // Voxels a plane cuts: into the grid where their kept footprints are smooth at its nodes
                 // (or the nodes are the pixels), per pixel afterwards where not (src/splat/cut_splat.h).
                 std::vector<CutVoxel>& cut_here = cut_voxels.local();
@@ -126,15 +125,15 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
                 kept = split_cut_block(grid_blocks[pb.index], *params.clip, params.kernel_radius, params.density_scale, cut_here);
                 size_t sharp = before;
                 for (size_t i = before; i < cut_here.size(); ++i) {
-                    if (cut == nullptr || target.stride() == 1.0 || cuts->smooth(cut_here[i]))
-                        scratch.taps += cuts->splat(cut_here[i], grid, cut_scratches.local());
+                    if (cut == nullptr || target.stride() == 1.0 || params.cuts->smooth(cut_here[i]))
+                        scratch.taps += params.cuts->splat(cut_here[i], grid, cut_scratches.local());
                     else
                         cut_here[sharp++] = cut_here[i];
                 }
                 count += cut_here.size() - sharp;
                 cut_here.resize(sharp);
             }
-            const VoxelBlock& block = pb.cut && params.clip ? kept : grid_blocks[pb.index];
+            const VoxelBlock& block = cut_block ? kept : grid_blocks[pb.index];
             const uint64_t n = phases ? splat_block_phases(block, phases->map, phases->table, pb.needs_clip_test ? &view : nullptr, grid, scratch)
                                : pb.exact_footprints ? splat_block_near_eye(block, pb, footprints, params.footprint_tolerance, grid, scratch)
                                                      : splat_block_footprints(block, pb, footprints, grid, scratch);

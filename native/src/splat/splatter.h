@@ -48,8 +48,10 @@ struct SplatParams {
     /// The grid's level of detail (Grid::level): its voxels' footprints spread like the 8^level voxels
     /// they stand for (src/view/level_of_detail.h).
     int level = 0;
-    /// The grid's clip region in index space (pcvr/clip_region.h), for the blocks the plan marks cut.
+    /// The grid's clip region in index space (pcvr/clip_region.h), for the blocks the plan marks cut, and
+    /// what splats the kernels it cuts (required with it).
     const ClipRegion* clip = nullptr;
+    const CutSplatter* cuts = nullptr;
 };
 
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,

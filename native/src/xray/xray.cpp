@@ -122,11 +122,18 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         budget.add(name.str(),
                    uint64_t(workers + 1) * SplatGrid::bytes(cam.width(), cam.height(), finest, plan_params.margin_nodes));
     }
-    // A grid cut by planes seen edge-on renders into an image of its own, which those planes then mask.
-    std::vector<std::unique_ptr<ImageAccumulator>> masked(planned.size());
+    // Each cut grid's splatter of the kernels its cuts cross (src/splat/cut_splat.h). A grid cut by planes
+    // seen edge-on renders into an image of its own, which those planes then mask; its voxels are cut by the
+    // other planes only: those the edge-on planes cross keep whole footprints.
+    std::vector<std::optional<CutSplatter>> cutters(planned.size());
+    std::vector<ClipRegion> splat_clips(planned.size());
     size_t masked_grids = 0;
-    for (size_t k = 0; k < planned.size(); ++k)
-        masked_grids += !planned[k].clip.keeps_everything() && CutSplatter(planned[k].view, planned[k].clip, kernel).masks();
+    for (size_t k = 0; k < planned.size(); ++k) {
+        if (planned[k].clip.keeps_everything()) continue;
+        const CutSplatter& cuts = cutters[k].emplace(planned[k].view, planned[k].clip, kernel);
+        splat_clips[k] = cuts.masks() ? cuts.unmasked() : planned[k].clip;
+        masked_grids += cuts.masks();
+    }
     const uint64_t pixels = uint64_t(cam.width()) * cam.height();
     if (any_cut) budget.add("images of the voxels clip planes cut, one per thread", uint64_t(tbb::this_task_arena::max_concurrency()) * pixels * sizeof(double));
     if (masked_grids > 0 && !strides.empty()) {
@@ -150,17 +157,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
 
     // One splat grid per stride (depth band), shared by all grids: X-ray contributions simply add.
     // The voxels a clip plane cuts where their kept footprints have sharp edges are integrated per pixel,
-    // straight into the image; a grid cut by planes seen edge-on renders into an image of its own, which
-    // those planes then mask (src/splat/cut_splat.h).
-    // Its voxels are cut by the other planes only: those the edge-on planes cross keep whole footprints.
+    // straight into the image (or the grid's own, to be masked).
     std::vector<std::vector<CutVoxel>> cut(planned.size());
-    std::vector<ClipRegion> splat_clips(planned.size());
-    for (size_t k = 0; k < planned.size(); ++k) {
-        if (planned[k].clip.keeps_everything()) continue;
-        const CutSplatter cuts(planned[k].view, planned[k].clip, kernel);
-        splat_clips[k] = cuts.masks() ? cuts.unmasked() : planned[k].clip;
-        if (cuts.masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
-    }
+    std::vector<std::unique_ptr<ImageAccumulator>> masked(planned.size());
+    for (size_t k = 0; k < planned.size(); ++k)
+        if (cutters[k] && cutters[k]->masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
     auto to_image = [&](const SplatGrid& grid, ImageAccumulator& out) {
         if (regular)
             add_unfiltered(grid, out);
@@ -176,6 +177,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
             splat.density_scale = float(pg.source->density_scale * range);
             splat.level = pg.level;
             splat.clip = splat_clips[k].keeps_everything() ? nullptr : &splat_clips[k];
+            splat.cuts = cutters[k] ? &*cutters[k] : nullptr;
             std::optional<SplatGrid> own;
             if (masked[k]) own.emplace(target.zero_like());
             stats.voxels_splatted +=
@@ -186,11 +188,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         stats.strides.push_back(stride);
     }
     for (size_t k = 0; k < planned.size(); ++k) {
+        if (!cutters[k]) continue;
         stats.voxels_cut += cut[k].size();
-        const CutSplatter cuts(planned[k].view, planned[k].clip, kernel);
-        stats.taps += cuts.splat(cut[k], masked[k] ? *masked[k] : image, control);
+        stats.taps += cutters[k]->splat(cut[k], masked[k] ? *masked[k] : image, control);
         if (!masked[k]) continue;
-        cuts.mask(*masked[k]);
+        cutters[k]->mask(*masked[k]);
         for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] += masked[k]->pixels[i];
     }
     if (range != 1.0) {
