@@ -86,33 +86,15 @@ Linear on_row(const Linear2& l, double y) { return {l.c0 + y * l.cy, l.cx}; }
 }  // namespace
 
 /// One row of a voxel's cut footprint (the double path, add_rows): w.D, D.D, w.w and W.W as quadratics in
-/// the column x (w = centre - o(x)), and the planes that pass within the kernel's radius (the others leave
-/// its chord whole). With parallel rays a plane's crossing t = -(n.o + d) / n.D is linear in x: the
-/// crossings that bound t from below and from above, and the planes the rays run along (kept where
-/// n.o + d >= 0); otherwise n.o + d and n.D per plane. The vectors keep their memory from row to row.
+/// the column x (w = centre - o(x)), and for the planes that pass within the kernel's radius (the others
+/// leave its chord whole) n.o + d and n.D, linear in x. The vectors keep their memory from row to row.
 struct CutScratch::Row {
     Quadratic wd, dd, ww, world;
-    std::vector<Linear> lower, upper, along, value, rate;
-
-    /// The columns [lo, hi] (pixel coordinates) where a parallel row's rays pass within `radius`:
-    /// rho^2 dd = ww dd - wd^2 < radius^2 dd, a quadratic in x (wd is linear there).
-    bool disc(double radius, double& lo, double& hi) const {
-        const double a = ww.c2 * dd.c0 - wd.c1 * wd.c1, b = ww.c1 * dd.c0 - 2.0 * wd.c0 * wd.c1;
-        const double c = (ww.c0 - radius * radius) * dd.c0 - wd.c0 * wd.c0;
-        const double disc = b * b - 4.0 * a * c;
-        if (!(a > 0) || !(disc > 0)) return false;
-        const double root = std::sqrt(disc);
-        lo = (-b - root) / (2.0 * a), hi = (-b + root) / (2.0 * a);
-        return true;
-    }
+    std::vector<Linear> value, rate;
 
     /// The kept interval [lo, hi] of the ray's parameter t at column x; empty when lo >= hi.
     void kept(double x, double& lo, double& hi) const {
         lo = -1e300, hi = 1e300;
-        for (const Linear& l : lower) lo = std::max(lo, l.at(x));
-        for (const Linear& u : upper) hi = std::min(hi, u.at(x));
-        for (const Linear& a : along)
-            if (a.at(x) < 0) hi = -1e300;
         for (size_t k = 0; k < value.size(); ++k) {
             const double v = value[k].at(x), r = rate[k].at(x);
             if (r > 0)
@@ -220,31 +202,13 @@ uint64_t CutSplatter::add_rows(const CutVoxel& v, const Lattice& at, CutScratch&
     for (int r = r0; r <= r1; ++r) {
         const double y = at.scale * (r + at.first_row);
         row.wd = on_row(wd, y), row.dd = on_row(dd_, y), row.ww = on_row(ww, y), row.world = on_row(world_, y);
-        for (auto* list : {&row.lower, &row.upper, &row.along, &row.value, &row.rate}) list->clear();
-        for (size_t k : near) {
-            const Linear value = on_row(plane_value_[k], y), rate = on_row(plane_rate_[k], y);
-            if (!parallel_)
-                row.value.push_back(value), row.rate.push_back(rate);
-            else if (rate.c0 != 0.0)
-                (rate.c0 > 0 ? row.lower : row.upper).push_back({-value.c0 / rate.c0, -value.c1 / rate.c0});
-            else
-                row.along.push_back(value);
-        }
-        int first = c0, last = c1;
-        if (parallel_) {  // the disc's columns only
-            double lo, hi;
-            if (!row.disc(radius, lo, hi)) continue;
-            first = std::max(first, clamp_to_int(std::floor(lo / at.scale) - at.first_column, c0, c1 + 1));
-            last = std::min(last, clamp_to_int(std::ceil(hi / at.scale) - at.first_column, c0 - 1, c1));
-        }
+        row.value.clear(), row.rate.clear();
+        for (size_t k : near) row.value.push_back(on_row(plane_value_[k], y)), row.rate.push_back(on_row(plane_rate_[k], y));
         auto* values = out(r);
-        // Parallel rays: D.D and W.W are the same along the row, and so the divisions and roots.
-        const double row_inverse = 1.0 / row.dd.c0, row_length = std::sqrt(row.dd.c0);
-        const double row_scale = v.amplitude * std::sqrt(row.world.c0 * row_inverse);
-        for (int c = first; c <= last; ++c) {
+        for (int c = c0; c <= c1; ++c) {
             const double x = at.scale * (c + at.first_column);
-            const double dd = parallel_ ? row.dd.c0 : row.dd.at(x), inverse = parallel_ ? row_inverse : 1.0 / dd;
-            const double wd_x = row.wd.at(x), rho2 = row.ww.at(x) - wd_x * wd_x * inverse;
+            const double dd = row.dd.at(x), wd_x = row.wd.at(x), inverse = 1.0 / dd;
+            const double rho2 = row.ww.at(x) - wd_x * wd_x * inverse;
             if (!(rho2 < radius2)) continue;
             ++taps;
             // The kept interval of t (the ray's parameter) and where t passes the centre.
@@ -252,9 +216,9 @@ uint64_t CutSplatter::add_rows(const CutVoxel& v, const Lattice& at, CutScratch&
             row.kept(x, lo, hi);
             if (!(lo < hi)) continue;
             // In index units along the ray from its closest approach, and world length per index length.
-            const double closest = wd_x * inverse, index_length = parallel_ ? row_length : std::sqrt(dd);
-            const double scale = parallel_ ? row_scale : v.amplitude * std::sqrt(row.world.at(x) * inverse);
-            values[c] += scale * profile_(std::max(rho2, 0.0), (lo - closest) * index_length, (hi - closest) * index_length);
+            const double closest = wd_x * inverse, index_length = std::sqrt(dd);
+            values[c] += v.amplitude * std::sqrt(row.world.at(x) * inverse) *
+                         profile_(std::max(rho2, 0.0), (lo - closest) * index_length, (hi - closest) * index_length);
         }
     }
     return taps;
