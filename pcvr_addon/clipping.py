@@ -56,10 +56,10 @@ def _deleted(obj):
     return not obj.original.users_collection
 
 
-def world_matrix(obj, role):
-    """The world matrix of `obj`, the volume's `role` ("crop object", "clip plane"), checked: ClipError for a
-    deleted object, one that is not finite, or one scaled to zero on an axis (whose box or side is empty or
-    undefined)."""
+def world_to_local(obj, role):
+    """The inverse of the world matrix of `obj`, the volume's `role` ("crop object", "clip plane"), checked:
+    ClipError for a deleted object, one that is not finite, or one scaled to zero on an axis (whose box or
+    side is empty or undefined)."""
     if obj is None:
         raise ClipError(f"a {role} is missing (none chosen, or deleted)")
     if _deleted(obj):
@@ -71,19 +71,17 @@ def world_matrix(obj, role):
         inverse = np.linalg.inv(matrix) if np.linalg.det(matrix[:3, :3]) != 0 else None
     if inverse is None or not np.isfinite(inverse).all():
         raise ClipError(f"{role} '{obj.name}' is scaled to zero on an axis: it has no inside")
-    return matrix, inverse
+    return inverse
 
 
 def crop_box(obj):
     """The world-to-box matrix of a crop object: its local [-1, 1]^3 kept."""
-    _matrix, inverse = world_matrix(obj, "crop object")
-    return inverse
+    return world_to_local(obj, "crop object")
 
 
 def clip_plane(obj):
     """(a, b, c, d) of a clip-plane object, (a, b, c) of unit length: its local +Z side kept, z_local >= 0."""
-    _matrix, inverse = world_matrix(obj, "clip plane")
-    row = inverse[2]  # z_local as a function of world position
+    row = world_to_local(obj, "clip plane")[2]  # z_local as a function of world position
     return tuple(float(value) for value in row / np.linalg.norm(row[:3]))
 
 
