@@ -4,8 +4,6 @@ by hand (not by pcvr_addon.clipping) so that the tests check the add-on's readin
 import bpy
 import numpy as np
 
-from clip_support import needs_native_clipping  # noqa: F401 - the tests' one import of it
-
 
 def rotation_z(angle):
     c, s = np.cos(angle), np.sin(angle)

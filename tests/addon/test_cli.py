@@ -178,7 +178,6 @@ def test_views_and_a_drr_from_hounsfield_units(tmp_path):
     assert run.returncode == 2 and "'bright' is not a number or 'auto'" in run.stderr
 
 
-@cs.needs_native_clipping
 def test_clip_box_and_clip_planes_cut_every_volume(tmp_path, box_vdb):
     box, planes = ((0.5, 0.0, 0.0), (0.5, 1.0, 1.0)), [(0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.1)]
     check(pcvr(box_vdb, "-o", tmp_path / "cut.exr", "--magnification", 2, "--method", "regular",
@@ -193,7 +192,6 @@ def test_clip_box_and_clip_planes_cut_every_volume(tmp_path, box_vdb):
     assert cut.sum() / pn.render_xray(grid, camera, method="regular").sum() == pytest.approx(0.25 * 5 / 8, rel=0.1)
 
 
-@cs.needs_native_clipping
 def test_clip_box_of_a_blend_cuts_volumes_with_crops_of_their_own(tmp_path, box_vdb):
     bs.setup(32, 32)
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.0)

@@ -46,7 +46,6 @@ def share_kept(image, grids):
     return image.sum() / native_xray(grids).sum()
 
 
-@cs.needs_native_clipping
 def test_crop_object_keeps_its_box(blob):
     obj, grid = blob
     # Any object crops: a turned, unevenly scaled empty keeping about the right half of the volume.
@@ -57,7 +56,6 @@ def test_crop_object_keeps_its_box(blob):
     assert 0.3 < share_kept(image, grid) < 0.7
 
 
-@cs.needs_native_clipping
 def test_clip_plane_keeps_its_local_z_side(blob):
     obj, grid = blob
     # Turned a quarter about Y, the empty's local +Z is world +X: x >= 0.05 is kept, whatever its scale.
@@ -88,7 +86,6 @@ def two_volumes(tmp_path, rng):
     return left, right
 
 
-@cs.needs_native_clipping
 def test_each_volume_has_its_own_crop(two_volumes):
     left, right = two_volumes
     boxes = [cs.world_to_box((-0.25, 0.0, 0.0), (0.25, 1.0, 1.0)), None]
@@ -96,7 +93,6 @@ def test_each_volume_has_its_own_crop(two_volumes):
                       SAME_CALL)
 
 
-@cs.needs_native_clipping
 @pytest.mark.parametrize("mode", ['SHADED', 'MIP'])
 def test_each_volume_has_its_own_crop_in_sheet_modes(two_volumes, mode):
     left, right = two_volumes
@@ -145,9 +141,8 @@ def _deleted_crop(obj):
     return r"crop object 'Box' was deleted"
 
 
-@pytest.mark.parametrize("make_bad", [
-    _zero_scale_crop, _nan_crop, _zero_scale_plane, _no_crop_object,
-    pytest.param(_deleted_crop, marks=cs.needs_native_clipping)], ids=lambda make_bad: make_bad.__name__[1:])
+@pytest.mark.parametrize("make_bad", [_zero_scale_crop, _nan_crop, _zero_scale_plane, _no_crop_object, _deleted_crop],
+                         ids=lambda make_bad: make_bad.__name__[1:])
 def test_bad_clipping_leaves_the_volume_out_and_others_render(tmp_path, rng, make_bad):
     bs.setup(*SIZE, method='REGULAR')
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=3.0)
@@ -164,7 +159,6 @@ def test_bad_clipping_leaves_the_volume_out_and_others_render(tmp_path, rng, mak
 # -------------------------------------------------------------------------------------------------
 # The viewport
 
-@cs.needs_native_clipping
 def test_viewport_renders_again_when_the_crop_object_moves(blob, monkeypatch):
     obj, grid = blob
     draws = vs.record_draws(monkeypatch)

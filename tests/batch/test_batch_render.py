@@ -9,7 +9,6 @@ import pytest
 
 import batch_helpers as bh
 import batch_scenes
-from clip_support import needs_native_clipping
 from pcvr_addon import cli, image_io
 from pcvr_addon.batch import render_task
 
@@ -155,7 +154,6 @@ def test_a_task_run_again_keeps_what_its_run_wrote(tmp_path, sequence, extension
         assert json.load(file)["counts"] == {"rendered": 2}
 
 
-@needs_native_clipping
 def test_job_file_clips_as_the_command_line_does(tmp_path, sequence):
     # The files' voxels of 0.1 span 0 to 2.4: the box keeps x < 1.2, the plane z > 0.8.
     clip = {"clip_box": [0.6, 1.2, 1.2, 0.6, 2.0, 2.0], "clip_plane": [[0.0, 0.0, 1.0, -0.8]]}
