@@ -14,8 +14,11 @@
 /// partition of unity up to a small ripple (about 0.5% for gauss1.4).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
+
+#include "pcvr/lanes.h"
 
 namespace pcvr {
 
@@ -57,11 +60,20 @@ private:
 /// for rho^2, a conversion and a load. Entry k holds the line integral at the centre of
 /// [k, k + 1) * step, so truncating rho^2 * scale to an integer rounds to the nearest sample; entries
 /// past the radius are zero, so a clamped index needs no branch.
+/// Eight taps at once (`weights`) come from a polynomial in rho^2 instead where one fits the line
+/// integral closer than the table's own rounding (gauss1.4: 4.4e-4 against 6.8e-4 of the centre's
+/// value). The shaded slab splat takes them: its loop stalled on the table's gather of eight scattered
+/// entries. The X-ray's footprint loop, a gather and an add per eight taps, stays with the table, which
+/// measured faster there (the ten multiply-adds cost more than the gather they replace).
 class FootprintTable {
 public:
     static constexpr int kSamples = 4096;
+    static constexpr int kFitDegree = 10;
 
     explicit FootprintTable(const Kernel& kernel);
+    /// The table of a kernel, made once per shape and kept (its fit evaluates the line integral some
+    /// 40 000 times: a millisecond, which a small X-ray render must not pay each time).
+    static const FootprintTable& of(const Kernel& kernel);
 
     float radius2() const { return radius2_; }
     float scale() const { return scale_; }          ///< samples per unit of rho^2
@@ -71,10 +83,26 @@ public:
         float f = rho2 * scale_;
         return values_[f < float(kSamples) ? int(f) : kSamples];
     }
+    /// The footprint at eight values of rho^2 (any: negative rounding is the centre, beyond the radius 0).
+    float8 weights(float8 rho2) const {
+        rho2 = max8(rho2, broadcast8(0.0f));
+        if (!fitted_) return gather8(values_.data(), __builtin_convertvector(min8(rho2 * scale_, broadcast8(max_index())), int8x));
+        const float8 x = rho2 * fit_scale_ - 1.0f;  // [0, R^2] to [-1, 1]
+        float8 p = broadcast8(fit_[kFitDegree]);
+        for (int i = kFitDegree - 1; i >= 0; --i) p = p * x + fit_[i];
+        return select8(rho2 < radius2_, p, broadcast8(0.0f));
+    }
+    /// The same for one rho^2.
+    float weight(float rho2) const { return weights(broadcast8(rho2))[0]; }
+    /// Whether weights() evaluates the polynomial.
+    bool fitted() const { return fitted_; }
 
 private:
     float radius2_, scale_;
     std::vector<float> values_;  // kSamples + padding, zero past the radius
+    bool fitted_ = false;
+    float fit_scale_ = 0;
+    std::array<float, kFitDegree + 1> fit_{};  // monomial coefficients in x = 2 rho^2 / R^2 - 1
 };
 
 }  // namespace pcvr

@@ -130,6 +130,46 @@ FootprintTable::FootprintTable(const Kernel& kernel)
       values_(kSamples + 16, 0.0f) {
     const double step = double(radius2_) / kSamples;
     for (int k = 0; k < kSamples; ++k) values_[k] = float(kernel.line_integral(std::sqrt((k + 0.5) * step)));
+
+    // Chebyshev interpolation in x = 2 rho^2 / R^2 - 1 at the Chebyshev nodes, turned into monomials in x.
+    const double r2 = kernel.radius() * kernel.radius();
+    constexpr int n = kFitDegree + 1;
+    auto footprint = [&](double x) { return kernel.line_integral(std::sqrt(std::max(0.0, (x + 1.0) * 0.5 * r2))); };
+    std::array<double, n> chebyshev{};
+    for (int k = 0; k < n; ++k) {
+        const double angle = kPi * (k + 0.5) / n, value = footprint(std::cos(angle));
+        for (int j = 0; j < n; ++j) chebyshev[j] += (j == 0 ? 1.0 : 2.0) / n * value * std::cos(j * angle);
+    }
+    // T_j as monomials: T_0 = 1, T_1 = x, T_{j+1} = 2x T_j - T_{j-1}.
+    std::array<double, n> monomial{}, before{}, current{};
+    before[0] = 1.0, current[1] = 1.0;
+    monomial[0] = chebyshev[0];
+    for (int i = 0; i < n; ++i) monomial[i] += chebyshev[1] * current[i];
+    for (int j = 2; j < n; ++j) {
+        std::array<double, n> next{};
+        for (int i = 0; i < n; ++i) next[i] = (i > 0 ? 2.0 * current[i - 1] : 0.0) - before[i];
+        for (int i = 0; i < n; ++i) monomial[i] += chebyshev[j] * next[i];
+        before = current, current = next;
+    }
+    for (int i = 0; i < n; ++i) fit_[i] = float(monomial[i]);
+    fit_scale_ = float(2.0 / r2);
+    // Kept only where it beats the table's rounding to the nearest sample, everywhere inside the radius.
+    double fit_error = 0, table_error = 0;
+    for (int k = 0; k <= 8 * kSamples; ++k) {
+        const double rho2 = r2 * k / (8.0 * kSamples), exact = kernel.line_integral(std::sqrt(rho2));
+        const double x = rho2 * (2.0 / r2) - 1.0;
+        double p = monomial[n - 1];
+        for (int i = n - 2; i >= 0; --i) p = p * x + monomial[i];
+        fit_error = std::max(fit_error, std::abs(p - exact));
+        table_error = std::max(table_error, std::abs(double(at_rho2(float(rho2))) - exact));
+    }
+    fitted_ = fit_error < table_error;
+}
+
+const FootprintTable& FootprintTable::of(const Kernel& kernel) {
+    static const FootprintTable tables[] = {FootprintTable(Kernel(KernelShape::Gauss14)), FootprintTable(Kernel(KernelShape::Gauss20)),
+                                            FootprintTable(Kernel(KernelShape::Linear)), FootprintTable(Kernel(KernelShape::Box))};
+    return tables[int(kernel.shape())];
 }
 
 }  // namespace pcvr

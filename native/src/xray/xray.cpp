@@ -146,7 +146,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     control.begin_phase(planned_blocks, 0.0, 0.97);
 
     const double range = range_scale(grids);
-    const FootprintTable table(kernel);
+    const FootprintTable& table = FootprintTable::of(kernel);
     SplatParams splat;
     splat.mode = params.method == XrayMethod::BilinearSpread ? SplatMode::BilinearSpread : SplatMode::Footprint;
     splat.table = &table;
