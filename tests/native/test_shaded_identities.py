@@ -104,5 +104,8 @@ def test_slabs_of_sheared_kernels_sum_to_the_xray(part, projection):
     # The sheets splat linearised footprints everywhere; the X-ray switches to exact ones where the
     # linearisation is off (1.8% here, close to stretched voxels), so it is held to the linearised ones.
     xray = pn.render_xray(grid, cam, method="regular", footprint_tolerance=np.inf).astype(np.float64)
-    tolerance = REGULAR_TOL if projection == "ortho" else 2e-4
+    # Perspective footprints: the slabs take P from its polynomial, the X-ray from its table (the nearest
+    # of 4096 samples), 4.4e-4 and 6.8e-4 of P's peak from the line integral (kernel.h): measured up to
+    # 2.3e-4 of the image's maximum apart (7.4e-5 when both took the table).
+    tolerance = REGULAR_TOL if projection == "ortho" else 3e-4
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()

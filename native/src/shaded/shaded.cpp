@@ -189,7 +189,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     const bool mip = lighting == nullptr;
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
     const PostFilterShape post_shape = post_filter_from_name(params.post_filter);
-    const FootprintTable table(kernel);
+    const FootprintTable& table = FootprintTable::of(kernel);
     const DepthProfile profile(kernel);
     const bool regular = params.method == ShadedMethod::Regular;
     const bool spread = params.method == ShadedMethod::BilinearSpread;

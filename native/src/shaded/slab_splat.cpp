@@ -242,21 +242,19 @@ inline void add_taps(const SlabBatch& b, int l, const DepthProfile& depth, const
 }
 
 /// The footprint's taps row by row over `window` (ring nodes), eight at a time, weights from the
-/// footprint table: any footprint (perspective, box kernel, wide windows).
+/// footprint table (FootprintTable::weights): any footprint (perspective, box kernel, wide windows).
 void deposit_footprint(const SlabBatch& b, int l, const FootprintTable& table, const DepthProfile& depth,
                        const LaneSlabs& slabs, const Box& window, size_t pitch) {
     const float cx = b.cx[l], cy = b.cy[l];
     const float qxx = b.qxx[l], qxy2 = 2.0f * b.qxy[l], qyy = b.qyy[l];
     const float8 lanes = lane_index8();
-    const float8 scale = broadcast8(table.scale()), last_index = broadcast8(table.max_index());
     for (int r = window.y0; r <= window.y1; ++r) {
         const float dy = float(r) - cy;
         for (int col = window.x0; col <= window.x1; col += kBatch) {
             const float8 dx = (float(col) - cx) + lanes;
             const int8x inside = lanes <= float(window.x1 - col);
             const float8 rho2 = (qxx * dx + qxy2 * dy) * dx + qyy * dy * dy;
-            const int8x index = __builtin_convertvector(min8(max8(rho2 * scale, broadcast8(0.0f)), last_index), int8x);
-            const float8 weight = select8(inside, gather8(table.data(), index) * b.amp[l], broadcast8(0.0f));
+            const float8 weight = select8(inside, table.weights(rho2) * b.amp[l], broadcast8(0.0f));
             add_taps(b, l, depth, slabs, size_t(r) * pitch + col, weight, dx, broadcast8(dy), add8);
         }
     }
@@ -444,6 +442,23 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 auto row = [&](int r) { return x * m.m[r][0] + y * m.m[r][1] + z * m.m[r][2] + m.m[r][3]; };
                 const double4 clip_w = row(3);
                 const FootprintLanes<double4> f = projection_.footprint_lanes(x, y, z, row(0), row(1), clip_w, sqrt4);
+                // Node units, and the sheet parameter: spheres take the world distance from the eye, which
+                // the ray through the centre covers at the world length per index length (line_scale); it
+                // changes across the footprint only where the kernel is not round in world space.
+                const double s2 = stride * stride;
+                const double4 qxx = f.qxx * s2, qxy = f.qxy * s2, qyy = f.qyy * s2, det = qxx * qyy - qxy * qxy;
+                double4 kappa = f.depth_per_index, parameter = f.depth;
+                if (sheets_.spherical) {
+                    const Mat4& w = grid_->index_to_world();
+                    auto offset = [&](int r) { return x * w.m[r][0] + y * w.m[r][1] + z * w.m[r][2] + (w.m[r][3] - sheets_.eye[r]); };
+                    const double4 ex = offset(0), ey = offset(1), ez = offset(2);
+                    kappa = f.line_scale;
+                    parameter = sqrt4(ex * ex + ey * ey + ez * ez);
+                }
+                const double radius = params_.kernel->radius();
+                const double4 ext_x = sqrt4(qyy / det) * radius, ext_y = sqrt4(qxx / det) * radius;
+                const double4 slabs = (parameter - sheets_.first_depth) * inv_spacing;
+                const double4 step = spacing / kappa;
                 for (int l = 0; l < 4; ++l) {
                     const int lane = 4 * half + l;
                     // A footprint needs the whole kernel in front of the eye.
@@ -451,31 +466,20 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                         b.live &= ~(1u << lane);
                         continue;
                     }
-                    const double qxx = f.qxx[l] * stride * stride, qxy = f.qxy[l] * stride * stride, qyy = f.qyy[l] * stride * stride;
-                    const double det = qxx * qyy - qxy * qxy;
-                    // Spheres: the sheet parameter is the world distance from the eye, which the ray
-                    // through the centre covers at the world length per index length (line_scale); it
-                    // changes across the footprint only where the kernel is not round in world space.
-                    double kappa = f.depth_per_index[l], parameter = f.depth[l];
-                    if (sheets_.spherical) {
-                        kappa = f.line_scale[l];
-                        parameter = length(grid_->index_to_world().transform_point(Vec3{x[l], y[l], z[l]}) - sheets_.eye);
-                    }
-                    const double slabs = (parameter - sheets_.first_depth) * inv_spacing;
-                    const double front = std::floor(slabs - depth_reach_ * inv_spacing);
+                    const double front = std::floor(slabs[l] - depth_reach_ * inv_spacing);
                     b.cx[lane] = float(f.px[l] * inv_stride - placement.node_x0);
                     b.cy[lane] = float(f.py[l] * inv_stride - placement.node_y0);
-                    b.qxx[lane] = float(qxx);
-                    b.qxy[lane] = float(qxy);
-                    b.qyy[lane] = float(qyy);
-                    b.ext_x[lane] = float(params_.kernel->radius() * std::sqrt(qyy / det));
-                    b.ext_y[lane] = float(params_.kernel->radius() * std::sqrt(qxx / det));
-                    b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det) : 1.0));
+                    b.qxx[lane] = float(qxx[l]);
+                    b.qxy[lane] = float(qxy[l]);
+                    b.qyy[lane] = float(qyy[l]);
+                    b.ext_x[lane] = float(ext_x[l]);
+                    b.ext_y[lane] = float(ext_y[l]);
+                    b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det[l]) : 1.0));
                     b.first_sheet[lane] = sheet_floor(front);
-                    b.s0[lane] = float((front - slabs) * spacing / kappa);
-                    b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa);
-                    b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa);
-                    b.s_step[lane] = float(spacing / kappa);
+                    b.s0[lane] = float((front - slabs[l]) * step[l]);
+                    b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa[l]);
+                    b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa[l]);
+                    b.s_step[lane] = float(step[l]);
                 }
             }
         }
