@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
@@ -13,14 +14,55 @@ namespace pcvr {
 
 /// One grid resampled: departures from the background at its voxel centres, [i][j][k] with k fastest.
 struct ExtinctionField::Lattice {
+    static constexpr int kBrick = 4;  // voxels per brick side of the occupancy map
     int n[3] = {0, 0, 0};
     std::vector<float> departure;
+    /// Per brick of kBrick^3 voxels: 1 where a point whose trilinear cell lies in it (voxels kBrick b to
+    /// kBrick b + kBrick) may have extinction, else 0. Most of a CT's box is air or, under a bone-like transfer
+    /// function, transparent tissue: points there cost one lookup instead of eight.
+    int bricks[3] = {0, 0, 0};
+    std::vector<float> occupied;
     float to_lattice[3][4];  // relative position -> lattice coordinates
     float scale = 1, offset = 0;  // density = departure * scale + offset
     std::unique_ptr<ClassificationTable> table;
     std::optional<SampleClip> clip;
 
     size_t index(int i, int j, int k) const { return (size_t(i) * n[1] + j) * n[2] + k; }
+
+    void map_occupancy() {
+        for (int a = 0; a < 3; ++a) bricks[a] = (n[a] - 1 + kBrick - 1) / kBrick;
+        const size_t count = size_t(bricks[0]) * bricks[1] * bricks[2];
+        auto brick_index = [&](int bi, int bj, int bk) { return (size_t(bi) * bricks[1] + bj) * bricks[2] + bk; };
+        // The range of each brick's own voxels (kBrick b to kBrick b + kBrick - 1), each voxel read once...
+        std::vector<float> lo(count, INFINITY), hi(count, -INFINITY);
+        tbb::parallel_for(0, bricks[0], [&](int bi) {
+            for (int i = bi * kBrick; i < std::min((bi + 1) * kBrick, n[0]); ++i)
+                for (int j = 0; j < n[1]; ++j)
+                    for (int k = 0; k < n[2]; ++k) {
+                        const float d = departure[index(i, j, k)];
+                        const size_t b = brick_index(bi, std::min(j / kBrick, bricks[1] - 1), std::min(k / kBrick, bricks[2] - 1));
+                        lo[b] = std::min(lo[b], d), hi[b] = std::max(hi[b], d);
+                    }
+        });
+        // ...and with the next brick's along each axis, the cells that reach voxel kBrick b + kBrick.
+        occupied.assign(count, 0.0f);
+        tbb::parallel_for(0, bricks[0], [&](int bi) {
+            for (int bj = 0; bj < bricks[1]; ++bj)
+                for (int bk = 0; bk < bricks[2]; ++bk) {
+                    float a = INFINITY, b = -INFINITY;
+                    for (int di = 0; di <= std::min(1, bricks[0] - 1 - bi); ++di)
+                        for (int dj = 0; dj <= std::min(1, bricks[1] - 1 - bj); ++dj)
+                            for (int dk = 0; dk <= std::min(1, bricks[2] - 1 - bk); ++dk) {
+                                const size_t at = brick_index(bi + di, bj + dj, bk + dk);
+                                a = std::min(a, lo[at]), b = std::max(b, hi[at]);
+                            }
+                    // Trilinear values lie between the corners'; 0 itself is empty (no voxel reaches).
+                    const double from = double(a) * scale + offset, to = double(b) * scale + offset;
+                    const bool clear = (a == 0 && b == 0) || table->transparent(std::min(from, to), std::max(from, to));
+                    occupied[brick_index(bi, bj, bk)] = clear ? 0.0f : 1.0f;
+                }
+        });
+    }
 };
 
 namespace {
@@ -28,49 +70,59 @@ namespace {
 /// The kernel's weights at whole offsets -m..m along one axis (the offsets within its radius lie in that
 /// cube), such that the weight at offset o is w0 u(ox) u(oy) u(oz): true of the Gaussians (products of
 /// their axes' factors, truncated beyond the cube) and of the kernels that reach only the centre.
-std::vector<double> axis_weights(const Kernel& kernel, int m, double& w0) {
+std::vector<float> axis_weights(const Kernel& kernel, int m, double& w0) {
     const double R = kernel.radius();
     auto weight = [&](double x, double y, double z) {
         const double r = std::sqrt(x * x + y * y + z * z);
         return r < R ? kernel.value(r) : 0.0;
     };
     w0 = weight(0, 0, 0);
-    std::vector<double> u(2 * m + 1);
-    for (int o = -m; o <= m; ++o) u[o + m] = weight(o, 0, 0) / w0;
+    std::vector<float> u(2 * m + 1);
+    for (int o = -m; o <= m; ++o) u[o + m] = float(weight(o, 0, 0) / w0);
     for (int x = -m; x <= m; ++x)
         for (int y = -m; y <= m; ++y)
             for (int z = -m; z <= m; ++z)
-                if (std::abs(weight(x, y, z) - w0 * u[x + m] * u[y + m] * u[z + m]) > 1e-9 * w0)
+                if (std::abs(weight(x, y, z) - w0 * u[x + m] * u[y + m] * u[z + m]) > 1e-6 * w0)
                     throw Error(std::string("shadows: kernel '") + kernel.name() + "' is not separable at whole offsets");
     return u;
 }
 
-/// Convolves `values` along axis `axis` with weights u (offsets -m..m), zero beyond the ends: row by row
-/// of the faster axes, so that the inner loop runs over contiguous memory.
-void convolve_axis(std::vector<float>& values, const int (&n)[3], int axis, const std::vector<double>& u, int m) {
+/// `values += w * from` over `count` floats, offset o of the weights u (-m..m): the inner loop of the convolution.
+void add_weighted(float* to, const float* from, size_t count, float w) {
+    for (size_t e = 0; e < count; ++e) to[e] += w * from[e];
+}
+
+/// Convolves the [i][j][k] lattice `values` with u(oi) u(oj) u(ok), zero beyond its ends, into `out` (then
+/// swapped in). One sweep over i in chunks: each chunk convolves the slabs it reads along j and k in a buffer
+/// of its own (a slab fits in the cache), then sums them along i, so memory is read and written once.
+void convolve(std::vector<float>& values, std::vector<float>& out, const int (&n)[3], const std::vector<float>& u, int m) {
     if (m == 0) return;
-    const size_t run = axis == 2 ? 1 : axis == 1 ? size_t(n[2]) : size_t(n[1]) * n[2];  // the faster axes
-    const int length = n[axis];
-    const size_t slabs = values.size() / (run * length);
-    std::vector<float> out(values.size(), 0.0f);
-    if (run == 1) {  // along the contiguous axis: a line at a time
-        tbb::parallel_for(size_t(0), slabs, [&](size_t line) {
-            const float* from = values.data() + line * length;
-            float* to = out.data() + line * length;
-            for (int t = 0; t < length; ++t)
-                for (int o = std::max(-m, -t); o <= std::min(m, length - 1 - t); ++o) to[t] += float(u[o + m]) * from[t + o];
-        });
-        values.swap(out);
-        return;
-    }
-    tbb::parallel_for(size_t(0), slabs * length, [&](size_t row) {
-        const size_t slab = row / length;
-        const int t = int(row % length);
-        float* to = out.data() + row * run;
-        for (int o = std::max(-m, -t); o <= std::min(m, length - 1 - t); ++o) {
-            const float w = float(u[o + m]);
-            const float* from = values.data() + (slab * length + t + o) * run;
-            for (size_t e = 0; e < run; ++e) to[e] += w * from[e];
+    constexpr int kChunk = 16;
+    const size_t slab = size_t(n[1]) * n[2];
+    out.resize(values.size());
+    tbb::parallel_for(0, (n[0] + kChunk - 1) / kChunk, [&](int chunk) {
+        const int i0 = chunk * kChunk, i1 = std::min(n[0], i0 + kChunk);
+        const int first = std::max(0, i0 - m), last = std::min(n[0], i1 + m);
+        std::vector<float> planes(size_t(last - first) * slab), line(n[2]);
+        for (int i = first; i < last; ++i) {
+            float* plane = planes.data() + size_t(i - first) * slab;
+            const float* in = values.data() + size_t(i) * slab;
+            for (int j = 0; j < n[1]; ++j) {
+                float* row = plane + size_t(j) * n[2];
+                for (int o = std::max(-m, -j); o <= std::min(m, n[1] - 1 - j); ++o) add_weighted(row, in + size_t(j + o) * n[2], n[2], u[o + m]);
+                std::copy_n(row, n[2], line.data());
+                std::fill_n(row, n[2], 0.0f);
+                for (int o = -m; o <= m; ++o) {
+                    const int from = std::max(0, -o), to = std::min(n[2], n[2] - o);
+                    if (from < to) add_weighted(row + from, line.data() + from + o, size_t(to - from), u[o + m]);
+                }
+            }
+        }
+        for (int i = i0; i < i1; ++i) {
+            float* to = out.data() + size_t(i) * slab;
+            std::fill_n(to, slab, 0.0f);
+            for (int o = std::max(-m, -i); o <= std::min(m, n[0] - 1 - i); ++o)
+                add_weighted(to, planes.data() + size_t(i + o - first) * slab, slab, u[o + m]);
         }
     });
     values.swap(out);
@@ -81,7 +133,8 @@ void convolve_axis(std::vector<float>& values, const int (&n)[3], int axis, cons
 ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const Kernel& kernel, const Vec3& origin) {
     const int m = int(std::ceil(kernel.radius())) - 1;  // whole offsets strictly within the radius
     double w0 = 1;
-    const std::vector<double> u = axis_weights(kernel, m, w0);
+    const std::vector<float> u = axis_weights(kernel, m, w0);
+    std::vector<float> scratch;  // the convolution's other buffer, reused grid after grid
     const int pad = m + 1;  // the stencil's spread and a ring of zeros that trilinear reads towards
     for (const ShadedVolume& v : volumes) {
         if (v.grid->active_voxel_count() == 0) continue;
@@ -111,7 +164,7 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
                 l.departure[l.index(i, j, k)] = float(d * w0);  // w0 once here, u along each axis below
             }
         });
-        for (int axis = 0; axis < 3; ++axis) convolve_axis(l.departure, l.n, axis, u, m);
+        convolve(l.departure, scratch, l.n, u, m);
 
         // Relative position -> world -> index -> lattice (index less the box's corner, plus the pad).
         const Mat4 to_index = *grid.index_to_world().inverse();
@@ -124,6 +177,7 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
         l.offset = float(background * v.density_scale);
         l.table = std::make_unique<ClassificationTable>(*v.transfer_function, v.transfer_function->unit_distance);
         if (v.clip && !v.clip->keeps_everything()) l.clip.emplace(*v.clip, origin, smallest_voxel_spacing(grid));
+        l.map_occupancy();
         const Mat4& to_world = grid.index_to_world();
         for (int corner = 0; corner < 8; ++corner) {
             const Vec3 index{double((corner & 4) ? b[3] + pad : b[0] - pad), double((corner & 2) ? b[4] + pad : b[1] - pad),
@@ -154,6 +208,13 @@ float8 ExtinctionField::at(const Vec3x8& p) const {
             base = a == 0 ? i0 : base * l.n[a] + i0;
         }
         if (!any8(inside)) continue;
+        int8x brick = {};
+        for (int a = 0; a < 3; ++a) {
+            const int8x b = __builtin_convertvector(clamp8(x[a], 0.0f, float(l.n[a] - 2)) * (1.0f / Lattice::kBrick), int8x);
+            brick = a == 0 ? b : brick * l.bricks[a] + b;
+        }
+        inside &= gather8(l.occupied.data(), inside ? brick : int8x{}) > 0.0f;
+        if (!any8(inside)) continue;
         base = inside ? base : int8x{};
         const int sk = 1, sj = l.n[2], si = l.n[1] * l.n[2];
         const float* d = l.departure.data();
@@ -164,7 +225,7 @@ float8 ExtinctionField::at(const Vec3x8& p) const {
         int8x reached = inside & (departure != 0.0f);
         if (l.clip) reached &= l.clip->inside<float8>(p);
         if (!any8(reached)) continue;
-        const float8 extinction = (*l.table)(departure * l.scale + l.offset).extinction;
+        const float8 extinction = l.table->extinction(departure * l.scale + l.offset);
         sum += select8(reached, extinction, broadcast8(0.0f));
     }
     return sum;

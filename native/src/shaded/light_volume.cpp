@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "shaded/extinction_field.h"
 
@@ -50,7 +49,7 @@ LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const
     size_t total = 0;
     for (Face& f : faces_)
         if (f.used) f.offset = total, total += f.texels();
-    tau_.assign(total, 0.0f);
+    transmittance_.assign(total, 1.0f);
     for (const Face& f : faces_)
         if (f.used) integrate(f, field, control);
 }
@@ -124,15 +123,16 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
                 store8(tau.data() + iu, iw == 0 ? broadcast8(0.0f) : load8(tau.data() + iu) + 0.5f * (before + sigma) * step);
                 store8(sigma_before.data() + iu, sigma);
             }
-            std::memcpy(tau_.data() + f.offset + (size_t(iv) * f.nw + iw) * f.nu, tau.data(), sizeof(float) * f.nu);
+            float* row = transmittance_.data() + f.offset + (size_t(iv) * f.nw + iw) * f.nu;
+            for (int iu = 0; iu < f.nu; ++iu) row[iu] = std::exp(-tau[iu]);
         }
     });
 }
 
-float8 LightVolume::depth(const Face& f, float8 u, float8 v, float8 w) const {
+float8 LightVolume::transmittance(const Face& f, float8 u, float8 v, float8 w) const {
     const Axis a{(u - f.u0) * (1.0f / f.du), f.nu}, b{(v - f.v0) * (1.0f / f.dv), f.nv}, c{(w - f.w0) * (1.0f / f.dw), f.nw};
     const int8x base = (b.i0 * f.nw + c.i0) * f.nu + a.i0;
-    const float* t = tau_.data() + f.offset;
+    const float* t = transmittance_.data() + f.offset;
     const size_t su = 1, sw = size_t(f.nu), sv = size_t(f.nu) * f.nw;
     auto lerp = [](float8 x, float8 y, float8 s) { return x + s * (y - x); };
     auto edge = [&](size_t at) { return lerp(gather8(t + at, base), gather8(t + at + su, base), a.f); };
@@ -142,7 +142,7 @@ float8 LightVolume::depth(const Face& f, float8 u, float8 v, float8 w) const {
 float8 LightVolume::at(const Vec3x8& p) const {
     if (!point_) {
         const Face& f = faces_[0];
-        return exp8(-depth(f, dot(lanes(frame_[0]), p), dot(lanes(frame_[1]), p), dot(lanes(frame_[2]), p)));
+        return transmittance(f, dot(lanes(frame_[0]), p), dot(lanes(frame_[1]), p), dot(lanes(frame_[2]), p));
     }
     // The face of each lane: the axis along which it lies farthest from the light, and the side.
     const Vec3x8 d = p - lanes(pivot_);
@@ -152,16 +152,16 @@ float8 LightVolume::at(const Vec3x8& p) const {
     const float8 per_z = select8(z > 0, 1.0f / z, broadcast8(0.0f));
     const float8 first = select8(on_x, d.y, select8(on_y, d.z, d.x)), second = select8(on_x, d.z, select8(on_y, d.x, d.y));
     const float8 along = select8(on_x, d.x, select8(on_y, d.y, d.z));
-    float8 tau = broadcast8(0.0f);
+    float8 out = broadcast8(1.0f);  // a face that is not used has nothing in it
     for (int k = 0; k < 6; ++k) {
         const Face& f = faces_[k];
         if (!f.used) continue;
         const int8x axis = f.axis == 0 ? on_x : f.axis == 1 ? on_y : on_z;
         const int8x mine = axis & (f.sign > 0 ? along >= 0 : along < 0);
         if (!any8(mine)) continue;
-        tau = select8(mine, depth(f, first * per_z, second * per_z, z), tau);
+        out = select8(mine, transmittance(f, first * per_z, second * per_z, z), out);
     }
-    return exp8(-tau);
+    return out;
 }
 
 float LightVolume::at(const Vec3f& p) const { return at(lanes(p))[0]; }
