@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "shaded/extinction_field.h"
 
@@ -14,6 +15,17 @@ namespace {
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 Vec3x8 lanes(const Vec3f& v) { return {broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; }
 float component(const Vec3& v, int a) { return float(a == 0 ? v.x : a == 1 ? v.y : v.z); }
+
+/// The 32 bits at texels index and index + 1 of `texels`, per lane.
+int8x gather_pairs(const uint16_t* texels, int8x index) {
+#if defined(__AVX2__)
+    return int8x(_mm256_i32gather_epi32(reinterpret_cast<const int*>(texels), __m256i(index), 2));
+#else
+    int8x out;
+    for (int l = 0; l < 8; ++l) std::memcpy(&out[l], texels + index[l], 4);
+    return out;
+#endif
+}
 
 /// Texel coordinates of x in [0, n - 1]: the lower texel (at most n - 2) and the fraction beyond it.
 struct Axis {
@@ -49,7 +61,7 @@ LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const
     size_t total = 0;
     for (Face& f : faces_)
         if (f.used) f.offset = total, total += f.texels();
-    transmittance_.assign(total, 1.0f);
+    transmittance_.assign(total + 1, kWhole);  // one more: a texel pair's read at the last texel
     for (const Face& f : faces_)
         if (f.used) integrate(f, field, control);
 }
@@ -111,6 +123,7 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
         control.throw_if_cancelled();
         // The previous texel's extinction and depth along each column of the row; the trapezoid between them.
         std::vector<float> sigma_before(padded, 0.0f), tau(padded, 0.0f);
+        std::vector<uint16_t> whole(padded);
         const float v = f.v0 + iv * f.dv;
         for (int iw = 0; iw < f.nw; ++iw) {
             const float w = f.w0 + iw * f.dw;
@@ -120,11 +133,13 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
                 // Along a point light's ray a texel step is dw times sqrt(1 + u^2 + v^2).
                 const float8 step = point_ ? f.dw * sqrt8(1.0f + u * u + v * v) : broadcast8(f.dw);
                 const float8 before = load8(sigma_before.data() + iu);
-                store8(tau.data() + iu, iw == 0 ? broadcast8(0.0f) : load8(tau.data() + iu) + 0.5f * (before + sigma) * step);
+                const float8 depth = iw == 0 ? broadcast8(0.0f) : load8(tau.data() + iu) + 0.5f * (before + sigma) * step;
+                store8(tau.data() + iu, depth);
                 store8(sigma_before.data() + iu, sigma);
+                const int8x rounded = __builtin_convertvector(exp8(-depth) * kWhole + 0.5f, int8x);
+                for (int l = 0; l < 8; ++l) whole[iu + l] = uint16_t(rounded[l]);
             }
-            float* row = transmittance_.data() + f.offset + (size_t(iv) * f.nw + iw) * f.nu;
-            for (int iu = 0; iu < f.nu; ++iu) row[iu] = std::exp(-tau[iu]);
+            std::memcpy(transmittance_.data() + f.offset + (size_t(iv) * f.nw + iw) * f.nu, whole.data(), sizeof(uint16_t) * f.nu);
         }
     });
 }
@@ -132,11 +147,15 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
 float8 LightVolume::transmittance(const Face& f, float8 u, float8 v, float8 w) const {
     const Axis a{(u - f.u0) * (1.0f / f.du), f.nu}, b{(v - f.v0) * (1.0f / f.dv), f.nv}, c{(w - f.w0) * (1.0f / f.dw), f.nw};
     const int8x base = (b.i0 * f.nw + c.i0) * f.nu + a.i0;
-    const float* t = transmittance_.data() + f.offset;
-    const size_t su = 1, sw = size_t(f.nu), sv = size_t(f.nu) * f.nw;
+    const uint16_t* t = transmittance_.data() + f.offset;
+    const size_t sw = size_t(f.nu), sv = size_t(f.nu) * f.nw;
     auto lerp = [](float8 x, float8 y, float8 s) { return x + s * (y - x); };
-    auto edge = [&](size_t at) { return lerp(gather8(t + at, base), gather8(t + at + su, base), a.f); };
-    return lerp(lerp(edge(0), edge(sw), c.f), lerp(edge(sv), edge(sv + sw), c.f), b.f);
+    // One 32-bit read holds a texel and its neighbour along u (little-endian: the texel in the low half).
+    auto edge = [&](size_t at) {
+        const int8x pair = gather_pairs(t + at, base);
+        return lerp(__builtin_convertvector(pair & 0xffff, float8), __builtin_convertvector((pair >> 16) & 0xffff, float8), a.f);
+    };
+    return lerp(lerp(edge(0), edge(sw), c.f), lerp(edge(sv), edge(sv + sw), c.f), b.f) * (1.0f / kWhole);
 }
 
 float8 LightVolume::at(const Vec3x8& p) const {
