@@ -110,9 +110,9 @@ def section(res: dict | None) -> list[str]:
              f"`render_shaded(shadows=True)` against the same render without, {res['square']} x {res['square']} perspective, "
              f"`pcvr`, {res['threads']} threads, least wall seconds of alternating rounds; *volume*: the shadowed render's "
              "seconds building the sun's transmittance volume (its texels beside). PSNR (RGBA) against the ray caster "
-             f"with the same shadows (shadow rays per sample), {res['reference_spacing']} voxel steps, every "
-             f"{res['reference_step']}th pixel; *shadow effect*: the ray caster with shadows against without (lower: "
-             "the shadows change more).", "",
+             f"with the same shadows (shadow rays per sample), {res['reference_spacing']} voxel steps, one pixel in "
+             f"{res['reference_step']} along each axis; *shadow effect*: the ray caster with shadows against without "
+             "(lower: the shadows change more).", "",
              "| scene | off (s) | on (s) | on / off | volume (s) | texels | PSNR off (dB) | PSNR on (dB) | shadow effect (dB) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for name, r in res["scenes"].items():
