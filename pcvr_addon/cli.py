@@ -68,6 +68,9 @@ def make_parser():
     render.add_argument("--sheet-spacing", type=float, help="shaded and mip: voxels between sheets")
     render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
+    render.add_argument("--shadows", action=argparse.BooleanOptionalAction,
+                        help="shaded: the volumes shadow the light on its way to each sample (default: off for a "
+                             ".vdb, the scene's setting for a .blend)")
     render.add_argument("--gain", type=_gain, metavar="GAIN|auto",
                         help="X-ray gain of the Combined pass; 'auto' picks it per image (its brightest percent "
                              "at 80%% grey)")

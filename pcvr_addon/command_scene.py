@@ -126,7 +126,7 @@ def apply_options(scene, args):
     if args.post_filter is not None:
         setattr(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter",
                 POST_FILTERS[args.post_filter])
-    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff", "stream_above"):
+    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff", "stream_above", "shadows"):
         if getattr(args, option) is not None:
             setattr(settings, option, getattr(args, option))
     if args.stride is not None:

@@ -38,6 +38,7 @@ class LightSpec:
     color: tuple        # linear RGB
     strength: float     # sun: irradiance; point: irradiance at distance 1 (both already divided by pi)
     name: str = ""
+    shadow: bool = True  # Blender's Cast Shadow: with the scene's shadows on, the volumes attenuate it
 
 
 def _power(light):
@@ -67,6 +68,10 @@ def _unnormalised_area(light):
     return 4 * math.pi * radius * radius if radius > 0 else 4.0
 
 
+def _casts_shadow(light):
+    return bool(getattr(light, "use_shadow", True))
+
+
 def light_spec(light, matrix_world, name=""):
     """The pcvr_native light for the Blender light datablock `light` placed at `matrix_world`."""
     matrix = np.array(matrix_world, dtype=np.float64)
@@ -75,13 +80,13 @@ def light_spec(light, matrix_world, name=""):
     if light.type == 'SUN':
         # A sun shines along its object's -Z axis.
         direction = tuple(-matrix[:3, 2])
-        return LightSpec("sun", direction, colour, power / math.pi, name)
+        return LightSpec("sun", direction, colour, power / math.pi, name, _casts_shadow(light))
     if not getattr(light, "normalize", True):
         power *= _unnormalised_area(light)
     if light.type == 'AREA':
-        return LightSpec("point", position, colour, power / math.pi ** 2, name)
+        return LightSpec("point", position, colour, power / math.pi ** 2, name, _casts_shadow(light))
     # POINT and SPOT
-    return LightSpec("point", position, colour, power / (4 * math.pi ** 2), name)
+    return LightSpec("point", position, colour, power / (4 * math.pi ** 2), name, _casts_shadow(light))
 
 
 def scene_lights(depsgraph):

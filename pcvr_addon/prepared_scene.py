@@ -265,7 +265,8 @@ def _native_lighting(prepared):
     lights = []
     for spec in prepared.inputs.lights:
         make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
-        lights.append(make(spec.vector, color=spec.color, strength=spec.strength))
+        # The scene's shadows (render_shaded's `shadows`) reach the lights whose Cast Shadow is on.
+        lights.append(make(spec.vector, color=spec.color, strength=spec.strength, shadow=None if spec.shadow else False))
     return transfer_functions, lights, prepared.inputs.world, shadings
 
 

@@ -175,6 +175,13 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=defaults.SHEETS["opacity_cutoff"],
         update=tag_changed,
     )
+    shadows: BoolProperty(
+        name="Shadows",
+        description="Shaded: the volumes attenuate the light on its way to each sample (for every light whose "
+                    "Cast Shadow is on): a volume darkens what lies behind it as seen from the light",
+        default=False,
+        update=tag_changed,
+    )
     mip_color: EnumProperty(
         name="Colors",
         description="How the largest density along a ray becomes a colour",

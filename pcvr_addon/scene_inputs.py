@@ -82,6 +82,7 @@ class SheetSettings:
     sheet_spacing: float
     samples_per_sheet: int
     opacity_cutoff: float
+    shadows: bool = False  # shaded only: the lights' transmittance through the volumes
 
     def mip_arguments(self):
         return {name: getattr(self, name) for name in ("method", "splat_kernel", "post_filter", "stride",
@@ -202,7 +203,8 @@ def sheet_settings(settings):
     return SheetSettings(**_splatting(settings, settings.sheet_post_filter),
                          sheet_spacing=as_typed(settings.sheet_spacing),
                          samples_per_sheet=settings.samples_per_sheet,
-                         opacity_cutoff=as_typed(settings.opacity_cutoff))
+                         opacity_cutoff=as_typed(settings.opacity_cutoff),
+                         shadows=settings.shadows)
 
 
 def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):

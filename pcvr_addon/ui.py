@@ -51,6 +51,8 @@ class PCVR_RENDER_PT_pcvr(PCVRRenderPanel, Panel):
             row.prop(settings, "xray_gain")
         elif settings.mode == 'MIP':
             layout.prop(settings, "mip_color")
+        else:
+            layout.prop(settings, "shadows")
 
 
 class PCVR_RENDER_PT_method(PCVRRenderPanel, Panel):

@@ -15,6 +15,10 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
+#define SHADOW_DOC                                                                                        \
+    "shadow: None (render_shaded's `shadows` decides), True or False (this light casts shadows or not,\n" \
+    "whatever render_shaded says)."
+
 namespace pcvr::python {
 
 namespace {
@@ -28,12 +32,30 @@ Vec3 vec3_from_python(nb::handle obj, const char* what) {
 
 nb::tuple vec3_to_python(const Vec3& v) { return nb::make_tuple(v.x, v.y, v.z); }
 
+/// A flag that must be True or False (None too where `none_allowed`): Python's truthiness would turn a
+/// misspelt value ("no", 0.5, a numpy array) into a setting without a word.
+std::optional<bool> flag_from_python(nb::handle value, const char* what, bool none_allowed) {
+    if (none_allowed && value.is_none()) return std::nullopt;
+    if (!PyBool_Check(value.ptr()))
+        throw nb::type_error((std::string(what) + " must be True or False" + (none_allowed ? " or None" : "") + " (got " +
+                              nb::cast<std::string>(nb::repr(value)) + ")").c_str());
+    return value.ptr() == Py_True;
+}
+
 /// A sun (vector: its direction of travel) or a point light (vector: its position), checked.
-Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double strength) {
+Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double strength, nb::handle shadow) {
     const bool sun = kind == Light::Kind::Sun;
-    const Light light{kind, vec3_from_python(vector, sun ? "direction" : "position"), vec3_from_python(color, "color"), strength};
+    Light light{kind, vec3_from_python(vector, sun ? "direction" : "position"), vec3_from_python(color, "color"), strength};
+    const std::optional<bool> casts = flag_from_python(shadow, sun ? "Light.sun: shadow" : "Light.point: shadow", true);
+    light.shadow = !casts ? Light::Shadow::Default : *casts ? Light::Shadow::On : Light::Shadow::Off;
     Lighting{{light}, {0, 0, 0}, {}}.validate();
     return light;
+}
+
+Shading::Model shading_model_from_name(const std::string& name) {
+    if (name == "blinn_phong") return Shading::Model::BlinnPhong;
+    if (name == "scatter") return Shading::Model::Scatter;
+    throw InvalidArgument("Shading: unknown model '" + name + "' (expected blinn_phong or scatter)");
 }
 
 /// A sequence of numbers (None: none) as doubles.
@@ -130,6 +152,8 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["seconds_splat"] = s.seconds_splat;
     stats["seconds_post_convolution"] = s.seconds_post_convolution;
     stats["seconds_shading"] = s.seconds_shading;
+    stats["shadow_texels"] = s.shadow_texels;
+    stats["seconds_shadows"] = s.seconds_shadows;
 }
 
 template <class Image>
@@ -148,7 +172,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
-                            nb::handle clip_planes, nb::handle clip_box) {
+                            nb::handle clip_planes, nb::handle clip_box, nb::handle shadows) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -185,6 +209,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     RgbaImage image;
     ShadedStats s;
     parts.params.depth = return_depth;
+    parts.params.shadows = *flag_from_python(shadows, "render_shaded: shadows", false);
     run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
     fill_stats(stats, s);
     if (!return_depth) return image_to_numpy(std::move(image), 4);
@@ -250,38 +275,57 @@ void bind_shaded(nb::module_& m) {
 
     nb::class_<Light>(m, "Light", "A light for render_shaded: Light.sun(...) or Light.point(...).")
         .def_static(
-            "sun", [](nb::handle direction, nb::handle color, double strength) { return make_light(Light::Kind::Sun, direction, color, strength); },
-            "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
-            "Parallel light travelling along `direction` (world space) with irradiance `strength`.")
+            "sun",
+            [](nb::handle direction, nb::handle color, double strength, nb::handle shadow) {
+                return make_light(Light::Kind::Sun, direction, color, strength, shadow);
+            },
+            "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0, "shadow"_a = nb::none(),
+            "Parallel light travelling along `direction` (world space) with irradiance `strength`.\n" SHADOW_DOC)
         .def_static(
-            "point", [](nb::handle position, nb::handle color, double strength) { return make_light(Light::Kind::Point, position, color, strength); },
-            "position"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0,
-            "Point light at `position` (world space): irradiance strength / distance^2.")
+            "point",
+            [](nb::handle position, nb::handle color, double strength, nb::handle shadow) {
+                return make_light(Light::Kind::Point, position, color, strength, shadow);
+            },
+            "position"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0, "shadow"_a = nb::none(),
+            "Point light at `position` (world space): irradiance strength / distance^2.\n" SHADOW_DOC)
         .def_prop_ro("kind", [](const Light& l) { return l.kind == Light::Kind::Sun ? "sun" : "point"; })
         .def_prop_ro("vector", [](const Light& l) { return vec3_to_python(l.vector); },
                      "The sun's direction of travel, or the point light's position.")
         .def_prop_ro("color", [](const Light& l) { return vec3_to_python(l.color); })
         .def_prop_ro("strength", [](const Light& l) { return l.strength; })
+        .def_prop_ro("shadow", [](const Light& l) -> std::optional<bool> {
+            if (l.shadow == Light::Shadow::Default) return std::nullopt;
+            return l.shadow == Light::Shadow::On;
+        }, "None: as render_shaded's `shadows` says; True or False: this light's own choice.")
         .def("__repr__", [](const Light& l) {
             return std::string("<pcvr_native.Light ") + (l.kind == Light::Kind::Sun ? "sun" : "point") +
                    " strength " + std::to_string(l.strength) + ">";
         });
 
-    nb::class_<Shading>(m, "Shading", "Blinn-Phong material of render_shaded (two-sided, as in VTK and 3D Slicer).")
+    nb::class_<Shading>(m, "Shading",
+                        "Material of render_shaded: model 'blinn_phong' (two-sided, as in VTK and 3D Slicer: ambient,\n"
+                        "diffuse, specular, shininess) or 'scatter' (single scattering, Blender's Principled Volume: the\n"
+                        "transfer function's colour is the albedo, lit by the ambient colour and by each light through a\n"
+                        "Henyey-Greenstein phase function of `anisotropy` g in (-1, 1), > 0 forwards).")
         .def("__init__",
-             [](Shading* self, double ambient, double diffuse, double specular, double shininess, bool lit) {
-                 new (self) Shading{ambient, diffuse, specular, shininess, lit};
+             [](Shading* self, double ambient, double diffuse, double specular, double shininess, bool lit, const std::string& model,
+                double anisotropy) {
+                 new (self) Shading{ambient, diffuse, specular, shininess, lit, shading_model_from_name(model), anisotropy};
                  Lighting{{}, {0, 0, 0}, *self}.validate();
              },
              "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0, "lit"_a = true,
+             "model"_a = "blinn_phong", "anisotropy"_a = 0.0,
              "lit=False: samples keep the transfer function's colours (shading off, as in VTK and 3D Slicer).")
         .def_rw("ambient", &Shading::ambient)
         .def_rw("diffuse", &Shading::diffuse)
         .def_rw("specular", &Shading::specular)
         .def_rw("shininess", &Shading::shininess)
         .def_rw("lit", &Shading::lit)
+        .def_prop_ro("model", [](const Shading& s) { return s.model == Shading::Model::Scatter ? "scatter" : "blinn_phong"; })
+        .def_prop_ro("anisotropy", [](const Shading& s) { return s.anisotropy; })
         .def("__repr__", [](const Shading& s) {
             if (!s.lit) return std::string("<pcvr_native.Shading unlit>");
+            if (s.model == Shading::Model::Scatter) return "<pcvr_native.Shading scatter anisotropy " + std::to_string(s.anisotropy) + ">";
             return "<pcvr_native.Shading ambient " + std::to_string(s.ambient) + " diffuse " + std::to_string(s.diffuse) +
                    " specular " + std::to_string(s.specular) + " shininess " + std::to_string(s.shininess) + ">";
         });
@@ -292,7 +336,7 @@ void bind_shaded(nb::module_& m) {
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
-          "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(),
+          "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false,
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -301,7 +345,11 @@ void bind_shaded(nb::module_& m) {
           "level: the level of detail (Grid.level(k, 'mean_over_background')) every grid is rendered from, sheets\n"
           "sheet_spacing of its voxels apart; 'auto': each grid's coarsest level whose voxels project small enough\n"
           "to leave the image as level 0's; stats['level'] says which.\n" CLIP_DOC
-          " Samples count for the share of their stretch of ray inside; cut faces are lit by the plane's normal.");
+          " Samples count for the share of their stretch of ray inside; cut faces are lit by the plane's normal.\n"
+          "shadows: lights whose `shadow` is None reach each sample through the volumes (every grid, its transfer\n"
+          "function and clip region), attenuated by exp(-optical depth); a light's own shadow=True/False wins.\n"
+          "method='raycast' marches a shadow ray per sample; the others read a transmittance volume per light\n"
+          "built once per render (stats['shadow_texels'], stats['seconds_shadows']).");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

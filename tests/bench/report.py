@@ -21,6 +21,7 @@ import magnification_curve
 import minification_bench
 import shaded_levels
 import shaded_report
+import shadows_bench
 import speed_of_light as sol
 import viewport_bench
 from xray_plots import GOALS, LABELS, METHOD_ORDER, main_volume, plot_speedup, plot_time_vs_error, vol_name
@@ -439,6 +440,7 @@ def write(results: dict, output: Path) -> None:
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += ct_head.section(results.get("ct_head"))
     lines += clipping_bench.section(results.get("clipping"))
+    lines += shadows_bench.section(results.get("shadows"))
     lines += viewport_bench.section(results.get("viewport"))
     lines += minification_bench.section(results.get("minification"))
     lines += shaded_levels.section(results.get("shaded_levels"))

@@ -70,6 +70,11 @@ struct ShadedParams {
     /// level whose voxels project small enough that the image stays near level 0's (src/shaded/shaded_levels.h).
     /// Sheets are `sheet_spacing` voxels of the level apart. 0 (the grids themselves) by default.
     int level = 0;
+    /// Lights whose Light::shadow is Default cast shadows: their light reaches each sample through the
+    /// volumes (every grid, its transfer function and clip region), attenuated by exp(-optical depth).
+    /// The sheet renderers read it from a transmittance volume per light built once per render
+    /// (src/shaded/light_volume.h); the ray caster marches a shadow ray per sample.
+    bool shadows = false;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -116,6 +121,8 @@ struct ShadedStats {
     double seconds_splat = 0;
     double seconds_post_convolution = 0;
     double seconds_shading = 0;       ///< classification, shading and compositing
+    uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
+    double seconds_shadows = 0;       ///< building them (wall seconds)
 };
 
 /// Premultiplied linear RGBA, row 0 on top.

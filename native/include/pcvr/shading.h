@@ -1,7 +1,9 @@
 /// @file shading.h
-/// @brief Lights and the Blinn-Phong material of shaded volume rendering, two-sided as in VTK and 3D Slicer.
+/// @brief Lights and the materials of shaded volume rendering: Blinn-Phong, two-sided as in VTK and 3D
+/// Slicer, or single scattering with a Henyey-Greenstein phase function (Blender's Principled Volume);
+/// and the light's transmittance through the volumes (shadows).
 ///
-/// A sample of transfer-function colour c at a point with density gradient g is lit as
+/// A sample of transfer-function colour c at a point with density gradient g is lit (Blinn-Phong) as
 ///
 /// | term     | value                                                        |
 /// |----------|--------------------------------------------------------------|
@@ -14,6 +16,15 @@
 /// the direction to the eye. E is the light's colour times its strength: for a sun everywhere, for a
 /// point light divided by the squared distance. Where the gradient vanishes there is no normal and
 /// only the ambient term remains (VTK does the same).
+///
+/// Single scattering (Shading::Model::Scatter) needs no normal: the transfer function's colour is the
+/// albedo, and a sample's radiance is c * (ambient colour + sum over lights of E * T * p(cos theta)),
+/// p the Henyey-Greenstein phase function (1 - g^2) / (4 pi (1 + g^2 - 2 g cos theta)^1.5), normalised
+/// over the sphere as Cycles' is, theta the angle between the light's direction of travel and the
+/// direction to the eye, g the anisotropy (> 0 scatters forwards: bright looking into the light).
+///
+/// T is the fraction of a light's energy that reaches the sample through the volumes (1 without shadows):
+/// each light that casts shadows has a LightTransmittance, which the renderer builds once per render.
 #pragma once
 
 #include <vector>
@@ -23,22 +34,44 @@
 
 namespace pcvr {
 
+struct Vec3f {
+    float x = 0, y = 0, z = 0;
+};
+
 struct Light {
     enum class Kind { Sun, Point };
+    /// Whether the volumes attenuate the light on its way to each sample: Default follows the render's
+    /// ShadedParams::shadows; On and Off decide for this light whatever the render says (the light wins).
+    enum class Shadow { Default, On, Off };
     Kind kind = Kind::Sun;
     Vec3 vector{0, 0, -1};  ///< Sun: the direction the light travels (any length). Point: its position.
     Vec3 color{1, 1, 1};    ///< linear RGB
     double strength = 1.0;  ///< Sun: irradiance. Point: intensity (irradiance at distance 1).
+    Shadow shadow = Shadow::Default;
 
     static Light sun(const Vec3& direction, const Vec3& color, double strength) { return {Kind::Sun, direction, color, strength}; }
     static Light point(const Vec3& position, const Vec3& color, double strength) { return {Kind::Point, position, color, strength}; }
+    bool casts_shadow(bool render_shadows) const { return shadow == Shadow::Default ? render_shadows : shadow == Shadow::On; }
 };
 
-/// The material: Blinn-Phong coefficients (VTK's volume property, Slicer's shading presets). Not lit:
-/// samples keep the transfer function's colours (VTK's and Slicer's shading off).
+/// The material: Blinn-Phong coefficients (VTK's volume property, Slicer's shading presets), or single
+/// scattering with anisotropy g in (-1, 1) (the Principled Volume's). Not lit: samples keep the transfer
+/// function's colours (VTK's and Slicer's shading off).
 struct Shading {
-    double ambient = 0.1, diffuse = 0.9, specular = 0.2, shininess = 10.0;
+    enum class Model { BlinnPhong, Scatter };
+    double ambient = 0.1, diffuse = 0.9, specular = 0.2, shininess = 10.0;  ///< Blinn-Phong only
     bool lit = true;
+    Model model = Model::BlinnPhong;
+    double anisotropy = 0.0;  ///< Scatter only: the Henyey-Greenstein g
+};
+
+/// The fraction of one light's energy that reaches points through the volumes of a render. Positions
+/// are relative to the Shader's origin. Implementations are immutable and safe to read from many threads.
+class LightTransmittance {
+public:
+    virtual ~LightTransmittance() = default;
+    virtual float8 at(const Vec3x8& position) const = 0;
+    virtual float at(const Vec3f& position) const = 0;
 };
 
 struct Lighting {
@@ -50,17 +83,15 @@ struct Lighting {
     void validate() const;
 };
 
-struct Vec3f {
-    float x = 0, y = 0, z = 0;
-};
-
 /// Lighting prepared for one render: light directions normalised, colours times strengths, and a
 /// table of x^shininess. Immutable and safe to use from many threads.
 class Shader {
 public:
     /// Positions passed to shade() are relative to `origin` (world): renderers pass them relative to
     /// the camera, so that float keeps its precision in scenes far from the world's origin.
-    explicit Shader(const Lighting& lighting, const Vec3& origin = {});
+    /// `transmittance`: empty, or one per light of `lighting` (null: that light casts no shadow); the
+    /// caller keeps them alive as long as the shader.
+    explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {});
 
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
@@ -74,12 +105,24 @@ private:
         bool point;
         Vec3f vector;  // sun: unit vector towards the light; point: position
         Vec3f energy;  // colour * strength
+        const LightTransmittance* transmittance;  // null: no shadow
     };
     static constexpr int kPowerSteps = 1024;
+    struct Arriving {
+        Vec3x8 towards;  // unit, from the samples towards the light
+        Vec3x8 energy;   // what reaches them: colour * strength, over the squared distance, times the transmittance
+    };
+    /// The light at eight samples; `transmittance` is read only where the light has one.
+    static Arriving arriving(const PreparedLight& light, const Vec3x8& position, float8 transmittance);
+    /// shade() with each shadowed light's transmittance at the samples (lights_' order, unshadowed ones unread).
+    Vec3x8 shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
+                     const float8* transmittance) const;
+    Vec3x8 scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance) const;
     std::vector<PreparedLight> lights_;
-    bool lit_;
-    Vec3f ambient_;  // ka * ambient colour
+    bool lit_, scatter_;
+    Vec3f ambient_;  // ka * ambient colour (Scatter: the ambient colour)
     float diffuse_, specular_;
+    float anisotropy_;
     std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
 };
 

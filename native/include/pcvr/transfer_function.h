@@ -68,6 +68,12 @@ public:
         const Samples s = (*this)(broadcast8(density));
         return {s.red[0], s.green[0], s.blue[0], s.extinction[0]};
     }
+    /// The extinction alone (what shadow casters need).
+    float8 extinction(float8 density) const {
+        const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
+        const int8x i = __builtin_convertvector(x, int8x);
+        return lerp_entries(extinction_, i, x - __builtin_convertvector(i, float8));
+    }
     bool has_gradient_opacity() const { return !gradient_factor_.empty(); }
     /// The extinctions of samples with opacity per unit distance a(density) times the gradient factor
     /// at |gradient| `magnitude`: -ln(1 - a f) / unit_distance. Only for tables with gradient opacity.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <optional>
 #include <unordered_map>
 
@@ -111,6 +112,56 @@ bool ray_box_depths(const RayGrid& g, const Vec3& origin, const Vec3& dir, doubl
     return z0 <= z1;
 }
 
+/// The reference's shadows: from a sample, a ray towards the light through every grid's reconstruction (the
+/// kernel sums, as the view rays see them), classified by its transfer function, outside its clip region
+/// nothing; midpoint steps of at most `step` world units from where it enters the first grid's box to where
+/// it leaves the last one (a sun) or meets the light.
+class ShadowRays final : public LightTransmittance {
+public:
+    /// Reads `grids` when asked, not before: the Marcher fills them after it made its shaders.
+    ShadowRays(const Light& light, const std::vector<RayGrid>& grids, const Kernel& kernel, const Vec3& origin, double step)
+        : light_(light), grids_(grids), kernel_(kernel), origin_(origin), step_(step) {}
+
+    float at(const Vec3f& position) const override {
+        const Vec3 x = origin_ + Vec3{position.x, position.y, position.z};
+        Vec3 dir = light_.kind == Light::Kind::Sun ? -light_.vector : light_.vector - x;
+        const double reach = light_.kind == Light::Kind::Sun ? INFINITY : length(dir);
+        if (!(length(dir) > 0)) return 1.0f;
+        dir = dir / length(dir);
+        double from = INFINITY, to = -INFINITY;
+        for (const RayGrid& g : grids_) {
+            double a = 0, b = reach;
+            if (ray_box_depths(g, x, dir, a, b)) from = std::min(from, a), to = std::max(to, b);
+        }
+        if (!(from < to)) return 1.0f;
+        const int64_t steps = int64_t(std::ceil((to - from) / step_));
+        const double ds = (to - from) / double(steps);
+        double tau = 0;
+        for (int64_t k = 0; k < steps && tau < kOpaqueDepth; ++k) {
+            const Vec3 p = x + dir * (from + (double(k) + 0.5) * ds);
+            for (const RayGrid& g : grids_) {
+                if (g.clip && !g.clip->inside<double>(p - origin_)) continue;
+                const DensitySample s = sample(g, kernel_, p);
+                if (s.reached) tau += double((*g.classification)(float(s.density)).extinction) * ds;
+            }
+        }
+        return float(std::exp(-tau));
+    }
+    float8 at(const Vec3x8& position) const override {
+        float8 out;
+        for (int l = 0; l < 8; ++l) out[l] = at(Vec3f{position.x[l], position.y[l], position.z[l]});
+        return out;
+    }
+
+private:
+    static constexpr double kOpaqueDepth = 30;  // exp(-30): nothing more to see
+    Light light_;
+    const std::vector<RayGrid>& grids_;
+    const Kernel& kernel_;
+    Vec3 origin_;
+    double step_;
+};
+
 /// Calls fn(pixel_index, px, py) for the sampled pixels, in parallel over rows.
 template <class Fn>
 void for_each_pixel(const Camera& camera, int step, RenderControl& control, Fn&& fn) {
@@ -128,6 +179,7 @@ void for_each_pixel(const Camera& camera, int step, RenderControl& control, Fn&&
 struct Marcher {
     Kernel kernel;
     std::vector<ClassificationTable> tables;
+    std::vector<std::unique_ptr<ShadowRays>> shadow_rays;
     std::vector<Shader> shaders;
     std::vector<RayGrid> grids;
     SheetGeometry geometry;
@@ -140,6 +192,22 @@ struct Marcher {
         double spacing = INFINITY;
         tables.reserve(volumes.size());  // grids point into both
         shaders.reserve(volumes.size());
+        grids.reserve(volumes.size());
+        // Shadow rays step sheet_spacing of the finest grid's voxels.
+        double finest = INFINITY;
+        for (const ShadedVolume& v : volumes)
+            if (v.grid->active_voxel_count() > 0) finest = std::min(finest, smallest_voxel_spacing(*v.grid));
+        std::vector<const LightTransmittance*> shadowed;
+        if (lighting && std::isfinite(finest))
+            for (const Light& light : lighting->lights) {
+                if (!light.casts_shadow(params.shadows)) {
+                    shadowed.push_back(nullptr);
+                    continue;
+                }
+                shadow_rays.push_back(std::make_unique<ShadowRays>(light, grids, kernel, geometry.origin0, finest * params.sheet_spacing));
+                shadowed.push_back(shadow_rays.back().get());
+            }
+        if (std::all_of(shadowed.begin(), shadowed.end(), [](const LightTransmittance* t) { return t == nullptr; })) shadowed.clear();
         for (const ShadedVolume& v : volumes) {
             const Grid& grid = *v.grid;
             if (grid.active_voxel_count() == 0) continue;
@@ -155,7 +223,7 @@ struct Marcher {
                 const double unit = tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid);
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
-                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0);
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed);
                 shader = &shaders.back();
             }
             std::optional<SampleClip> clip;

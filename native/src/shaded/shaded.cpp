@@ -9,10 +9,12 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
+#include "shaded/light_volume.h"
 #include "shaded/raycast_reference.h"
 #include "shaded/shaded_levels.h"
 #include "shaded/sheet_walk.h"
@@ -248,6 +250,15 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     }
     if (smallest_stride == INT32_MAX) smallest_stride = 1;
 
+    // Each shadowed light's transmittance through every grid, before any sample needs it.
+    std::optional<LightVolumes> shadows;
+    if (!mip) {
+        const auto shadows_start = Clock::now();
+        shadows.emplace(volumes, *lighting, params.shadows, kernel, geometry.origin0, control);
+        stats.shadow_texels = shadows->texels();
+        stats.seconds_shadows = std::chrono::duration<double>(Clock::now() - shadows_start).count();
+    }
+
     TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride));
     SheetWalkSetup setup;
     std::vector<std::unique_ptr<SlabView>> views;
@@ -265,7 +276,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             const TransferFunction& tf = *volume.transfer_function;  // its unit resolved by LevelledVolumes
             classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
             classification = classifications.back().get();
-            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0));
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light()));
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);

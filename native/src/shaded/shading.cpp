@@ -34,6 +34,7 @@ void Lighting::validate() const {
     for (double k : {m.ambient, m.diffuse, m.specular, m.shininess})
         if (!std::isfinite(k) || k < 0)
             throw InvalidArgument("Shading: ambient, diffuse, specular and shininess must be finite and >= 0");
+    if (!(std::abs(m.anisotropy) < 1)) throw InvalidArgument("Shading: anisotropy must lie strictly between -1 and 1");
     for (size_t i = 0; i < lights.size(); ++i) {
         const Light& l = lights[i];
         const std::string what = "light " + std::to_string(i) + ": ";
@@ -44,28 +45,77 @@ void Lighting::validate() const {
     }
 }
 
-Shader::Shader(const Lighting& lighting, const Vec3& origin) {
+Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance) {
     lighting.validate();
+    if (!transmittance.empty() && transmittance.size() != lighting.lights.size())
+        throw InvalidArgument("Shader: one transmittance per light, or none");
     const Shading& m = lighting.material;
     lit_ = m.lit;
-    ambient_ = bounded(lighting.ambient * m.ambient);
+    scatter_ = m.model == Shading::Model::Scatter;
+    anisotropy_ = float(m.anisotropy);
+    ambient_ = bounded(scatter_ ? lighting.ambient : lighting.ambient * m.ambient);
     diffuse_ = bounded(m.diffuse);
     specular_ = bounded(m.specular);
     // Specular highlights through a table (linear interpolation: 1e-5 off at shininess 10).
     power_.resize(kPowerSteps + 2);
     for (int k = 0; k <= kPowerSteps; ++k) power_[k] = float(std::pow(double(k) / kPowerSteps, m.shininess));
     power_[kPowerSteps + 1] = power_[kPowerSteps];
-    for (const Light& l : lighting.lights) {
+    for (size_t i = 0; i < lighting.lights.size(); ++i) {
+        const Light& l = lighting.lights[i];
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
         const Vec3 vector = point ? l.vector - origin : -l.vector / length(l.vector);
-        lights_.push_back({point, to_float(vector), bounded(l.color * l.strength)});
+        lights_.push_back({point, to_float(vector), bounded(l.color * l.strength), transmittance.empty() ? nullptr : transmittance[i]});
     }
 }
 
+namespace {
+Vec3x8 splat(const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; }
+/// Room for the transmittances of this many lights on the stack; more take the heap.
+constexpr size_t kStackLights = 8;
+}  // namespace
+
 Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
     if (!lit_) return bounded(colour);
-    auto splat = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
+    float8 on_stack[kStackLights] = {};  // unshadowed lights' entries are passed, never read
+    std::vector<float8> on_heap(lights_.size() > kStackLights ? lights_.size() : 0);
+    float8* transmittance = on_heap.empty() ? on_stack : on_heap.data();
+    for (size_t i = 0; i < lights_.size(); ++i)
+        if (lights_[i].transmittance) transmittance[i] = lights_[i].transmittance->at(position);
+    return shade_lit(colour, gradient, to_eye, position, transmittance);
+}
+
+Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, float8 transmittance) {
+    Vec3x8 l = splat(light.vector), energy = splat(light.energy);
+    if (light.point) {
+        l = l - position;
+        const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
+        l = l * (1.0f / sqrt8(d2));
+        energy = bounded(energy * (1.0f / d2));
+    }
+    if (light.transmittance) energy = energy * transmittance;
+    return {l, energy};
+}
+
+Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance) const {
+    Vec3x8 radiance = splat(ambient_);
+    const float g = anisotropy_;
+    const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
+    for (size_t i = 0; i < lights_.size(); ++i) {
+        const auto [l, energy] = arriving(lights_[i], position, transmittance[i]);
+        // cos theta between the light's travel (-l) and the way to the eye.
+        const float8 base = max8(1.0f + g * g + 2.0f * g * dot(l, to_eye), broadcast8(1e-12f));
+        const float8 phase = numerator / (base * sqrt8(base));
+        radiance = radiance + energy * phase;
+    }
+    radiance = bounded(radiance);
+    const Vec3x8 c = bounded(colour);
+    return bounded(Vec3x8{c.x * radiance.x, c.y * radiance.y, c.z * radiance.z});
+}
+
+Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
+                         const float8* transmittance) const {
+    if (scatter_) return scatter(colour, to_eye, position, transmittance);
     Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
     // Divided by its largest component before it is squared: the gradients of densities near 1e30
     // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
@@ -76,14 +126,8 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
         // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
         const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
         const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
-        for (const PreparedLight& light : lights_) {
-            Vec3x8 l = splat(light.vector), energy = splat(light.energy);
-            if (light.point) {
-                l = l - position;
-                const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
-                l = l * (1.0f / sqrt8(d2));
-                energy = bounded(energy * (1.0f / d2));
-            }
+        for (size_t li = 0; li < lights_.size(); ++li) {
+            const auto [l, energy] = arriving(lights_[li], position, transmittance[li]);
             const float8 n_dot_l = dot(n, l);
             const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
             diffuse = diffuse + energy * (diffuse_ * lit);
@@ -106,8 +150,15 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
 }
 
 Vec3f Shader::shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
-    auto lanes = [](const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; };
-    const Vec3x8 lit = shade(lanes(colour), lanes(gradient), lanes(to_eye), lanes(position));
+    if (!lit_) {
+        const Vec3x8 c = bounded(splat(colour));
+        return {c.x[0], c.y[0], c.z[0]};
+    }
+    // One sample: each shadowed light's transmittance read once, at the one point.
+    std::vector<float8> transmittance(lights_.size());
+    for (size_t i = 0; i < lights_.size(); ++i)
+        if (lights_[i].transmittance) transmittance[i] = broadcast8(lights_[i].transmittance->at(position));
+    const Vec3x8 lit = shade_lit(splat(colour), splat(gradient), splat(to_eye), splat(position), transmittance.data());
     return {lit.x[0], lit.y[0], lit.z[0]};
 }
 
