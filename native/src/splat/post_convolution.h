@@ -55,7 +55,8 @@ private:
 
 /// The filter along one image axis of `pixels` pixels, for nodes `spacing` >= 1 pixels apart (node n
 /// on pixel spacing * n): per pixel the node at or before it and the weights of its four taps
-/// (PostFilter's weights at whole spacings).
+/// (PostFilter's weights at whole spacings). At fractional spacings the bilinear filter is averaged over
+/// each pixel's area, so that every node's pixels take its spacing in weight (mass is conserved).
 class PostFilterAxis {
 public:
     PostFilterAxis(PostFilterShape shape, double spacing, int pixels);
@@ -73,6 +74,11 @@ private:
     std::vector<int> node_, first_pixel_;
     std::vector<float> by_tap_[PostFilter::kTaps];
 };
+
+/// The filter's blur along one axis for nodes `spacing` pixels apart: the variance of a pixel's weights
+/// about the pixel (nodes^2), averaged over the pixels. For the bilinear filter t (1 - t) at phase t
+/// ((1 - 1 / L^2) / 6 at a whole stride L), plus a pixel's box (1 / (12 spacing^2)) at fractional ones.
+double post_filter_blur(PostFilterShape shape, double spacing);
 
 /// Row-major width x height image that the depth bands add into. Float is enough here: the many
 /// small contributions were already summed in double on the splat grid; a pixel gets one value per band.
