@@ -16,6 +16,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
 #include "splat/cut_splat.h"
+#include "splat/passband.h"
 #include "splat/post_convolution.h"
 #include "splat/splatter.h"
 #include "view/block_plan.h"
@@ -33,6 +34,12 @@ XrayMethod xray_method_from_name(const std::string& name) {
     if (name == "bilinear_spread") return XrayMethod::BilinearSpread;
     if (name == "exact") return XrayMethod::Exact;
     throw InvalidArgument("unknown method '" + name + "' (expected regular, pcvr, bilinear_spread or exact)");
+}
+
+Passband passband_from_name(const std::string& name) {
+    if (name == "compensated") return Passband::Compensated;
+    if (name == "paper") return Passband::Paper;
+    throw InvalidArgument("unknown passband '" + name + "' (expected compensated or paper)");
 }
 
 namespace {
@@ -70,6 +77,42 @@ double range_scale(const std::vector<WeightedGrid>& grids) {
     return std::ldexp(1.0, std::clamp(-std::ilogb(largest), -100, 100));
 }
 
+/// The passband compensation of one render's splat grids (src/splat/passband.h).
+class Compensation {
+public:
+    Compensation(const XrayParams& params, const Kernel& kernel, PostFilterShape post_shape, const XrayStats& magnifications)
+        : on_(params.passband == Passband::Compensated &&
+              (params.method == XrayMethod::Pcvr || params.method == XrayMethod::Regular) && magnifications.max_magnification > 0),
+          regular_(params.method == XrayMethod::Regular),
+          kernel_variance_(kernel.variance()),
+          post_shape_(post_shape),
+          min_magnification_(magnifications.min_magnification),
+          max_magnification_(magnifications.max_magnification) {}
+
+    /// Sharpens a depth band's splat grid before it goes to the image.
+    void apply(SplatGrid& grid, RenderControl& control) const {
+        if (!on_) return;
+        if (regular_) {
+            // The image's taps a whole number of pixels apart, about a voxel.
+            const double m = std::sqrt(min_magnification_ * max_magnification_);
+            const int d = std::max(1, int(std::lround(m)));
+            sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / d) * (m / d)), d, control);
+            return;
+        }
+        // A band's automatic strides climb in steps of 2^(1/4) from its least magnified voxels: the band's
+        // voxels lie about 2^(1/8) above its stride (an orthographic view's all at the one magnification).
+        const double s = grid.stride();
+        const double m = std::clamp(s * std::pow(2.0, 0.125), min_magnification_, max_magnification_);
+        sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s)), 1, control);
+    }
+
+private:
+    bool on_, regular_;
+    double kernel_variance_;
+    PostFilterShape post_shape_;
+    double min_magnification_, max_magnification_;
+};
+
 ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
                                  const Kernel& kernel, PostFilterShape post_shape, RenderControl& control, XrayStats& stats) {
     const bool regular = params.method == XrayMethod::Regular;
@@ -84,6 +127,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
 
     std::vector<PlannedGrid> planned;
     planned.reserve(grids.size());  // splat params point at their clip regions
+    XrayStats magnifications;       // this render's alone (stats may hold a supersampled render's)
     bool any_cut = false;
     std::map<double, bool> strides;
     uint64_t planned_blocks = 0;
@@ -103,6 +147,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         stats.blocks_culled += plan.blocks_culled;
         stats.blocks_clipped += plan.blocks_clipped;
         stats.include_magnification(plan.min_magnification, plan.max_magnification);
+        magnifications.include_magnification(plan.min_magnification, plan.max_magnification);
         for (const auto& [stride, blocks] : plan.by_stride) {
             strides[stride] = true;
             planned_blocks += blocks.size();
@@ -162,7 +207,9 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     std::vector<std::unique_ptr<ImageAccumulator>> masked(planned.size());
     for (size_t k = 0; k < planned.size(); ++k)
         if (cutters[k] && cutters[k]->masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
-    auto to_image = [&](const SplatGrid& grid, ImageAccumulator& out) {
+    const Compensation compensation(params, kernel, post_shape, magnifications);
+    auto to_image = [&](SplatGrid& grid, ImageAccumulator& out) {
+        compensation.apply(grid, control);
         if (regular)
             add_unfiltered(grid, out);
         else
