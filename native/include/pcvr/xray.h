@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pcvr/attenuation_map.h"
@@ -87,6 +88,10 @@ struct XrayParams {
     /// every batch takes the same; Python has no argument for it.
     int supersampling = 0;
     Passband passband = Passband::Compensated;
+    /// The least and most pixels per voxel regular splatting's passband compensation takes; {0, 0}: those of
+    /// the grids' boxes. Streams set it to the whole stream's, so that every batch takes the same; Python
+    /// has no argument for it.
+    std::pair<double, double> compensation_magnification{0.0, 0.0};
 };
 
 struct XrayStats {
