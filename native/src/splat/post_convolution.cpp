@@ -77,7 +77,7 @@ void pixel_mean_bilinear(double fraction, double width, float out[PostFilter::kT
 bool whole_spacing(double spacing) { return spacing == std::floor(spacing); }
 
 /// One pixel's weights along an axis of nodes `spacing` pixels apart, and the node at or before it.
-int axis_weights(PostFilterShape shape, double spacing, int x, float w[PostFilter::kTaps]) {
+int axis_weights(PostFilterShape shape, double spacing, bool pixel_mean, int x, float w[PostFilter::kTaps]) {
     const double n = std::floor(x / spacing);
     // x - n * spacing is the whole phase for whole spacings, so they get PostFilter's weights exactly;
     // otherwise it may round to just below zero, where the outer taps would get a sliver of weight.
@@ -87,7 +87,7 @@ int axis_weights(PostFilterShape shape, double spacing, int x, float w[PostFilte
     // Averaged over each pixel's area, the node's weights add up to its spacing wherever it falls (the
     // pixels tile the line), at the cost of a pixel's box (1/12 px^2), which the passband compensation
     // pays back. Whole spacings keep the point samples, which already conserve mass.
-    if (shape == PostFilterShape::Bilinear && !whole_spacing(spacing))
+    if (pixel_mean && shape == PostFilterShape::Bilinear && !whole_spacing(spacing))
         pixel_mean_bilinear(fraction, 1.0 / spacing, w);
     else
         normalised_weights(shape, fraction, w);
@@ -96,11 +96,11 @@ int axis_weights(PostFilterShape shape, double spacing, int x, float w[PostFilte
 
 }  // namespace
 
-PostFilterAxis::PostFilterAxis(PostFilterShape shape, double spacing, int pixels) : node_(size_t(pixels)) {
+PostFilterAxis::PostFilterAxis(PostFilterShape shape, double spacing, int pixels, bool pixel_mean) : node_(size_t(pixels)) {
     for (auto& w : by_tap_) w.resize(size_t(pixels));
     for (int x = 0; x < pixels; ++x) {
         float w[PostFilter::kTaps];
-        node_[size_t(x)] = axis_weights(shape, spacing, x, w);
+        node_[size_t(x)] = axis_weights(shape, spacing, pixel_mean, x, w);
         for (int k = 0; k < PostFilter::kTaps; ++k) by_tap_[k][size_t(x)] = w[k];
     }
     const int nodes = pixels > 0 ? node_.back() + 1 : 0;
@@ -109,13 +109,13 @@ PostFilterAxis::PostFilterAxis(PostFilterShape shape, double spacing, int pixels
     for (int n = nodes - 1; n >= 0; --n) first_pixel_[size_t(n)] = std::min(first_pixel_[size_t(n)], first_pixel_[size_t(n) + 1]);
 }
 
-double post_filter_blur(PostFilterShape shape, double spacing) {
+double post_filter_blur(PostFilterShape shape, double spacing, bool pixel_mean) {
     // A whole spacing repeats after `spacing` pixels; a fractional one is averaged over enough of them.
     const int pixels = whole_spacing(spacing) ? int(spacing) : std::max(256, int(std::ceil(64 * spacing)));
     double sum = 0;
     for (int x = 0; x < pixels; ++x) {
         float w[PostFilter::kTaps];
-        const int n = axis_weights(shape, spacing, x, w);
+        const int n = axis_weights(shape, spacing, pixel_mean, x, w);
         const double centre = x / spacing;  // in nodes
         double mean = 0, second = 0;
         for (int k = 0; k < PostFilter::kTaps; ++k) {
@@ -163,8 +163,9 @@ inline void node_run(const PostFilter& filter, const float* sums, int p0, int p1
 
 }  // namespace
 
-void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control) {
-    const PostFilterAxis across(shape, grid.stride(), image.width), down(shape, grid.stride(), image.height);
+void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control,
+                   bool pixel_mean) {
+    const PostFilterAxis across(shape, grid.stride(), image.width, pixel_mean), down(shape, grid.stride(), image.height, pixel_mean);
     const float *wx0 = across.tap_weights(0), *wx1 = across.tap_weights(1), *wx2 = across.tap_weights(2),
                 *wx3 = across.tap_weights(3);
     const int T = SplatGrid::kTile;

@@ -90,6 +90,7 @@ public:
           perspective_(!cam.orthographic()),
           kernel_variance_(kernel.variance()),
           post_shape_(post_shape),
+          pixel_mean_(params.antialias),
           bands_(std::move(bands)),
           regular_range_(regular_range) {}
 
@@ -111,13 +112,14 @@ public:
         const double s = grid.stride();
         const double m = std::clamp(perspective_ ? s * std::pow(2.0, 0.125) : s, band->second.min_magnification,
                                     band->second.max_magnification);
-        sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s)), 1, control);
+        sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s, pixel_mean_)), 1, control);
     }
 
 private:
     bool on_, regular_, perspective_;
     double kernel_variance_;
     PostFilterShape post_shape_;
+    bool pixel_mean_;
     std::map<double, XrayStats> bands_;
     std::pair<double, double> regular_range_;
 };
@@ -241,7 +243,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         if (regular)
             add_unfiltered(grid, out);
         else
-            post_convolve(grid, post_shape, out, control);
+            post_convolve(grid, post_shape, out, control, params.antialias);
     };
     for (const auto& [stride, unused] : strides) {
         SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
