@@ -163,6 +163,13 @@ def render(grid, cam: CameraSpec, method: str, kernel: str = "gauss1.4", post: s
     return np.asarray(img, dtype=np.float64)
 
 
+def render_xray_paper(*args, **kw):
+    """pn.render_xray with the paper's passband unless told otherwise: what the tests compare with `exact` and
+    with numpy models of the paper's pipeline (as `render` does)."""
+    kw.setdefault("passband", "paper")
+    return pn.render_xray(*args, **kw)
+
+
 def pixel_means(grid, cam: CameraSpec, factor: int = 8, kernel: str = "gauss1.4") -> np.ndarray:
     """The reference for anti-aliased images: `exact` at `factor` x the resolution (the same view, each
     pixel split into factor x factor sub-pixels sampled at their centres), averaged over each pixel."""
