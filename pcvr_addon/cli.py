@@ -24,7 +24,8 @@ import bpy
 
 from . import camera, command_scene, convert_command, image_io, register, statistics, unregister
 from .batch import run as batch_run
-from .command_scene import DEFAULT_LIGHT_DIRECTION, DEFAULT_MAGNIFICATION, METHODS, MODES, POST_FILTERS, SPLAT_KERNELS
+from .command_scene import (DEFAULT_LIGHT_DIRECTION, DEFAULT_MAGNIFICATION, METHODS, MODES, PASSBANDS, POST_FILTERS,
+                            SPLAT_KERNELS)
 
 DEFAULT_MU_WATER = 0.193  # per centimetre: water near 70 keV
 
@@ -65,6 +66,8 @@ def make_parser():
     render.add_argument("--post-filter", choices=POST_FILTERS,
                         help="filter from the subgrid to the image (of the chosen mode)")
     render.add_argument("--stride", type=int, help="subgrid stride in pixels, 0 = automatic")
+    render.add_argument("--passband", choices=PASSBANDS,
+                        help="X-ray: 'compensated' pays back the blur of kernel and post filter, 'paper' does not")
     render.add_argument("--sheet-spacing", type=float, help="shaded and mip: voxels between sheets")
     render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")

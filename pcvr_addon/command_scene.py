@@ -13,7 +13,7 @@ import bpy
 from mathutils import Matrix, Vector
 
 from . import clipping, image_io, presets
-from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_post_filters, enum_splat_kernels
+from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_splat_kernels
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
@@ -31,6 +31,7 @@ def _native_choices(items):
 METHODS = _native_choices(enum_methods)
 SPLAT_KERNELS = _native_choices(enum_splat_kernels)
 POST_FILTERS = _native_choices(enum_post_filters)
+PASSBANDS = _native_choices(enum_passbands)
 MODES = [identifier for identifier, _name, _description in enum_modes]
 
 
@@ -131,6 +132,8 @@ def apply_options(scene, args):
             setattr(settings, option, getattr(args, option))
     if args.stride is not None:
         settings.subgrid_stride = args.stride
+    if args.passband is not None:
+        settings.passband = PASSBANDS[args.passband]
     if args.gain == "auto":
         settings.use_auto_exposure = True
     elif args.gain is not None:

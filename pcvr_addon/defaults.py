@@ -14,6 +14,7 @@ XRAY = {
     "splat_kernel": "gauss1.4",
     "post_filter": "bilinear",
     "stride": 0,
+    "passband": "compensated",
 }
 
 # render_shaded, and render_mip for the arguments it shares

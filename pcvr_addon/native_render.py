@@ -48,7 +48,7 @@ def _xray_integral(prepared, view, control, stats, level=None):
     return pcvr_native.render_xray(
         prepared.xray_grids, native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
-        stride=settings.stride, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation,
+        stride=settings.stride, passband=settings.passband, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation,
         stats=stats, **prepared.clip_arguments, **_level_argument(level),
         **control.arguments(prepared.inputs.threads))
 

@@ -27,6 +27,8 @@ NATIVE_NAMES = {
     'BOX': "box",
     'BILINEAR': "bilinear",
     'CATMULL_ROM': "catmull_rom",
+    'COMPENSATED': "compensated",
+    'PAPER': "paper",
 }
 
 
@@ -64,6 +66,12 @@ enum_post_filters = (
     ('GAUSS_1_4', "Gaussian 1.4", "exp(-1.4 t\u00b2) over 2 subgrid nodes: smoother"),
     ('GAUSS_2_0', "Gaussian 2.0", "exp(-2 t\u00b2) over 2 subgrid nodes"),
     ('CATMULL_ROM', "Catmull-Rom", "Cubic through the subgrid samples: sharp, with slight overshoot at edges"),
+)
+
+enum_passbands = (
+    ('COMPENSATED', "Compensated", "A small sharpening pays back the blur of the splat kernel and the post filter: "
+                                   "closest to the line integrals of the sampled volume"),
+    ('PAPER', "Paper", "The paper's splat kernel and post filter as they are (softer)"),
 )
 
 enum_mip_colors = (
@@ -137,6 +145,13 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         description="Filter that turns the subgrid into the image (X-ray)",
         items=enum_post_filters,
         default=identifier(defaults.XRAY["post_filter"]),
+        update=tag_changed,
+    )
+    passband: EnumProperty(
+        name="Passband",
+        description="X-ray with PCVR or regular splatting: pay back the blur of the splat kernel and post filter",
+        items=enum_passbands,
+        default=identifier(defaults.XRAY["passband"]),
         update=tag_changed,
     )
     subgrid_stride: IntProperty(

@@ -70,6 +70,7 @@ class XRaySettings:
     splat_kernel: str
     post_filter: str
     stride: int
+    passband: str
 
 
 @dataclass(frozen=True)
@@ -196,7 +197,7 @@ def _splatting(settings, post_filter):
 
 
 def xray_settings(settings):
-    return XRaySettings(**_splatting(settings, settings.post_filter))
+    return XRaySettings(**_splatting(settings, settings.post_filter), passband=NATIVE_NAMES[settings.passband])
 
 
 def sheet_settings(settings):

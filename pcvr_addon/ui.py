@@ -71,6 +71,8 @@ class PCVR_RENDER_PT_method(PCVRRenderPanel, Panel):
         if settings.method != 'REGULAR':
             col.prop(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter")
             col.prop(settings, "subgrid_stride", text="Stride")
+        if settings.mode == 'XRAY' and settings.method != 'BILINEAR_SPREAD':
+            col.prop(settings, "passband")
         if settings.mode != 'XRAY':
             col = layout.column()
             col.prop(settings, "sheet_spacing")

@@ -92,10 +92,11 @@ TEST(post_filter_axis_at_whole_strides_is_the_post_filter) {
 
 TEST(post_filter_axis_at_fractional_strides) {
     // Nodes 2.2 pixels apart: pixel x reads nodes floor(x / 2.2) - 1 .. + 2 with the filter's weights
-    // at its distance from each, normalised; node n's pixels are those whose node it is.
+    // at its distance from each, normalised; node n's pixels are those whose node it is. Sampled at pixel
+    // centres (render_xray's antialias=False):
     const double spacing = 2.2;
     const int pixels = 50;
-    const PostFilterAxis axis(PostFilterShape::Bilinear, spacing, pixels);
+    const PostFilterAxis axis(PostFilterShape::Bilinear, spacing, pixels, false);
     for (int x = 0; x < pixels; ++x) {
         const int n = int(std::floor(x / spacing));
         CHECK(axis.node(x) == n);
@@ -110,6 +111,45 @@ TEST(post_filter_axis_at_fractional_strides) {
         double sum = 0;
         for (int k = 0; k < PostFilter::kTaps; ++k) sum += gauss.tap_weights(k)[x];
         CHECK_NEAR(sum, 1.0, 1e-6);
+    }
+}
+
+TEST(bilinear_averaged_over_pixels_conserves_every_nodes_mass) {
+    // At fractional strides the bilinear filter is averaged over each pixel: a pixel's weights still add up
+    // to one, and a node's over all pixels to its spacing, wherever it falls between pixels (point samples
+    // at pixel centres miss that by up to a tenth at 1.5). Whole strides keep the point samples.
+    for (double spacing : {1.125, 1.5, 2.2, 3.3, 5.7}) {
+        const int pixels = 200;
+        const PostFilterAxis axis(PostFilterShape::Bilinear, spacing, pixels);
+        std::vector<double> node_sum(size_t(pixels), 0.0);
+        for (int x = 0; x < pixels; ++x) {
+            double row = 0;
+            for (int k = 0; k < PostFilter::kTaps; ++k) {
+                const float w = axis.tap_weights(k)[x];
+                CHECK(w >= 0.0f);
+                row += w;
+                const int node = axis.node(x) - 1 + k;
+                if (node >= 0) node_sum[size_t(node)] += w;
+            }
+            CHECK_NEAR(row, 1.0, 1e-6);
+        }
+        // Nodes whose every pixel is in the image: from node 2 to two nodes before the last pixel's.
+        for (int n = 2; n + 2 <= axis.node(pixels - 1); ++n) CHECK_NEAR(node_sum[size_t(n)], spacing, 1e-5);
+    }
+    const PostFilterAxis whole(PostFilterShape::Bilinear, 3.0, 30), sampled(PostFilterShape::Bilinear, 3.0, 30, false);
+    for (int x = 0; x < 30; ++x)
+        for (int k = 0; k < PostFilter::kTaps; ++k) CHECK(whole.tap_weights(k)[x] == sampled.tap_weights(k)[x]);
+}
+
+TEST(post_filter_blur_is_the_mean_variance_of_the_weights) {
+    // Bilinear at a whole stride L: t (1 - t) over the phases t = p / L, (1 - 1 / L^2) / 6; none at L = 1.
+    for (int L = 1; L <= 8; ++L) CHECK_NEAR(post_filter_blur(PostFilterShape::Bilinear, L), (1.0 - 1.0 / (L * L)) / 6.0, 1e-6);
+    // At fractional strides averaged over the pixels: the tent's 1/6 (less the phases' discreteness) plus a
+    // pixel's box, 1 / (12 s^2) nodes^2; sampled at centres, no box.
+    for (double s : {2.2, 3.3, 5.7}) {
+        const double mean_phase = post_filter_blur(PostFilterShape::Bilinear, s, false);
+        CHECK(mean_phase < 1.0 / 6.0 && mean_phase > (1.0 - 1.0 / (s * s)) / 6.0 - 0.02);
+        CHECK_NEAR(post_filter_blur(PostFilterShape::Bilinear, s) - mean_phase, 1.0 / (12.0 * s * s), 2e-3);
     }
 }
 

@@ -99,12 +99,15 @@ def add_camera(location=(0, 0, 5), rotation=(0, 0, 0), ortho_scale=None, lens=No
     return obj
 
 
-def setup(width=64, height=48, method='REGULAR', xray_pass=True):
+def setup(width=64, height=48, method='REGULAR', xray_pass=True, passband='PAPER'):
+    """A scene rendered by PCVR. The paper's passband by default: the tests compare with `exact`, its model
+    (the compensated passband is that model sharpened: tests/native/test_xray_passband.py)."""
     scene = bpy.context.scene
     scene.render.engine = 'PCVR'
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
     scene.pcvr.method = method
+    scene.pcvr.passband = passband
     bpy.context.view_layer.pcvr.use_pass_xray = xray_pass
     return scene
 

@@ -38,7 +38,8 @@ def rendered_xray():
 
 def native_xray(grids, **clip):
     import pcvr_native as pn
-    return pn.render_xray(grids, bs.reference_camera(), method="regular", **clip)
+    return pn.render_xray(grids, bs.reference_camera(), method="regular", passband=bpy.context.scene.pcvr.passband.lower(),
+                          **clip)
 
 
 def share_kept(image, grids):

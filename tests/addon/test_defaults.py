@@ -42,6 +42,7 @@ def property_default(struct, name):
     ("splat_kernel", defaults.XRAY, "splat_kernel"),
     ("post_filter", defaults.XRAY, "post_filter"),
     ("subgrid_stride", defaults.XRAY, "stride"),
+    ("passband", defaults.XRAY, "passband"),
     ("sheet_post_filter", defaults.SHEETS, "post_filter"),
     ("sheet_spacing", defaults.SHEETS, "sheet_spacing"),
     ("samples_per_sheet", defaults.SHEETS, "samples_per_sheet"),

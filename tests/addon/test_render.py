@@ -39,6 +39,18 @@ def test_xray_pass_matches_exact(blob_object, name):
     bs.assert_matches(bs.xray(bs.render(scene)), bs.exact(bs.world_grid(blob_object)))
 
 
+@pytest.mark.parametrize("method", ['REGULAR', 'PCVR'])
+def test_xray_pass_takes_the_passband(blob_object, method):
+    """The scene's passband reaches render_xray: the default (compensated) renders as pcvr_native does with the
+    same camera, and differs from the paper's passband."""
+    scene = bs.setup(64, 48, method=method, passband='COMPENSATED')
+    bs.add_camera(**CAMERAS["orthographic"])
+    image = bs.xray(bs.render(scene))
+    native = pn.render_xray(bs.world_grid(blob_object), bs.reference_camera(), method=method.lower(), passband="compensated")
+    bs.assert_matches(image, native)
+    assert np.abs(image - bs.exact(bs.world_grid(blob_object))).max() > 5 * bs.TOLERANCE * image.max()
+
+
 def test_pixel_aspect_and_resolution_percentage(blob_object):
     scene = bs.setup(128, 64)
     scene.render.resolution_percentage = 50

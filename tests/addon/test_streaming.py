@@ -66,7 +66,8 @@ def test_shaded_and_mip_render_a_big_volume_from_the_level_that_fits(big_volume,
     assert np.sqrt(np.mean((ls.combined(passes) - whole) ** 2)) < {'SHADED': 0.011, 'MIP': 0.056}[mode]
     # The XRay pass comes from the stream itself, not from the level's means over the background.
     reference = pn.render_xray(pn.read_vdb(big_volume.data.filepath).with_index_to_world(
-        np.array(big_volume.matrix_world) @ pn.read_vdb(big_volume.data.filepath).index_to_world), bs.reference_camera())
+        np.array(big_volume.matrix_world) @ pn.read_vdb(big_volume.data.filepath).index_to_world), bs.reference_camera(),
+        passband=scene.pcvr.passband.lower())
     np.testing.assert_allclose(bs.xray(passes), reference, rtol=0, atol=1e-3 * reference.max())
 
 

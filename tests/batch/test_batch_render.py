@@ -46,8 +46,9 @@ def test_angle_zero_is_the_camera_as_it_is_and_others_differ(tmp_path, sequence)
     for view in (side, below):
         assert view.sum() == pytest.approx(top.sum(), rel=1e-5)
     # From below, the mirror image of the view from above (the same line integrals), up to where the
-    # footprints fall on the pixels: measured 0.0066 of a peak of 0.87.
-    np.testing.assert_allclose(below[:, ::-1], top, atol=0.01 * top.max())
+    # footprints fall on the pixels: measured 0.0066 of a peak of 0.87 with the paper's passband, 0.0098
+    # with the compensated one (the default: its sharper pass band moves with the subgrid's phase too).
+    np.testing.assert_allclose(below[:, ::-1], top, atol=0.015 * top.max())
 
 
 def test_manifest_lists_settings_and_stats(tmp_path, sequence):

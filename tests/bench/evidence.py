@@ -56,7 +56,7 @@ def render_native(grid, cam, params: dict):
     stats: dict = {}
     t0 = time.perf_counter()
     img = pn.render_xray(grid, cam, params["method"], params["splat_kernel"], params["post_filter"], 0, 0,
-                         stats=stats)
+                         stats=stats, passband=params.get("passband", "compensated"))
     return img, time.perf_counter() - t0, stats
 
 

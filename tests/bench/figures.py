@@ -5,7 +5,8 @@
 | frequency_responses.png    | Figs 4-6   | radial frequency responses of box, linear and Gaussian kernels in 1, 2, 3 |
 |                            |            | dimensions (Hankel transform), replica distances 1, sqrt 2, sqrt 3 marked; |
 |                            |            | 2-D maps of the linear and Gaussian responses over the replica lattice    |
-| combined_filters.png       | Fig 7      | splat kernel x post filter, along an image axis and the diagonal          |
+| combined_filters.png       | Fig 7      | splat kernel x post filter, along an image axis and the diagonal, and     |
+|                            |            | with the passband compensation (dashed)                                   |
 | ct_comparison.png          | Figs 11/12 | CT phantom: regular, PCVR bilinear / Gaussian post, bilinear spreading,    |
 |                            |            | the subgrid before post-convolution, amplified differences               |
 | bilinear_aliasing.png      | Fig 12 i/k | bilinear spreading at m = 1..4 next to Gaussian splatting at 4, and the   |
@@ -38,6 +39,7 @@ KERNELS = {
     "gauss1.4": (lambda r: np.exp(-1.4 * r * r), 2.0, "k"),
 }
 FREQS = np.linspace(0.0, 3.0, 601)
+PASSBAND_STRENGTH = 1.1  # kPassbandStrength, native/src/splat/passband.h
 QUAD_POINTS = 1200
 
 
@@ -134,6 +136,7 @@ def combined_filters(path: Path) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import pcvr_native as pn
 
     freqs = np.linspace(0.0, 2.5, 501)
     gauss = lambda a: (lambda r: np.exp(-a * r * r))  # noqa: E731
@@ -148,22 +151,35 @@ def combined_filters(path: Path) -> dict:
         w = np.exp(-a * t * t)
         return (w[None, :] * np.cos(2 * np.pi * f[:, None] * t[None, :])).sum(axis=1) / w.sum()
 
-    pairs = [("G1.4", None), ("G1.4", "B"), ("G1.4", "G1.4"), ("G2.0", "B"), ("G2.0", "G2.0"), ("L", "B")]
-    labels = {("G1.4", None): "G1.4 alone (regular splatting)", ("L", "B"): "L + B (bilinear spreading)"}
+    # The passband compensation (native/src/splat/passband.h): [-a, 1 + 2a, -a] along each axis of nodes a
+    # voxel apart, a = strength / 2 times the blur it pays back (the kernel's variance; with the bilinear
+    # filter also its mean blur, 1/6 node^2 at large strides).
+    variance = pn.kernel_info("gauss1.4")["variance"]
+    compensation = {"G1.4": PASSBAND_STRENGTH / 2 * variance, "G1.4 + B": PASSBAND_STRENGTH / 2 * (variance + 1.0 / 6.0)}
+
+    def sharpening(a, f):
+        return 1.0 + 2.0 * a * (1.0 - np.cos(2.0 * np.pi * f))
+
+    pairs = [("G1.4", None), ("G1.4", "B"), ("G1.4", "G1.4"), ("G2.0", "B"), ("G2.0", "G2.0"), ("L", "B"),
+             ("G1.4", None, "compensated"), ("G1.4", "B", "compensated")]
+    labels = {("G1.4", None): "G1.4 alone (regular splatting)", ("L", "B"): "L + B (bilinear spreading)",
+              ("G1.4", None, "compensated"): "G1.4 alone, compensated (regular's default)",
+              ("G1.4", "B", "compensated"): "G1.4 + B, compensated (PCVR's default)"}
     values = {}
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
     for direction, ax in (("axis", axes[0]), ("diagonal", axes[1])):
-        for s, p in pairs:
-            # The post filter is separable: P(f) P(0) along an axis, P(f / sqrt 2)^2 along the diagonal.
-            if p is None:
-                post = 1.0
-            elif direction == "axis":
-                post = post_1d(p, freqs)
-            else:
-                post = post_1d(p, freqs / math.sqrt(2.0)) ** 2
+        for pair in pairs:
+            s, p = pair[:2]
+            # The post filter and the compensation are separable: P(f) P(0) along an axis, P(f / sqrt 2)^2
+            # along the diagonal.
+            along = (lambda g: g(freqs)) if direction == "axis" else (lambda g: g(freqs / math.sqrt(2.0)) ** 2)
+            post = 1.0 if p is None else along(lambda f: post_1d(p, f))
+            if len(pair) > 2:
+                a = compensation[s if p is None else f"{s} + {p}"]
+                post = post * along(lambda f: sharpening(a, f))
             H = splat[s] * post
-            lab = labels.get((s, p), f"{s} + {p}")
-            ax.plot(freqs, np.maximum(np.abs(H), 1e-7), label=lab)
+            lab = labels.get(pair, f"{s} + {p}")
+            ax.plot(freqs, np.maximum(np.abs(H), 1e-7), label=lab, ls="--" if len(pair) > 2 else "-")
             rec = values.setdefault(lab, {})
             rec[direction] = {"at_0.25": float(np.interp(0.25, freqs, H)), "at_0.5": float(np.interp(0.5, freqs, H)),
                               "stop_band_max": float(np.abs(H[freqs >= 0.75]).max()),
@@ -171,7 +187,7 @@ def combined_filters(path: Path) -> dict:
         for lab, d in REPLICAS.items():
             ax.axvline(d, color="0.6", lw=0.8, ls=":")
         ax.set_yscale("log")
-        ax.set_ylim(1e-6, 1.5)
+        ax.set_ylim(1e-6, 2.5)
         ax.set_xlabel("frequency (cycles per voxel)")
         ax.set_title(f"|combined filter| along the image {direction} (log)", fontsize=10)
         ax.grid(alpha=0.3)
@@ -194,10 +210,11 @@ def _ct(quick):
     return phantoms.ct_phantom(CT_QUICK if quick else CT_SIZE)
 
 
-def _render(grid, view, method, kernel="gauss1.4", post="bilinear"):
+def _render(grid, view, method, kernel="gauss1.4", post="bilinear", passband="paper"):
+    """The paper's figures render the paper's passband unless told otherwise."""
     import pcvr_native as pn
     import views
-    return np.asarray(pn.render_xray(grid, views.camera(view), method, kernel, post), dtype=np.float64)
+    return np.asarray(pn.render_xray(grid, views.camera(view), method, kernel, post, passband=passband), dtype=np.float64)
 
 
 def _rel(a, b):
@@ -210,7 +227,7 @@ def subgrid_samples(grid, view):
     import pcvr_native as pn
     import views
     stats = {}
-    img = np.asarray(pn.render_xray(grid, views.camera(view), "pcvr", stats=stats), dtype=np.float64)
+    img = np.asarray(pn.render_xray(grid, views.camera(view), "pcvr", stats=stats, passband="paper"), dtype=np.float64)
     stride = int(stats.get("stride") or 1)
     # Nodes sit on pixels whose index is a multiple of the stride (post_convolution.h: pixel = stride * node).
     out = np.zeros_like(img)
@@ -266,15 +283,15 @@ def shifted(view, pixels: int) -> dict:
     return v
 
 
-def shift_variance(grid, view, method, post="bilinear", kernel="gauss1.4") -> float:
+def shift_variance(grid, view, method, post="bilinear", kernel="gauss1.4", passband="paper") -> float:
     """Aliasing as shift variance: render the view and the view moved by 1 .. L-1 pixels; an alias-free
     renderer gives the same image moved by those pixels. RMS of the change over RMS of the image,
     averaged over the shifts (stride L = the magnification here)."""
-    base = _render(grid, view, method, kernel, post)
+    base = _render(grid, view, method, kernel, post, passband)
     m = int(round(view["magnification"]))
     errs = []
     for s in range(1, max(m, 2)):
-        moved = _render(grid, shifted(view, s), method, kernel, post)
+        moved = _render(grid, shifted(view, s), method, kernel, post, passband)
         a, b = moved[:, :-s], base[:, s:]
         errs.append(_rel(a, b))
     return float(np.mean(errs))
@@ -318,6 +335,8 @@ def bilinear_aliasing(path: Path, quick: bool) -> dict:
             "pcvr gauss1.4 + bilinear": shift_variance(grid, vs[m], "pcvr"),
             "pcvr gauss1.4 + gauss1.4": shift_variance(grid, vs[m], "pcvr", post="gauss1.4"),
             "regular": shift_variance(grid, vs[m], "regular"),
+            "pcvr gauss1.4 + bilinear, compensated": shift_variance(grid, vs[m], "pcvr", passband="compensated"),
+            "regular, compensated": shift_variance(grid, vs[m], "regular", passband="compensated"),
         }
     return {"size": ph.values.shape[0], "shift_variance": measured}
 

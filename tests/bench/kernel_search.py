@@ -179,7 +179,7 @@ def run(quick: bool, log) -> dict:
         step = 1 if quick else 3
         truth = ds.truth(ph, cam, step, quick)
         cache = node_positions(ph, view)
-        native = np.asarray(pn.render_xray(grid, cam, "pcvr"), dtype=np.float64)
+        native = np.asarray(pn.render_xray(grid, cam, "pcvr", passband="paper"), dtype=np.float64)  # the prototyped pair
         proto = render(ph, view, 1.4, "bilinear", cache)
         out["check"][ds.key] = rel(proto, native)
         rows = {}

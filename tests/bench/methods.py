@@ -27,15 +27,21 @@ class Method:
 
 PCVR_DEFAULT = "pcvr"
 
+# PCVR's native rows render the compensated passband (render_xray's default) unless "passband" says "paper":
+# the paper's pair, as the rows before the compensation.
 XRAY = [
     Method("pcvr", "PCVR (gauss1.4 + bilinear)", "pcvr", "native",
            {"method": "pcvr", "splat_kernel": "gauss1.4", "post_filter": "bilinear"}, default=True),
+    Method("pcvr_paper", "PCVR (gauss1.4 + bilinear), paper's passband", "pcvr", "native",
+           {"method": "pcvr", "splat_kernel": "gauss1.4", "post_filter": "bilinear", "passband": "paper"}),
     Method("pcvr_gpost", "PCVR (gauss1.4 + gauss1.4 post)", "pcvr", "native",
            {"method": "pcvr", "splat_kernel": "gauss1.4", "post_filter": "gauss1.4"}),
     Method("pcvr_g20", "PCVR (gauss2.0 + bilinear)", "pcvr", "native",
            {"method": "pcvr", "splat_kernel": "gauss2.0", "post_filter": "bilinear"}),
     Method("regular", "regular splatting (gauss1.4)", "splatting", "native",
            {"method": "regular", "splat_kernel": "gauss1.4", "post_filter": "bilinear"}),
+    Method("regular_paper", "regular splatting (gauss1.4), paper's passband", "splatting", "native",
+           {"method": "regular", "splat_kernel": "gauss1.4", "post_filter": "bilinear", "passband": "paper"}),
     Method("bilinear_spread", "bilinear spreading", "splatting", "native",
            {"method": "bilinear_spread", "splat_kernel": "gauss1.4", "post_filter": "bilinear"}),
     # Cycles: ray marching; (samples per pixel, step rate): step = rate x Cycles' voxel-size estimate.

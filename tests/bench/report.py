@@ -19,6 +19,7 @@ import ct_head
 import evidence_report
 import magnification_curve
 import minification_bench
+import passband_bench
 import shaded_levels
 import shaded_report
 import shadows_bench
@@ -447,6 +448,7 @@ def write(results: dict, output: Path) -> None:
     lines += big_volume_bench.section(results.get("big_volume"))
     lines += batch_bench.section(results.get("batch"))
     lines += magnification_curve.section(results.get("magnification_curve"))
+    lines += passband_bench.section(results.get("passband"))
     if not results["volumes"]:
         output.write_text("\n".join(lines))
         return

@@ -15,6 +15,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | viewport    | viewport_bench.py | the rendered viewport at 1280 x 720: each step, latency, images/s moving |
 | zoomed out  | minification_bench.py | time and error against magnification from 1/128 to 8, every method, and the sub-pixels chosen |
 | magnification | magnification_curve.py | pcvr's time over magnification 1 to 8, orthographic and perspective, and 1/64 to 1/2 against integrating per pixel |
+| passband    | passband_bench.py | error against analytic truth with and without the passband compensation, the end-on column's mass, X-ray time of both |
 | big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
 | shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |
@@ -88,6 +89,7 @@ STANDALONE_PARTS = [
     ("viewport", "viewport_bench", "rendered viewport"),
     ("minification", "minification_bench", "time and error against magnification"),
     ("magnification_curve", "magnification_curve", "X-ray speed over magnification"),
+    ("passband", "passband_bench", "passband compensation: error against the truth, mass, time"),
     ("shaded_levels", "shaded_levels", "shaded and MIP levels of detail"),
     ("big_volume", "big_volume_bench", "big volumes"),
     ("batch", "batch_bench", "batches over Dask"),
@@ -466,6 +468,8 @@ def parse_args(argv=None):
                    help="skip the rendered viewport's speed")
     p.add_argument("--no-magnification-curve", dest="magnification_curve", action="store_false",
                    help="skip pcvr's time over magnification")
+    p.add_argument("--no-passband", dest="passband", action="store_false",
+                   help="skip the passband compensation's error, mass and time")
     p.add_argument("--no-big-volume", dest="big_volume", action="store_false",
                    help="skip the big volume's memory and time, read whole and streamed")
     p.add_argument("--no-shaded-levels", dest="shaded_levels", action="store_false",

@@ -73,7 +73,8 @@ def inputs_for(mode, grid):
     from pcvr_addon import defaults
     inputs = si.RenderInputs(
         mode=mode, volumes=(volume,), threads=0,
-        xray=si.XRaySettings(post_filter=defaults.XRAY["post_filter"], **settings) if mode == 'XRAY' else None,
+        xray=si.XRaySettings(post_filter=defaults.XRAY["post_filter"], passband=defaults.XRAY["passband"], **settings)
+        if mode == 'XRAY' else None,
         sheets=si.SheetSettings(post_filter=defaults.SHEETS["post_filter"],
                                 sheet_spacing=defaults.SHEETS["sheet_spacing"],
                                 samples_per_sheet=defaults.SHEETS["samples_per_sheet"],

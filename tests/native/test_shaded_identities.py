@@ -4,7 +4,8 @@
   1 - exp(-k d u) per slab of thickness u) and no early termination, compositing gives
   1 - alpha = exp(-k * sum over sheets of density * ray length), so -ln(1 - alpha) / k is the sum of the
   sheets: the slab footprints of every voxel add up to its X-ray footprint, for every sheet spacing.
-  With one sample per sheet it must equal render_xray of the same method (same stride):
+  With one sample per sheet it must equal render_xray of the same method (same stride), with the paper's
+  passband (the sheets have no passband compensation):
   - regular, orthographic: 2e-3 of the peak (REGULAR_TOL in conftest: the X-ray takes orthographic
     windows from phase tables, interpolated to 1e-4 of the peak RMS and 7e-4 at worst; the sheets
     look each tap up in the footprint table; measured 1.7e-4);
@@ -53,7 +54,7 @@ def optical_render(grid, cam, method, **kw):
 def test_sheets_of_regular_splatting_sum_to_the_xray(ct, projection, spacing, samples):
     cam = camera(ct, projection, 3.0)
     sheets = optical_render(ct, cam, "regular", sheet_spacing=spacing, samples_per_sheet=samples)
-    xray = pn.render_xray(ct, cam, method="regular").astype(np.float64)
+    xray = pn.render_xray(ct, cam, method="regular", passband="paper").astype(np.float64)
     tolerance = max(REGULAR_TOL if projection == "ortho" else 2e-4, CUBIC_TOL if samples > 1 else 0.0)
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()
 
@@ -62,7 +63,7 @@ def test_sheets_of_regular_splatting_sum_to_the_xray(ct, projection, spacing, sa
 def test_sheets_of_pcvr_sum_to_the_xray(ct, projection):
     cam = camera(ct, projection, 3.0)
     sheets = optical_render(ct, cam, "pcvr", stride=2, post_filter="gauss1.4", sheet_spacing=0.7)
-    xray = pn.render_xray(ct, cam, method="pcvr", stride=2, post_filter="gauss1.4").astype(np.float64)
+    xray = pn.render_xray(ct, cam, method="pcvr", stride=2, post_filter="gauss1.4", passband="paper").astype(np.float64)
     tolerance = REGULAR_TOL if projection == "ortho" else 2e-4
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()
 
@@ -70,7 +71,7 @@ def test_sheets_of_pcvr_sum_to_the_xray(ct, projection):
 def test_sheets_of_bilinear_spreading_sum_to_the_xray(ct):
     cam = camera(ct, "ortho", 3.0)
     sheets = optical_render(ct, cam, "bilinear_spread", post_filter="bilinear")
-    xray = pn.render_xray(ct, cam, method="bilinear_spread", post_filter="bilinear").astype(np.float64)
+    xray = pn.render_xray(ct, cam, method="bilinear_spread", post_filter="bilinear", passband="paper").astype(np.float64)
     assert np.abs(sheets - xray).max() <= 1e-4 * xray.max()
 
 
@@ -103,7 +104,7 @@ def test_slabs_of_sheared_kernels_sum_to_the_xray(part, projection):
     sheets = optical_render(grid, cam, "regular")
     # The sheets splat linearised footprints everywhere; the X-ray switches to exact ones where the
     # linearisation is off (1.8% here, close to stretched voxels), so it is held to the linearised ones.
-    xray = pn.render_xray(grid, cam, method="regular", footprint_tolerance=np.inf).astype(np.float64)
+    xray = pn.render_xray(grid, cam, method="regular", footprint_tolerance=np.inf, passband="paper").astype(np.float64)
     # Perspective footprints: the slabs take P from its polynomial, the X-ray from its table (the nearest
     # of 4096 samples), 4.4e-4 and 6.8e-4 of P's peak from the line integral (kernel.h): measured up to
     # 2.3e-4 of the image's maximum apart (7.4e-5 when both took the table).

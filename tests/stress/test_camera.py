@@ -15,7 +15,7 @@ import pcvr_native as pn
 from pcvr_native import cameras, phantoms
 
 from stress_helpers import SPLAT_METHODS, max_error
-from xray_helpers import CameraSpec, frame_ortho, frame_perspective, rel_rmse
+from xray_helpers import CameraSpec, frame_ortho, frame_perspective, rel_rmse, render_xray_paper
 
 PHANTOM = phantoms.dense_volume(24, seed=4)
 LINEAR = PHANTOM.index_to_world[:3, :3]
@@ -33,12 +33,12 @@ def grid():
 
 
 def check_against_exact(grid, cam, tolerances, **kw):
-    exact = pn.render_xray(grid, cam, method="exact", **kw)
+    exact = render_xray_paper(grid, cam, method="exact", **kw)
     assert np.isfinite(exact).all() and exact.max() > 0
     for method in SPLAT_METHODS:
         # Footprints sampled at pixel centres, as exact's rays are (antialiasing is tested against pixel
         # means in tests/native/test_xray_minification.py).
-        image = pn.render_xray(grid, cam, method=method, antialias=False)
+        image = render_xray_paper(grid, cam, method=method, antialias=False)
         assert np.isfinite(image).all(), method
         if method in tolerances:
             if "pixel_step" in kw:
@@ -68,7 +68,7 @@ def test_volume_behind_an_orthographic_camera_renders_nothing(grid):
     spec = frame_ortho(PHANTOM, 2.0, (0.3, -0.5, -1.0))
     turned = np.diag([-1.0, 1.0, -1.0, 1.0]) @ spec.world_to_camera  # half a turn about the camera's y
     for method in ("exact",) + SPLAT_METHODS:
-        assert not pn.render_xray(grid, pn.Camera(turned, spec.projection, spec.width, spec.height), method=method).any()
+        assert not render_xray_paper(grid, pn.Camera(turned, spec.projection, spec.width, spec.height), method=method).any()
 
 
 def with_clip_range(spec: CameraSpec, near: float, far: float) -> pn.Camera:

@@ -17,7 +17,7 @@ import pcvr_native as pn
 from pcvr_native import cameras
 
 from stress_helpers import max_error
-from xray_helpers import rotation
+from xray_helpers import rotation, render_xray_paper
 
 TABLE = 1e-3  # the footprint table's own error at the peak (7e-4 measured)
 
@@ -50,13 +50,13 @@ def single_voxel_view(depth, tangent, linear=np.eye(3), radius=2.0):
 @pytest.mark.parametrize("depth_in_radii", [4, 9, 20])
 def test_model_bounds_the_linearised_error(tangent, depth_in_radii):
     grid, cam, depth, t = single_voxel_view(2.0 * depth_in_radii, tangent)
-    exact = pn.render_xray(grid, cam, method="exact")
-    linearised = max_error(pn.render_xray(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False), exact)
+    exact = render_xray_paper(grid, cam, method="exact")
+    linearised = max_error(render_xray_paper(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False), exact)
     bound = model(2.0 / depth, t)
     assert linearised <= 1.15 * bound + TABLE, (linearised, bound)
     assert linearised >= 0.2 * bound, f"the model is too pessimistic: {linearised:.4f} vs {bound:.4f}"
     # With the default tolerance, nothing is left beyond it.
-    assert max_error(pn.render_xray(grid, cam, method="regular", antialias=False), exact) <= 0.04 + TABLE
+    assert max_error(render_xray_paper(grid, cam, method="regular", antialias=False), exact) <= 0.04 + TABLE
 
 
 @pytest.mark.parametrize("tangent", [0.0, 0.5])
@@ -64,8 +64,8 @@ def test_model_bounds_the_linearised_error(tangent, depth_in_radii):
 def test_model_is_conservative_for_sheared_anisotropic_voxels(tangent, depth_in_radii):
     linear = np.array([[1.0, 0.35, 0.0], [0.0, 1.6, -0.25], [0.2, 0.0, 0.7]])
     grid, cam, depth, t = single_voxel_view(2.0 * depth_in_radii, tangent, linear)
-    exact = pn.render_xray(grid, cam, method="exact")
-    linearised = max_error(pn.render_xray(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False), exact)
+    exact = render_xray_paper(grid, cam, method="exact")
+    linearised = max_error(render_xray_paper(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False), exact)
     assert linearised <= model(2.0 / depth, t) + TABLE
 
 
@@ -74,11 +74,11 @@ def test_model_is_conservative_for_sheared_anisotropic_voxels(tangent, depth_in_
 def test_box_kernel_error_is_the_square_root(tangent, depth_in_radii):
     radius = float(pn.kernel_info("box")["radius"])
     grid, cam, depth, t = single_voxel_view(radius * depth_in_radii, tangent, radius=radius)
-    exact = pn.render_xray(grid, cam, method="exact", splat_kernel="box")
-    linearised = max_error(pn.render_xray(grid, cam, method="regular", splat_kernel="box",
+    exact = render_xray_paper(grid, cam, method="exact", splat_kernel="box")
+    linearised = max_error(render_xray_paper(grid, cam, method="regular", splat_kernel="box",
                                           footprint_tolerance=float("inf"), antialias=False), exact)
     assert linearised <= np.sqrt(7.0 * model(radius / depth, t)) + 5 * TABLE
-    assert max_error(pn.render_xray(grid, cam, method="regular", splat_kernel="box", antialias=False), exact) <= 0.04 + 5 * TABLE
+    assert max_error(render_xray_paper(grid, cam, method="regular", splat_kernel="box", antialias=False), exact) <= 0.04 + 5 * TABLE
 
 
 def test_model_bounds_random_anisotropic_voxels():
@@ -102,8 +102,8 @@ def test_model_bounds_random_anisotropic_voxels():
         x, y, half = centre[0] / -centre[2], centre[1] / -centre[2], 10.0 * scales.max() / -centre[2]
         cam = pn.Camera(w2c, cameras.frustum((x - half) * 0.01, (x + half) * 0.01, (y - half) * 0.01, (y + half) * 0.01, 0.01, 1e4), 48, 48)
         grid = pn.Grid.from_dense(values, m)
-        exact = pn.render_xray(grid, cam, method="exact").astype(np.float64)
-        linearised = pn.render_xray(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False)
+        exact = render_xray_paper(grid, cam, method="exact").astype(np.float64)
+        linearised = render_xray_paper(grid, cam, method="regular", footprint_tolerance=float("inf"), antialias=False)
         # Index space: depth along the gradient of clip w, the eye, the metric G = L^T L.
         index_to_camera = w2c @ m
         eye = np.linalg.inv(index_to_camera)[:3, 3]

@@ -37,7 +37,7 @@ import pcvr_native as pn
 
 from scenes import cameras_for, eyes_inside, grid_of, volumes
 from stress_helpers import LONG, METHODS, max_error
-from xray_helpers import predict_pcvr
+from xray_helpers import predict_pcvr, render_xray_paper
 
 # regular's footprint table, per kernel (worst over 300 orthographic examples each): the Gaussians'
 # nearest samples in rho^2 (2e-3, see tests/native/conftest.py; measured 9.6e-4); the linear
@@ -55,7 +55,7 @@ KERNELS = st.sampled_from(["gauss1.4", "gauss2.0", "linear", "box"])
 
 
 def exact_padded(grid, spec, pad):
-    return pn.render_xray(grid, spec.padded(pad).camera(), method="exact").astype(np.float64)
+    return render_xray_paper(grid, spec.padded(pad).camera(), method="exact").astype(np.float64)
 
 
 def pcvr_model_error(grid, spec, **options):
@@ -68,7 +68,7 @@ def pcvr_model_error(grid, spec, **options):
     model = predict_pcvr(exact_padded(grid, spec, pad), pad, stride, "bilinear", spec.height, spec.width)
     if not np.abs(model).max() > 0:
         return None, stride
-    return max_error(pn.render_xray(grid, cam, method="pcvr", stride=stride, antialias=False, **options), model), stride
+    return max_error(render_xray_paper(grid, cam, method="pcvr", stride=stride, antialias=False, **options), model), stride
 
 
 def footprint_peaks(volume, spec, kernel):
@@ -98,10 +98,10 @@ def test_regular_follows_exact(data, kernel):
     volume = data.draw(volumes())
     spec = data.draw(cameras_for(volume, perspective=False))
     grid, cam = grid_of(volume), spec.camera()
-    exact = pn.render_xray(grid, cam, method="exact", splat_kernel=kernel)
+    exact = render_xray_paper(grid, cam, method="exact", splat_kernel=kernel)
     if exact.max() <= 0:
         return
-    error = max_error(pn.render_xray(grid, cam, method="regular", splat_kernel=kernel, antialias=False), exact)
+    error = max_error(render_xray_paper(grid, cam, method="regular", splat_kernel=kernel, antialias=False), exact)
     assert error <= REGULAR_TABLE[kernel], error
 
 
@@ -113,8 +113,8 @@ def test_each_perspective_footprint_within_tolerance_of_its_peak(data, kernel):
     volume = data.draw(volumes(max_side=3, single_voxel=True))
     spec = data.draw(st.one_of(cameras_for(volume, perspective=True), eyes_inside(volume)))
     grid, cam = grid_of(volume), spec.camera()
-    exact = pn.render_xray(grid, cam, method="exact", splat_kernel=kernel).astype(np.float64)
-    regular = pn.render_xray(grid, cam, method="regular", splat_kernel=kernel, antialias=False)
+    exact = render_xray_paper(grid, cam, method="exact", splat_kernel=kernel).astype(np.float64)
+    regular = render_xray_paper(grid, cam, method="regular", splat_kernel=kernel, antialias=False)
     peak = footprint_peaks(volume, spec, kernel)[0]
     assert np.abs(regular - exact).max() <= (FOOTPRINT_TOLERANCE + REGULAR_TABLE[kernel]) * peak
 
@@ -140,10 +140,10 @@ def test_eye_inside_the_volume_with_exact_footprints(data):
     volume = data.draw(volumes())
     spec = data.draw(eyes_inside(volume))
     grid, cam = grid_of(volume), spec.camera()
-    exact = pn.render_xray(grid, cam, method="exact").astype(np.float64)
+    exact = render_xray_paper(grid, cam, method="exact").astype(np.float64)
     if exact.max() <= 0:
         return
-    regular = pn.render_xray(grid, cam, method="regular", footprint_tolerance=0.0, antialias=False)
+    regular = render_xray_paper(grid, cam, method="regular", footprint_tolerance=0.0, antialias=False)
     assert np.abs(regular - exact).max() <= REGULAR_TABLE["gauss1.4"] * footprint_peaks(volume, spec, "gauss1.4").sum()
     error, stride = pcvr_model_error(grid, spec, footprint_tolerance=0.0)
     assert error is None or error <= PHASE_TABLES, (error, stride)
@@ -156,7 +156,7 @@ def test_never_nan_and_the_same_for_any_thread_count(data, kernel, post):
     spec = data.draw(st.one_of(cameras_for(volume, max_magnification=64.0), eyes_inside(volume)))
     grid, cam = grid_of(volume), spec.camera()
     for method in METHODS:
-        images = [pn.render_xray(grid, cam, method=method, splat_kernel=kernel, post_filter=post, threads=t)
+        images = [render_xray_paper(grid, cam, method=method, splat_kernel=kernel, post_filter=post, threads=t)
                   for t in (1, 2, 0)]
         assert np.isfinite(images[0]).all(), method
         for image in images[1:]:

@@ -14,7 +14,7 @@ from pcvr_native import cameras, phantoms
 
 from _io_helpers import HAVE_BPY, run_blender_openvdb, run_python
 from stress_helpers import METHODS, max_error, measures_memory
-from xray_helpers import frame_ortho, frame_perspective
+from xray_helpers import frame_ortho, frame_perspective, render_xray_paper
 
 PHANTOM = phantoms.dense_volume(16, seed=4)
 FLOAT32_ROUNDING = 5e-7   # twice the largest error measured for normal densities
@@ -28,7 +28,7 @@ def unit():
     out = {}
     for frame in FRAMES:
         cam = frame(PHANTOM, 2.0, (0.3, -0.5, -1.0)).camera()
-        out[frame] = cam, {m: pn.render_xray(grid, cam, method=m).astype(np.float64) for m in METHODS}
+        out[frame] = cam, {m: render_xray_paper(grid, cam, method=m).astype(np.float64) for m in METHODS}
     return out
 
 
@@ -38,7 +38,7 @@ def test_density_from_denormal_to_near_float_max(unit, frame, density):
     cam, references = unit[frame]
     grid = pn.Grid.from_dense(PHANTOM.values.astype(np.float64) * density, PHANTOM.index_to_world)
     for method in METHODS:
-        image = pn.render_xray(grid, cam, method=method).astype(np.float64)
+        image = render_xray_paper(grid, cam, method=method).astype(np.float64)
         assert np.isfinite(image).all(), method
         reference = references[method] * density
         # A result in the denormal range is quantised to 2^-149 (a few quanta: sums of roundings).
@@ -50,7 +50,7 @@ def test_density_from_denormal_to_near_float_max(unit, frame, density):
 def test_line_integral_beyond_float_range_is_refused(method):
     grid = pn.Grid.from_dense(PHANTOM.values * np.float32(2e38), PHANTOM.index_to_world)
     with pytest.raises(ValueError, match=r"exceeds float32's range .* pixels .*density_scale"):
-        pn.render_xray(grid, frame_ortho(PHANTOM, 2.0).camera(), method=method)
+        render_xray_paper(grid, frame_ortho(PHANTOM, 2.0).camera(), method=method)
 
 
 def test_values_beyond_float_range_are_named_when_the_grid_is_made():
@@ -63,7 +63,7 @@ def test_values_beyond_float_range_are_named_when_the_grid_is_made():
 @pytest.mark.parametrize("scale", [float("nan"), float("inf")])
 def test_non_finite_density_scale_is_refused(scale):
     with pytest.raises(ValueError, match="density_scale must be finite"):
-        pn.render_xray(PHANTOM.grid(), frame_ortho(PHANTOM, 2.0).camera(), density_scale=scale)
+        render_xray_paper(PHANTOM.grid(), frame_ortho(PHANTOM, 2.0).camera(), density_scale=scale)
 
 
 @pytest.mark.parametrize("frame", FRAMES)
@@ -74,11 +74,11 @@ def test_negative_and_mixed_densities_are_linear(unit, frame):
     flipped = pn.Grid.from_dense(-PHANTOM.values, PHANTOM.index_to_world)
     grid = pn.Grid.from_dense(mixed, PHANTOM.index_to_world)
     for method in METHODS:
-        np.testing.assert_array_equal(pn.render_xray(flipped, cam, method=method), -references[method], err_msg=method)
+        np.testing.assert_array_equal(render_xray_paper(flipped, cam, method=method), -references[method], err_msg=method)
         positive = np.where(mixed > 0, mixed, 0.0)
-        parts = [pn.render_xray(pn.Grid.from_dense(p, PHANTOM.index_to_world), cam, method=method).astype(np.float64)
+        parts = [render_xray_paper(pn.Grid.from_dense(p, PHANTOM.index_to_world), cam, method=method).astype(np.float64)
                  for p in (positive, positive - mixed)]
-        image = pn.render_xray(grid, cam, method=method)
+        image = render_xray_paper(grid, cam, method=method)
         assert max_error(image + parts[1], parts[0]) <= FLOAT32_ROUNDING * 4, method
 
 
@@ -90,7 +90,7 @@ def test_all_zero_grids_render_black(background):
         cam = frame((np.ones((9, 9, 9)), np.eye(4)), 2.0).camera()
         for method in METHODS:
             stats = {}
-            image = pn.render_xray(grid, cam, method=method, stats=stats)
+            image = render_xray_paper(grid, cam, method=method, stats=stats)
             assert image.shape == (cam.height, cam.width) and not image.any(), method
 
 
@@ -100,10 +100,10 @@ def test_single_voxel_grid(frame):
     values[0, 0, 0] = 2.5
     grid = pn.Grid.from_dense(values, np.eye(4))
     cam = frame((np.ones((1, 1, 1)), np.eye(4)), 6.0).camera()
-    exact = pn.render_xray(grid, cam, method="exact")
+    exact = render_xray_paper(grid, cam, method="exact")
     assert exact.max() > 0
     # regular: the footprint table (2e-3, perspective adds the linearisation of a footprint 3 radii deep: 2e-3 measured).
-    assert max_error(pn.render_xray(grid, cam, method="regular", antialias=False), exact) < 5e-3
+    assert max_error(render_xray_paper(grid, cam, method="regular", antialias=False), exact) < 5e-3
 
 
 SPARSE_CORNERS = [(0, 0, 0), (2 ** 31 - 9, -(2 ** 31) + 8, 1_000_000)]
@@ -141,7 +141,7 @@ def test_one_voxel_far_from_the_rest_stays_small_and_quick(tmp_path):
         before = rss()
         for method in ('exact', 'regular', 'pcvr', 'bilinear_spread'):
             stats = {{}}
-            image = pn.render_xray(g, cam, method=method, stats=stats, antialias=False)
+            image = pn.render_xray(g, cam, method=method, stats=stats, antialias=False, passband="paper")
             print('RENDER', method, stats['blocks'], np.count_nonzero(image), float(image.sum()))
         print('GROWTH', rss() - before)
     """)
@@ -175,7 +175,7 @@ def test_ten_thousand_voxels_on_one_pixel_in_perspective(first_depth):
     single[0, 0, -1] = 1.0
     cam = pn.Camera(np.eye(4), cameras.perspective(1e-3, 1.0, 0.1, 2.0 * n), 1, 1)
     for method in ("exact", "regular", "pcvr"):
-        total = pn.render_xray(pn.Grid.from_dense(column, xf), cam, method=method, antialias=False)[0, 0]
-        one = pn.render_xray(pn.Grid.from_dense(single, xf), cam, method=method, antialias=False)[0, 0]
+        total = render_xray_paper(pn.Grid.from_dense(column, xf), cam, method=method, antialias=False)[0, 0]
+        one = render_xray_paper(pn.Grid.from_dense(single, xf), cam, method=method, antialias=False)[0, 0]
         expected = float(np.sum(column, dtype=np.float64)) * float(one)
         assert abs(total / expected - 1.0) < 1e-5, f"{method}: {total} vs {expected}"

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pcvr/attenuation_map.h"
@@ -54,6 +55,15 @@ enum class XrayMethod { Regular, Pcvr, BilinearSpread, Exact };
 /// Parses "regular", "pcvr", "bilinear_spread" or "exact"; throws InvalidArgument listing the names.
 XrayMethod xray_method_from_name(const std::string& name);
 
+/// How much the image may differ from the line integrals of the sampled signal in its passband:
+/// "compensated" sharpens the splat grid to pay back the blur of the splat kernel and the post filter
+/// (src/splat/passband.h: pcvr and regular); "paper" keeps the paper's kernel and post filter as they are.
+/// Bilinear spreading and `exact` (the kernel model's reference) always render the paper's.
+enum class Passband { Compensated, Paper };
+
+/// Parses "compensated" or "paper"; throws InvalidArgument listing the names.
+Passband passband_from_name(const std::string& name);
+
 struct XrayParams {
     XrayMethod method = XrayMethod::Pcvr;
     std::string splat_kernel = "gauss1.4";
@@ -77,6 +87,11 @@ struct XrayParams {
     /// out, with level -1 and antialias: src/view/level_of_detail.h), 1 none. Streams set it so that
     /// every batch takes the same; Python has no argument for it.
     int supersampling = 0;
+    Passband passband = Passband::Compensated;
+    /// The least and most pixels per voxel regular splatting's passband compensation takes; {0, 0}: those of
+    /// the grids' boxes. Streams set it to the whole stream's, so that every batch takes the same; Python
+    /// has no argument for it.
+    std::pair<double, double> compensation_magnification{0.0, 0.0};
 };
 
 struct XrayStats {

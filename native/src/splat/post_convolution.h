@@ -55,10 +55,12 @@ private:
 
 /// The filter along one image axis of `pixels` pixels, for nodes `spacing` >= 1 pixels apart (node n
 /// on pixel spacing * n): per pixel the node at or before it and the weights of its four taps
-/// (PostFilter's weights at whole spacings).
+/// (PostFilter's weights at whole spacings). At fractional spacings and with `pixel_mean`, the bilinear
+/// filter is averaged over each pixel's area, so that every node's pixels take its spacing in weight (mass
+/// is conserved); without, it is sampled at the pixel centres (render_xray's antialias=False).
 class PostFilterAxis {
 public:
-    PostFilterAxis(PostFilterShape shape, double spacing, int pixels);
+    PostFilterAxis(PostFilterShape shape, double spacing, int pixels, bool pixel_mean = true);
     /// The node at or before pixel x; its taps are nodes node(x) - 1 .. node(x) + 2.
     int node(int x) const { return node_[size_t(x)]; }
     /// The first pixel whose node is at least n (0 before the first node, `pixels` after the last):
@@ -74,6 +76,11 @@ private:
     std::vector<float> by_tap_[PostFilter::kTaps];
 };
 
+/// The filter's blur along one axis for nodes `spacing` pixels apart: the variance of a pixel's weights
+/// about the pixel (nodes^2), averaged over the pixels. For the bilinear filter t (1 - t) at phase t
+/// ((1 - 1 / L^2) / 6 at a whole stride L), plus a pixel's box (1 / (12 spacing^2)) at fractional ones.
+double post_filter_blur(PostFilterShape shape, double spacing, bool pixel_mean = true);
+
 /// Row-major width x height image that the depth bands add into. Float is enough here: the many
 /// small contributions were already summed in double on the splat grid; a pixel gets one value per band.
 struct ImageAccumulator {
@@ -82,9 +89,10 @@ struct ImageAccumulator {
     ImageAccumulator(int w, int h) : width(w), height(h), pixels(size_t(w) * h) {}
 };
 
-/// image += the filter of `shape` applied to grid, at the grid's node spacing. The grid must cover
-/// the image with PostFilter::kMarginNodes.
-void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control);
+/// image += the filter of `shape` applied to grid, at the grid's node spacing (PostFilterAxis, with
+/// `pixel_mean`). The grid must cover the image with PostFilter::kMarginNodes.
+void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control,
+                   bool pixel_mean = true);
 
 /// A sheet's nodes in float, as the sheet renderer keeps them: node (0, 0) is subgrid node
 /// (node_x0, node_y0), i.e. pixel (L node_x0, L node_y0); rows `pitch` floats apart.

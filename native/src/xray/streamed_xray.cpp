@@ -54,6 +54,16 @@ int stream_supersampling(const GridStream& stream, const Camera& camera, const X
                                    camera, stream.active_voxel_count() / batches);
 }
 
+/// The least and most pixels per voxel of level `level` over the whole stream's box (least magnified
+/// direction): what regular splatting's passband compensation takes in every batch, as for the grid read whole.
+std::pair<double, double> stream_magnification(const GridStream& stream, const Camera& camera, int level) {
+    if (stream.active_voxel_count() == 0) return {0.0, 0.0};
+    const auto corners = corner_pixels_per_voxel(stream.index_bbox(), stream.index_to_world(), camera, VoxelAxis::LeastMagnified);
+    if (!corners) return {0.0, 0.0};
+    const double scale = std::ldexp(1.0, level);
+    return {corners->first * scale, corners->second * scale};
+}
+
 }  // namespace
 
 XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<WeightedStream>& streams,
@@ -116,6 +126,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
         XrayParams batch_params = part_params;
         batch_params.level = level;  // every batch the same level, and the same sub-pixels
         batch_params.supersampling = stream_supersampling(*s.stream, camera, params, level, batch_bytes);
+        batch_params.compensation_magnification = stream_magnification(*s.stream, camera, level);
         uint64_t streamed = 0;
         s.stream->for_each_batch(batch_bytes, [&](const GridStream::Batch& batch) {
             render_part({WeightedGrid{&batch.grid, s.density_scale, 0, s.attenuation, s.clip}}, batch.voxels_done - streamed,

@@ -16,6 +16,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
 #include "splat/cut_splat.h"
+#include "splat/passband.h"
 #include "splat/post_convolution.h"
 #include "splat/splatter.h"
 #include "view/block_plan.h"
@@ -33,6 +34,12 @@ XrayMethod xray_method_from_name(const std::string& name) {
     if (name == "bilinear_spread") return XrayMethod::BilinearSpread;
     if (name == "exact") return XrayMethod::Exact;
     throw InvalidArgument("unknown method '" + name + "' (expected regular, pcvr, bilinear_spread or exact)");
+}
+
+Passband passband_from_name(const std::string& name) {
+    if (name == "compensated") return Passband::Compensated;
+    if (name == "paper") return Passband::Paper;
+    throw InvalidArgument("unknown passband '" + name + "' (expected compensated or paper)");
 }
 
 namespace {
@@ -70,6 +77,69 @@ double range_scale(const std::vector<WeightedGrid>& grids) {
     return std::ldexp(1.0, std::clamp(-std::ilogb(largest), -100, 100));
 }
 
+/// The passband compensation of one render's splat grids (src/splat/passband.h).
+class Compensation {
+public:
+    /// `bands`: per stride, the magnifications of the grids splatted at it; `regular_range`: the
+    /// magnifications regular splatting compensates for (one image holds every depth).
+    Compensation(const XrayParams& params, const Kernel& kernel, PostFilterShape post_shape, const Camera& cam,
+                 std::map<double, XrayStats> bands, std::pair<double, double> regular_range)
+        : on_(params.passband == Passband::Compensated &&
+              (params.method == XrayMethod::Pcvr || params.method == XrayMethod::Regular)),
+          regular_(params.method == XrayMethod::Regular),
+          perspective_(!cam.orthographic()),
+          kernel_variance_(kernel.variance()),
+          post_shape_(post_shape),
+          pixel_mean_(params.antialias),
+          bands_(std::move(bands)),
+          regular_range_(regular_range) {}
+
+    /// Sharpens a depth band's splat grid before it goes to the image.
+    void apply(SplatGrid& grid, RenderControl& control) const {
+        if (!on_) return;
+        if (regular_) {
+            if (!(regular_range_.first > 0)) return;
+            // The image's taps a whole number of pixels apart, about a voxel.
+            const double m = std::sqrt(regular_range_.first * regular_range_.second);
+            const int d = std::max(1, int(std::lround(m)));
+            sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / d) * (m / d)), d, control);
+            return;
+        }
+        const auto band = bands_.find(grid.stride());
+        if (band == bands_.end() || !(band->second.max_magnification > 0)) return;
+        // Orthographic, an automatic stride is its voxels' magnification (from 1 up); a perspective band's
+        // strides climb in steps of 2^(1/4) from its least magnified voxels, which lie about 2^(1/8) above.
+        const double s = grid.stride();
+        const double m = std::clamp(perspective_ ? s * std::pow(2.0, 0.125) : s, band->second.min_magnification,
+                                    band->second.max_magnification);
+        sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s, pixel_mean_)), 1, control);
+    }
+
+private:
+    bool on_, regular_, perspective_;
+    double kernel_variance_;
+    PostFilterShape post_shape_;
+    bool pixel_mean_;
+    std::map<double, XrayStats> bands_;
+    std::pair<double, double> regular_range_;
+};
+
+/// The least and most pixels per voxel (least magnified direction) over the boxes of the grids rendered:
+/// what regular splatting compensates for, the same for a grid read whole and for its batches (which set
+/// XrayParams::compensation_magnification to the whole stream's). {0, 0} when unknown.
+std::pair<double, double> regular_compensation_range(const std::vector<const Grid*>& levels, const Camera& cam,
+                                                     const XrayParams& params) {
+    if (params.compensation_magnification.first > 0) return params.compensation_magnification;
+    XrayStats range;
+    for (const Grid* g : levels) {
+        if (g->active_voxel_count() == 0) continue;
+        const auto corners = corner_pixels_per_voxel(g->index_bbox(), g->index_to_world(), cam, VoxelAxis::LeastMagnified);
+        if (!corners) return {0.0, 0.0};
+        range.include_magnification(corners->first, corners->second);
+    }
+    return {range.min_magnification, range.max_magnification};
+}
+
 ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const Camera& cam, const XrayParams& params,
                                  const Kernel& kernel, PostFilterShape post_shape, RenderControl& control, XrayStats& stats) {
     const bool regular = params.method == XrayMethod::Regular;
@@ -84,6 +154,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
 
     std::vector<PlannedGrid> planned;
     planned.reserve(grids.size());  // splat params point at their clip regions
+    std::map<double, XrayStats> bands;  // the magnifications of the grids splatted at each stride
     bool any_cut = false;
     std::map<double, bool> strides;
     uint64_t planned_blocks = 0;
@@ -105,6 +176,7 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         stats.include_magnification(plan.min_magnification, plan.max_magnification);
         for (const auto& [stride, blocks] : plan.by_stride) {
             strides[stride] = true;
+            bands[stride].include_magnification(plan.min_magnification, plan.max_magnification);
             planned_blocks += blocks.size();
         }
         any_cut |= plan_params.clip != nullptr;
@@ -162,11 +234,16 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
     std::vector<std::unique_ptr<ImageAccumulator>> masked(planned.size());
     for (size_t k = 0; k < planned.size(); ++k)
         if (cutters[k] && cutters[k]->masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
-    auto to_image = [&](const SplatGrid& grid, ImageAccumulator& out) {
+    std::vector<const Grid*> level_grids;
+    for (const Grid& g : levels) level_grids.push_back(&g);
+    const Compensation compensation(params, kernel, post_shape, cam, std::move(bands),
+                                    regular ? regular_compensation_range(level_grids, cam, params) : std::pair<double, double>{});
+    auto to_image = [&](SplatGrid& grid, ImageAccumulator& out) {
+        compensation.apply(grid, control);
         if (regular)
             add_unfiltered(grid, out);
         else
-            post_convolve(grid, post_shape, out, control);
+            post_convolve(grid, post_shape, out, control, params.antialias);
     };
     for (const auto& [stride, unused] : strides) {
         SplatGrid target(cam.width(), cam.height(), stride, plan_params.margin_nodes);
