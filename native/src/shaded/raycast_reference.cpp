@@ -11,6 +11,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/transfer_function.h"
 #include "shaded/compositing.h"
+#include "shaded/emission.h"
 #include "shaded/sample_clip.h"
 #include "shaded/shaded_levels.h"
 #include "shaded/sheet_walk.h"
@@ -225,7 +226,7 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
         float half_way = INFINITY;
         m.march(px, py, [&](const Vec3& x, double z) {
             double sigma_sum = 0;
-            Vec3 emission;
+            Vec3 emission, glow;  // glow: the medium's own emitted radiance per world unit
             for (const RayGrid& g : m.grids) {
                 // The share of the sample's step inside the grid's clip region (sample_clip.h).
                 const Vec3 relative = x - m.geometry.origin0;
@@ -234,6 +235,10 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                 const DensitySample s = sample(g, m.kernel, x);
                 if (!s.reached) continue;
                 const ClassificationTable::Sample c = (*g.classification)(float(s.density));
+                if (g.classification->has_emission()) {  // emits whether or not it absorbs
+                    const ClassificationTable::Emission e = g.classification->emission(float(s.density));
+                    glow = glow + Vec3{e.red, e.green, e.blue} * share;
+                }
                 if (!(c.extinction > 0)) continue;
                 // Gradient opacity reads the field's gradient; a cut face is lit by the plane (sample_clip.h).
                 const float opacity_extinction = g.classification->has_gradient_opacity()
@@ -249,11 +254,16 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                 sigma_sum += extinction;
                 emission = emission + Vec3{lit.x, lit.y, lit.z} * extinction;
             }
+            const double clear = 1.0 - acc.a;  // what lies in front lets through
             if (sigma_sum > 0) {
                 const float alpha = slab_opacity(float(sigma_sum), float(length_per_step));
                 const float before = acc.a;
                 composite_behind(acc, float(emission.x / sigma_sum), float(emission.y / sigma_sum), float(emission.z / sigma_sum), alpha);
                 if (before < 0.5f && acc.a >= 0.5f) half_way = float(z);
+            }
+            if (glow.x > 0 || glow.y > 0 || glow.z > 0) {
+                const double through = clear * emitted_length(sigma_sum, length_per_step);
+                acc.r += float(glow.x * through), acc.g += float(glow.y * through), acc.b += float(glow.z * through);
             }
             return acc.a < cutoff;
         });
