@@ -21,6 +21,7 @@ A node it cannot follow (a Mix Shader, a Math node into Density, ...) leaves the
 the node: the volume then renders with its transfer function. Read on Blender's main thread (scene_inputs.read).
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,15 +130,15 @@ def _principled(node, warnings):
                         "(PCVR renders float grids): the Color alone colours the volume")
     scattering = colour * density
     absorption = np.maximum(1.0 - colour, 0.0) * np.maximum(1.0 - np.sqrt(np.maximum(absorption_colour, 0.0)), 0.0) * density
-    media = []
-    if density > 0:
-        media.append(_scattering_medium(grid, scattering, absorption, float(_constant_input(node, "Anisotropy"))))
+    # The density grid absorbs and scatters, and carries a constant emission (one native grid, not two).
+    medium = _scattering_medium(grid, scattering, absorption, float(_constant_input(node, "Anisotropy")))
     emission_colour = np.asarray(_constant_input(node, "Emission Color"))
     kind, strength = _input(node, "Emission Strength")
+    if kind == "constant" and strength > 0:
+        medium = dataclasses.replace(medium, constant_emission=tuple(float(c) for c in strength * emission_colour))
+    media = [medium] if density > 0 or kind == "constant" and strength > 0 else []
     if kind == "grid":
         media.append(GridMedium(grid=strength, emission=tuple(emission_colour)))
-    elif strength > 0:
-        media.append(GridMedium(grid=grid, constant_emission=tuple(strength * emission_colour)))
     intensity = float(_constant_input(node, "Blackbody Intensity"))
     if intensity > 1e-3:
         attribute = node.inputs["Temperature Attribute"].default_value

@@ -115,3 +115,44 @@ def test_source_switch_draws_in_shaded_mode(fire_vdb):
     assert "source" in draw(ui.PCVR_DATA_PT_volume, context)
     scene.pcvr.mode = 'XRAY'
     assert "source" not in draw(ui.PCVR_DATA_PT_volume, context)
+
+
+def test_absorption_plus_flame_linked_emission_reads_as_two_grids():
+    """Volume Absorption + Emission whose Strength is the flame grid (an Attribute node), through Add Shader."""
+    material = bpy.data.materials.new("Flame")
+    if material.node_tree is None:
+        material.use_nodes = True
+    tree = material.node_tree
+    tree.nodes.clear()
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    add = tree.nodes.new("ShaderNodeAddShader")
+    absorption = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    absorption.inputs["Color"].default_value = (0.5, 0.75, 1.0, 1.0)
+    absorption.inputs["Density"].default_value = 2.0
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (1.0, 0.5, 0.25, 1.0)
+    flame = tree.nodes.new("ShaderNodeAttribute")
+    flame.attribute_name = "flame"
+    tree.links.new(flame.outputs["Fac"], emission.inputs["Strength"])
+    tree.links.new(absorption.outputs[0], add.inputs[0])
+    tree.links.new(emission.outputs[0], add.inputs[1])
+    tree.links.new(add.outputs[0], output.inputs["Volume"])
+
+    from pcvr_addon import volume_material
+    media = volume_material.read(material)
+    assert media.warnings == ()
+    dense, glowing = media.grids
+    # Absorption (1 - C) D per channel: 1, 0.5, 0; one extinction, their mean; nothing scattered.
+    assert dense.grid is None and dense.extinction == pytest.approx(0.5) and dense.albedo == (0.0, 0.0, 0.0)
+    assert glowing.grid == "flame" and glowing.emission == pytest.approx((1.0, 0.5, 0.25))
+    np.testing.assert_allclose(glowing.emission_at([0.0, 2.0]), [[0, 0, 0], [2.0, 1.0, 0.5]])
+
+
+def test_a_node_feeding_density_is_named():
+    material = ms.principled_material()
+    tree = material.node_tree
+    math_node = tree.nodes.new("ShaderNodeMath")
+    tree.links.new(math_node.outputs[0], tree.nodes["Principled Volume"].inputs["Density"])
+    from pcvr_addon import volume_material
+    media = volume_material.read(material)
+    assert media.grids == () and "node 'Math' (Math) feeding Principled Volume's Density" in media.warnings[0]
