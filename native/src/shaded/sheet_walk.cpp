@@ -570,14 +570,18 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             Vec3x8 emission{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};
             for (int k = 0; k < lit_count; ++k) emission = emission + lit_colours[k] * (extinctions[k] * per_sigma);
-            const float8 stretch = slab_length * share * (1.0f / float(samples));
-            const float8 opacity = 1.0f - exp8(-sigma_sum * stretch);
+            const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * share * (1.0f / float(samples)));
             const float8 weight = select8(lit, (1.0f - alpha) * opacity, broadcast8(0.0f));
-            Vec3x8 added = emission * weight;
-            if (glowing) added = added + glow * ((1.0f - alpha) * emitted_length(sigma_sum, stretch, opacity));
-            store8(red_.data() + p, load8(red_.data() + p) + added.x);
-            store8(green_.data() + p, load8(green_.data() + p) + added.y);
-            store8(blue_.data() + p, load8(blue_.data() + p) + added.z);
+            store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
+            store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);
+            store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
+            if (glowing) {  // apart, so that volumes without emission composite exactly as they did
+                const float8 stretch = slab_length * share * (1.0f / float(samples));
+                const float8 through = (1.0f - alpha) * emitted_length(sigma_sum, stretch, opacity);
+                store8(red_.data() + p, load8(red_.data() + p) + through * glow.x);
+                store8(green_.data() + p, load8(green_.data() + p) + through * glow.y);
+                store8(blue_.data() + p, load8(blue_.data() + p) + through * glow.z);
+            }
             const float8 new_alpha = alpha + weight;
             store8(alpha_.data() + p, new_alpha);
             const int8x half_way = (alpha < 0.5f) & (new_alpha >= 0.5f);
