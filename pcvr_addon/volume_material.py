@@ -81,12 +81,22 @@ def _constant(socket):
     return float(socket.default_value)
 
 
+def _linked_node(socket):
+    """The node whose output feeds `socket` (through reroutes), or None."""
+    while socket.is_linked:
+        node = socket.links[0].from_node
+        if node.bl_idname != 'NodeReroute':
+            return node
+        socket = node.inputs[0]
+    return None
+
+
 def _input(node, name):
     """A socket's value: ('constant', value) or ('grid', attribute name), through Attribute nodes only."""
     socket = node.inputs[name]
-    if not socket.is_linked:
+    source = _linked_node(socket)
+    if source is None:
         return "constant", _constant(socket)
-    source = socket.links[0].from_node
     if source.bl_idname == 'ShaderNodeAttribute' and source.attribute_type == 'GEOMETRY':
         return "grid", source.attribute_name
     raise Unsupported(f"node '{source.name}' ({source.bl_label}) feeding {node.name}'s {name}")
@@ -186,9 +196,9 @@ SHADERS = {
 
 
 def _shader(socket, warnings):
-    if not socket.is_linked:
+    node = _linked_node(socket)
+    if node is None:
         return []
-    node = socket.links[0].from_node
     reader = SHADERS.get(node.bl_idname)
     if reader is None:
         raise Unsupported(f"node '{node.name}' ({node.bl_label}) feeding the volume shader")
@@ -209,6 +219,8 @@ def read(material):
     except Unsupported as ex:
         return VolumeMedia(warnings=(f"material '{material.name}': cannot follow {ex}: rendered with the transfer "
                                      "function",))
+    if not media:
+        warnings.append("its volume shader adds neither density nor light: rendered with the transfer function")
     return VolumeMedia(grids=tuple(media), warnings=tuple(f"material '{material.name}': {w}" for w in warnings))
 
 

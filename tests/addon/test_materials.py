@@ -118,7 +118,8 @@ def test_source_switch_draws_in_shaded_mode(fire_vdb):
 
 
 def test_absorption_plus_flame_linked_emission_reads_as_two_grids():
-    """Volume Absorption + Emission whose Strength is the flame grid (an Attribute node), through Add Shader."""
+    """Volume Absorption + Emission whose Strength is the flame grid (an Attribute node, through a reroute), both
+    through Add Shader."""
     material = bpy.data.materials.new("Flame")
     if material.node_tree is None:
         material.use_nodes = True
@@ -133,7 +134,9 @@ def test_absorption_plus_flame_linked_emission_reads_as_two_grids():
     emission.inputs["Color"].default_value = (1.0, 0.5, 0.25, 1.0)
     flame = tree.nodes.new("ShaderNodeAttribute")
     flame.attribute_name = "flame"
-    tree.links.new(flame.outputs["Fac"], emission.inputs["Strength"])
+    reroute = tree.nodes.new("NodeReroute")  # followed
+    tree.links.new(flame.outputs["Fac"], reroute.inputs[0])
+    tree.links.new(reroute.outputs[0], emission.inputs["Strength"])
     tree.links.new(absorption.outputs[0], add.inputs[0])
     tree.links.new(emission.outputs[0], add.inputs[1])
     tree.links.new(add.outputs[0], output.inputs["Volume"])
