@@ -73,6 +73,8 @@ def write_vdb(path, grids):
 
 
 def quick_material(style):
+    """The material Blender's Quick Smoke operator makes for `style` ('SMOKE', 'FIRE', 'BOTH'); the objects it
+    made are removed."""
     before = set(bpy.data.objects)
     bpy.ops.mesh.primitive_cube_add()
     bpy.ops.object.quick_smoke(style=style)

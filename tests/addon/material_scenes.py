@@ -6,6 +6,7 @@ import numpy as np
 
 import blender_scenes as bs
 from _io_helpers import run_blender_openvdb
+from tools.material_preview import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
 
 N = 16
 VOXEL = 0.1
@@ -44,19 +45,6 @@ def write_multi_grid_vdb(path, grids):
         vdb.write({str(path)!r}, grids=grids)
     """)
     return str(path)
-
-
-def quick_smoke_material(style):
-    """The material Blender's Quick Smoke operator makes for `style` ('SMOKE', 'FIRE', 'BOTH'); the objects
-    it made are removed."""
-    before = set(bpy.data.objects)
-    bpy.ops.mesh.primitive_cube_add()
-    bpy.ops.object.quick_smoke(style=style)
-    domain = next(obj for obj in bpy.data.objects if obj.name.startswith("Smoke Domain"))
-    material = domain.active_material
-    for obj in set(bpy.data.objects) - before:
-        bpy.data.objects.remove(obj)
-    return material
 
 
 def principled_material(name="Medium", **inputs):
