@@ -8,7 +8,7 @@ scene_inputs.read)."""
 import dataclasses
 from dataclasses import dataclass, field
 
-from . import cache, clipping, scene_inputs, transfer_function, volumes
+from . import cache, clipping, scene_inputs, transfer_function, volume_material, volumes
 
 def read_grid(filepath, grid_name):
     import pcvr_native
@@ -171,6 +171,7 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
     for index, volume in enumerate(inputs.volumes):
         if cancelled():
             break
+        warnings.extend(volume.warnings)
         reading(volume.name)
         try:
             grid = _grid(volume, stream_above)
@@ -243,9 +244,13 @@ def native_transfer_function(volume):
     import pcvr_native
 
     ramp = volume.inputs.ramp
-    points = control_points(ramp, volume)
     # The opacity's unit is the volume's own voxel, also where a coarser level stands in for it.
     voxel = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / 2 ** volume.level
+    if volume.inputs.medium is not None:
+        density, rgba, emission = volume_material.media_transfer_function(
+            volume.inputs.medium, volume.value_range, volume.inputs.density_scale, voxel)
+        return pcvr_native.TransferFunction(density, rgba, unit_distance=voxel, emission=emission)
+    points = control_points(ramp, volume)
     unit_distance = voxel / ramp.opacity_scale
     return pcvr_native.TransferFunction(points.density, points.rgba, unit_distance=unit_distance,
                                         gradient=ramp.gradient, gradient_opacity=ramp.gradient_opacity)

@@ -282,6 +282,16 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
+    # What shaded mode renders: the transfer function, or the object's material (volume_material.py).
+    source: EnumProperty(
+        name="Source",
+        description="What gives the volume its colour, opacity and light in shaded mode",
+        items=[('TRANSFER_FUNCTION', "Transfer Function", "The transfer function's colour ramp over the grid"),
+               ('MATERIAL', "Material", "The object's material: its Principled Volume (density, colour, absorption, "
+                "emission, blackbody fire from the temperature grid), each grid it names rendered together")],
+        default='TRANSFER_FUNCTION',
+        update=tag_changed,
+    )
     # What an X-ray integrates (X-ray mode and the XRay pass).
     xray_values: EnumProperty(
         name="X-Ray Values",

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import lighting, transfer_function, volumes
+from . import lighting, transfer_function, volume_material, volumes
 from .clipping import ClipError, Clipping, volume_clipping
 from .properties import NATIVE_NAMES
 from .typed import as_typed
@@ -54,6 +54,10 @@ class VolumeInputs:
     material: tuple | None = None      # shaded mode: (use_shading, ambient, diffuse, specular, shininess)
     mu_water_per_cm: float | None = None  # X-ray of a CT in Hounsfield units: water's attenuation; None: densities
     clipping: Clipping = Clipping()  # what of it is kept (crop box, clip planes)
+    # Shaded mode with volume.pcvr.source 'MATERIAL': the part of the material this grid renders (None: the
+    # transfer function), and what of the material was not followed.
+    medium: volume_material.GridMedium | None = None
+    warnings: tuple = ()
     # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
     # a change).
     grid: object = None
@@ -162,6 +166,26 @@ def material(settings):
                                     for name in ("ambient", "diffuse", "specular", "shininess")))
 
 
+def material_volume_inputs(source, mode, export_grid):
+    """The VolumeInputs of a VolumeSource: one per grid its material names that the volume has (shaded mode with
+    the source 'MATERIAL'), else one rendered with the transfer function. The first carries the warnings."""
+    if mode != 'SHADED' or source.volume.pcvr.source != 'MATERIAL':
+        return (volume_inputs(source, mode, export_grid),)
+    media = volume_material.read(source.material)
+    present = {grid.name for grid in source.volume.grids}
+    parts = [medium for medium in media.grids if (medium.grid or source.grid_name or "density") in present]
+    warnings = tuple(f"Volume object '{source.name}': {w}" for w in media.warnings)
+    if media.grids and not parts:
+        warnings += (f"Volume object '{source.name}': its material names no grid the volume has "
+                     f"({', '.join(sorted(present))}): rendered with the transfer function",)
+    if not parts:
+        return (dataclasses.replace(volume_inputs(source, mode, export_grid), warnings=warnings),)
+    return tuple(dataclasses.replace(volume_inputs(dataclasses.replace(source, grid_name=medium.grid or source.grid_name),
+                                                   mode, export_grid),
+                                     medium=medium, warnings=warnings if index == 0 else ())
+                 for index, medium in enumerate(parts))
+
+
 def volume_inputs(source, mode, export_grid):
     """VolumeInputs of a VolumeSource. `export_grid(source)` returns the grid of a procedural volume."""
     settings = source.volume.pcvr
@@ -216,7 +240,7 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
     settings = scene.pcvr
     mode = settings.mode
     sources = list(volumes.in_view(depsgraph, view, in_viewport, space))
-    volume_list = tuple(volume_inputs(source, mode, export_grid) for source in sources)
+    volume_list = tuple(part for source in sources for part in material_volume_inputs(source, mode, export_grid))
     with_xray_pass = not in_viewport and depsgraph.view_layer.pcvr.use_pass_xray
     world = lighting.world_colour(scene.world)
     shaded = mode == 'SHADED'

@@ -175,6 +175,8 @@ class PCVR_DATA_PT_volume(VolumePanel, Panel):
         settings = volume.pcvr
         layout.prop_search(settings, "grid", volume, "grids", icon='VOLUME_DATA')
         layout.prop(settings, "density_scale")
+        if context.scene.pcvr.mode == 'SHADED':
+            layout.prop(settings, "source")
         if context.scene.pcvr.mode == 'XRAY' or context.view_layer.pcvr.use_pass_xray:
             layout.prop(settings, "xray_values")
             if settings.xray_values == 'HOUNSFIELD':

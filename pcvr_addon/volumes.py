@@ -30,6 +30,7 @@ class VolumeSource:
     object_to_world: np.ndarray   # (4, 4)
     density_scale: float
     error: str                    # why Blender could not load the file, "" when it could
+    material: object = None       # bpy.types.Material: the object's active material (volume.pcvr.source 'MATERIAL')
 
 
 def _file_of(obj, volume):
@@ -68,6 +69,7 @@ def source_of(obj, matrix_world):
         object_to_world=np.array(matrix_world, dtype=np.float64),
         density_scale=settings.density_scale,
         error=_load_error(volume),
+        material=obj.active_material,
     )
 
 

@@ -5,7 +5,9 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
+#include <array>
 #include <optional>
+#include <vector>
 
 #include "bindings.h"
 #include "pcvr/errors.h"
@@ -73,20 +75,43 @@ nb::list doubles_to_python(const std::vector<double>& values) {
     return out;
 }
 
+/// Rows of `columns` numbers (None: no rows), named in the error as `what`.
+template <size_t columns>
+std::vector<std::array<double, columns>> rows_from_python(nb::handle values, const char* what) {
+    std::vector<std::array<double, columns>> out;
+    if (values.is_none()) return out;
+    nb::object a = nb::module_::import_("numpy").attr("asarray")(values, "dtype"_a = "float64");
+    if (nb::cast<size_t>(a.attr("size")) == 0) return out;
+    if (nb::cast<int>(a.attr("ndim")) != 2 || nb::cast<size_t>(a.attr("shape")[nb::int_(1)]) != columns)
+        throw InvalidArgument(std::string("TransferFunction: ") + what);
+    const size_t rows = nb::cast<size_t>(a.attr("shape")[nb::int_(0)]);
+    for (size_t i = 0; i < rows; ++i) {
+        nb::object row = a[nb::int_(i)];
+        std::array<double, columns> r;
+        for (size_t c = 0; c < columns; ++c) r[c] = nb::cast<double>(row[nb::int_(c)]);
+        out.push_back(r);
+    }
+    return out;
+}
+
+template <size_t columns>
+nb::list rows_to_python(const std::vector<std::array<double, columns>>& rows) {
+    nb::list out;
+    for (const auto& r : rows) {
+        nb::object row = nb::steal(PyTuple_New(Py_ssize_t(columns)));
+        for (size_t c = 0; c < columns; ++c) PyTuple_SET_ITEM(row.ptr(), Py_ssize_t(c), PyFloat_FromDouble(r[c]));
+        out.append(row);
+    }
+    return out;
+}
+
 TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std::optional<double> unit_distance, nb::handle gradient,
-                                        nb::handle gradient_opacity) {
-    nb::module_ np = nb::module_::import_("numpy");
-    nb::object c = np.attr("asarray")(rgba, "dtype"_a = "float64");
-    if (nb::cast<int>(c.attr("ndim")) != 2 || nb::cast<size_t>(c.attr("shape")[nb::int_(1)]) != 4)
-        throw InvalidArgument("TransferFunction: rgba must be a list of [r, g, b, a] rows");
+                                        nb::handle gradient_opacity, nb::handle emission) {
     TransferFunction tf;
     tf.density = doubles_from_python(density);
-    const size_t rows = nb::cast<size_t>(c.attr("shape")[nb::int_(0)]);
-    for (size_t i = 0; i < rows; ++i) {
-        nb::object row = c[nb::int_(i)];
-        tf.rgba.push_back({nb::cast<double>(row[nb::int_(0)]), nb::cast<double>(row[nb::int_(1)]),
-                           nb::cast<double>(row[nb::int_(2)]), nb::cast<double>(row[nb::int_(3)])});
-    }
+    tf.rgba = rows_from_python<4>(rgba, "rgba must be a list of [r, g, b, a] rows");
+    if (tf.rgba.empty()) throw InvalidArgument("TransferFunction: rgba must be a list of [r, g, b, a] rows");
+    tf.emission = rows_from_python<3>(emission, "emission must be a list of [r, g, b] rows (one per density)");
     tf.unit_distance = unit_distance.value_or(0.0);
     if (unit_distance && !(*unit_distance > 0)) throw InvalidArgument("TransferFunction: unit_distance must be positive or None");
     tf.gradient = doubles_from_python(gradient);
@@ -249,21 +274,22 @@ void bind_shaded(nb::module_& m) {
                                  "gradient and gradient_opacity (both or neither): increasing magnitudes of the density's\n"
                                  "gradient (density units per world unit) and factors in [0, 1], piecewise linear, the end\n"
                                  "values beyond the ends. A sample's opacity a becomes a * factor(|gradient|) before the\n"
-                                 "correction, as if the transfer function said a * factor there (VTK's gradient opacity).")
+                                 "correction, as if the transfer function said a * factor there (VTK's gradient opacity).\n"
+                                 "emission (optional): one linear-RGB [r, g, b] per density, piecewise linear like rgba: the\n"
+                                 "radiance emitted per world unit of ray, added whether or not the sample absorbs (a sample\n"
+                                 "of extinction sigma over a length L sends e (1 - exp(-sigma L)) / sigma forward; e L at sigma 0).")
         .def("__init__",
              [](TransferFunction* self, nb::handle density, nb::handle rgba, std::optional<double> unit_distance, nb::handle gradient,
-                nb::handle gradient_opacity) {
-                 new (self) TransferFunction(make_transfer_function(density, rgba, unit_distance, gradient, gradient_opacity));
+                nb::handle gradient_opacity, nb::handle emission) {
+                 new (self) TransferFunction(make_transfer_function(density, rgba, unit_distance, gradient, gradient_opacity, emission));
              },
-             "density"_a, "rgba"_a, "unit_distance"_a = nb::none(), "gradient"_a = nb::none(), "gradient_opacity"_a = nb::none())
+             "density"_a, "rgba"_a, "unit_distance"_a = nb::none(), "gradient"_a = nb::none(), "gradient_opacity"_a = nb::none(),
+             "emission"_a = nb::none())
         .def_prop_ro("density", [](const TransferFunction& tf) { return doubles_to_python(tf.density); })
         .def_prop_ro("gradient", [](const TransferFunction& tf) { return doubles_to_python(tf.gradient); })
         .def_prop_ro("gradient_opacity", [](const TransferFunction& tf) { return doubles_to_python(tf.gradient_opacity); })
-        .def_prop_ro("rgba", [](const TransferFunction& tf) {
-            nb::list out;
-            for (const auto& c : tf.rgba) out.append(nb::make_tuple(c[0], c[1], c[2], c[3]));
-            return out;
-        })
+        .def_prop_ro("rgba", [](const TransferFunction& tf) { return rows_to_python(tf.rgba); })
+        .def_prop_ro("emission", [](const TransferFunction& tf) { return rows_to_python(tf.emission); })
         .def_prop_ro("unit_distance", [](const TransferFunction& tf) -> std::optional<double> {
             if (tf.unit_distance > 0) return tf.unit_distance;
             return std::nullopt;

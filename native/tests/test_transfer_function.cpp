@@ -62,3 +62,35 @@ TEST(transfer_functions_refuse_what_they_cannot_mean) {
     CHECK(refused(unsorted) && refused(too_opaque) && refused(empty));
     CHECK(!refused(ramp()));
 }
+
+TEST(emitting_densities_are_visible_without_opacity) {
+    TransferFunction tf;
+    tf.density = {0.0, 0.4, 1.0};
+    tf.rgba = {{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}};  // no opacity anywhere
+    tf.emission = {{0, 0, 0}, {0, 0, 0}, {2, 1, 0.5}};
+    const ClassificationTable table(tf, 1.0);
+    CHECK(table.has_emission());
+    CHECK_NEAR(table.emission(0.7f).red, 1.0, 1e-3);  // halfway from 0 to 2
+    CHECK_NEAR(table.emission(0.7f).blue, 0.25, 1e-3);
+    CHECK(table.emission(5.0f).green == table.emission(1.0f).green);
+    // Transparent only below the first emitting density; maybe_opaque lets every emitting sample through.
+    CHECK(table.transparent(-1.0, 0.39));
+    CHECK(!table.transparent(0.3, 0.41));
+    for (int i = -100; i <= 300; ++i) {
+        const float d = i * 0.005f;
+        if (!lane_mask(table.maybe_opaque(broadcast8(d)))) CHECK(table.emission(d).red == 0.0f);
+    }
+    TransferFunction short_emission = tf;
+    short_emission.emission.pop_back();
+    TransferFunction negative = tf;
+    negative.emission[1][2] = -0.1;
+    int refused = 0;
+    for (const TransferFunction* bad : {&short_emission, &negative}) {
+        try {
+            bad->validate();
+        } catch (const InvalidArgument&) {
+            refused += 1;
+        }
+    }
+    CHECK(refused == 2);
+}

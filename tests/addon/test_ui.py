@@ -147,7 +147,9 @@ def test_panels_of_each_mode(tmp_path, mode):
     assert draw(ui.PCVR_RENDER_PT_passes, context) == (["use_pass_z", "use_pass_xray"] if mode == 'SHADED'
                                                        else ["use_pass_xray"])
     # What the X-ray integrates, where an X-ray is rendered (every mode here: bs.setup turns the XRay pass on).
-    assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale", "xray_values", "pcvr.frame_volume"]
+    # Shaded mode also says what gives the volume its colour: the transfer function or the material.
+    assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale"] + (["source"] if mode == 'SHADED' else []) + [
+        "xray_values", "pcvr.frame_volume"]
     obj.data.pcvr.xray_values = 'HOUNSFIELD'
     assert "mu_water" in draw(ui.PCVR_DATA_PT_volume, context)
     obj.data.pcvr.xray_values = 'DENSITY'

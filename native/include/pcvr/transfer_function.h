@@ -18,6 +18,10 @@
 /// opacity at that density were a f: extinction = -ln(1 - a f) / unit_distance, so opacity correction
 /// still leaves the image independent of the sample spacing. Since f <= 1 it only removes opacity:
 /// the transparent ranges stay valid.
+///
+/// Emission (optional): one linear-RGB radiance per control point, emitted per world unit of ray
+/// length (piecewise linear like the colours). A sample emits whether or not it absorbs, so densities
+/// that only emit count as visible: the transparent ranges and maybe_opaque cover emission too.
 #pragma once
 
 #include <array>
@@ -33,12 +37,15 @@ struct TransferFunction {
     double unit_distance = 0;                  ///< world units; 0 = the smallest voxel spacing of its grid
     std::vector<double> gradient;              ///< strictly increasing |gradient| points (>= 0); empty: no modulation
     std::vector<double> gradient_opacity;      ///< opacity factor in [0, 1], one per gradient point
+    std::vector<std::array<double, 3>> emission;  ///< radiance per world unit (linear RGB >= 0), one per point; empty: none
 
     bool has_gradient_opacity() const { return !gradient.empty(); }
+    bool has_emission() const { return !emission.empty(); }
 
     /// Throws InvalidArgument naming the problem: no points, sizes that differ, densities not
     /// increasing, non-finite numbers, colours below 0, opacities outside [0, 1], unit_distance < 0,
-    /// and the same for the gradient points (negative magnitudes too) and their factors.
+    /// the same for the gradient points (negative magnitudes too) and their factors, and emissions
+    /// that are not one finite, non-negative [r, g, b] per point.
     void validate() const;
 };
 
@@ -55,6 +62,9 @@ public:
     };
     struct Samples {  ///< eight of them
         float8 red, green, blue, extinction;
+    };
+    struct Emissions {  ///< radiance per world unit, eight samples
+        float8 red, green, blue;
     };
     /// Linear interpolation between the two nearest entries; densities outside the control points
     /// take the end values (NaN the first).
@@ -75,6 +85,21 @@ public:
         return lerp_entries(extinction_, i, x - __builtin_convertvector(i, float8));
     }
     bool has_gradient_opacity() const { return !gradient_factor_.empty(); }
+    bool has_emission() const { return !emit_red_.empty(); }
+    /// The emitted radiance per world unit at these densities. Only for tables with emission.
+    Emissions emission(float8 density) const {
+        const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
+        const int8x i = __builtin_convertvector(x, int8x);
+        const float8 f = x - __builtin_convertvector(i, float8);
+        return {lerp_entries(emit_red_, i, f), lerp_entries(emit_green_, i, f), lerp_entries(emit_blue_, i, f)};
+    }
+    struct Emission {
+        float red, green, blue;
+    };
+    Emission emission(float density) const {
+        const Emissions e = emission(broadcast8(density));
+        return {e.red[0], e.green[0], e.blue[0]};
+    }
     /// The extinctions of samples with opacity per unit distance a(density) times the gradient factor
     /// at |gradient| `magnitude`: -ln(1 - a f) / unit_distance. Only for tables with gradient opacity.
     float8 extinction(float8 density, float8 magnitude) const {
@@ -88,10 +113,10 @@ public:
         return min8(-log1p8(-a * f) * per_unit_distance_, broadcast8(1e30f));
     }
     float extinction(float density, float magnitude) const { return extinction(broadcast8(density), broadcast8(magnitude))[0]; }
-    /// True when every density in [lo, hi] has zero opacity.
+    /// True when every density in [lo, hi] has zero opacity and emits nothing.
     bool transparent(double lo, double hi) const;
     /// Lanes whose density may be visible: inside the span between the first and the last density
-    /// with opacity (a test that saves the lookups where most samples are transparent).
+    /// with opacity or emission (a test that saves the lookups where most samples are transparent).
     int8x maybe_opaque(float8 density) const { return (density > opaque_from_) & (density < opaque_to_); }
 
 private:
@@ -104,8 +129,9 @@ private:
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.
     std::vector<float> red_, green_, blue_, extinction_;
-    std::vector<int> next_opaque_;  // per entry: the first entry at or after it with extinction > 0
-    float opaque_from_, opaque_to_;  // densities outside (opaque_from, opaque_to) have no opacity
+    std::vector<float> emit_red_, emit_green_, emit_blue_;  // like the colours; empty without emission
+    std::vector<int> next_opaque_;  // per entry: the first entry at or after it that absorbs or emits
+    float opaque_from_, opaque_to_;  // densities outside (opaque_from, opaque_to) neither absorb nor emit
     // Gradient opacity only (empty without): the opacity per unit distance beside the extinction, and
     // the factor over kGradientEntries + 2 magnitudes from gradient_first by 1 / gradient_scale.
     std::vector<float> opacity_, gradient_factor_;

@@ -12,6 +12,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/transfer_function.h"
 #include "shaded/compositing.h"
+#include "shaded/emission.h"
 #include "shaded/sample_clip.h"
 #include "shaded/shaded_levels.h"
 #include "shaded/sheet_walk.h"
@@ -278,6 +279,21 @@ double rim_compensation(const Kernel& kernel) {
     return missed < 1 ? 1.0 / (1.0 - missed) : 1.0;  // the box: no gradient inside at all
 }
 
+/// Adds the emission of density `density`, times `share`, to `glow`: emitted whether or not it absorbs. Out of
+/// line, so that the compiler leaves the arithmetic of transfer functions without emission as it was.
+[[gnu::noinline]] Vec3 add_emission(const Vec3& glow, const ClassificationTable& table, double density, double share) {
+    const ClassificationTable::Emission e = table.emission(float(density));
+    return glow + Vec3{e.red, e.green, e.blue} * share;
+}
+
+/// Adds the light a sample emits (radiance `glow` per world unit, extinction `sigma` over `length`) to `acc`,
+/// attenuated by the opacity `in_front` of what lies before the sample. Out of line, as add_emission.
+[[gnu::noinline]] Rgba composite_emission(Rgba acc, float in_front, const Vec3& glow, double sigma, double length) {
+    const double through = (1.0 - in_front) * emitted_length(sigma, length);
+    acc.r += float(glow.x * through), acc.g += float(glow.y * through), acc.b += float(glow.z * through);
+    return acc;
+}
+
 }  // namespace
 
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
@@ -293,7 +309,7 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
         float half_way = INFINITY;
         m.march(px, py, [&](const Vec3& x, double z) {
             double sigma_sum = 0;
-            Vec3 emission;
+            Vec3 emission, glow;  // glow: the medium's own emitted radiance per world unit
             for (const RayGrid& g : m.grids) {
                 // The share of the sample's step inside the grid's clip region (sample_clip.h).
                 const Vec3 relative = x - m.geometry.origin0;
@@ -302,6 +318,7 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                 const DensitySample s = sample(g, m.kernel, x);
                 if (!s.reached) continue;
                 const ClassificationTable::Sample c = (*g.classification)(float(s.density));
+                if (g.classification->has_emission()) glow = add_emission(glow, *g.classification, s.density, share);
                 if (!(c.extinction > 0)) continue;
                 // Gradient opacity reads the field's gradient; a cut face is lit by the plane (sample_clip.h).
                 const float opacity_extinction = g.classification->has_gradient_opacity()
@@ -317,12 +334,14 @@ void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& came
                 sigma_sum += extinction;
                 emission = emission + Vec3{lit.x, lit.y, lit.z} * extinction;
             }
+            const float in_front = acc.a;  // the emitted light passes what lies in front, not this sample
             if (sigma_sum > 0) {
                 const float alpha = slab_opacity(float(sigma_sum), float(length_per_step));
                 const float before = acc.a;
                 composite_behind(acc, float(emission.x / sigma_sum), float(emission.y / sigma_sum), float(emission.z / sigma_sum), alpha);
                 if (before < 0.5f && acc.a >= 0.5f) half_way = float(z);
             }
+            if (glow.x > 0 || glow.y > 0 || glow.z > 0) acc = composite_emission(acc, in_front, glow, sigma_sum, length_per_step);
             return acc.a < cutoff;
         });
         float* out = rgba + 4 * index;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "shaded/emission.h"
+
 namespace pcvr {
 
 namespace {
@@ -503,6 +505,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const Vec3x8 from_x = cross(ppy, ahead), from_y = cross(ahead, ppx), from_u = cross(ppx, ppy);
             const Vec3x8 to_eye = ahead * -1.0f;
             float8 sigma_sum = broadcast8(0.0f);
+            Vec3x8 glow{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};  // emitted radiance per world unit
+            bool glowing = false;
             Vec3x8 lit_colours[64];
             float8 extinctions[64];
             int lit_count = 0;
@@ -521,6 +525,11 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 valid &= kept > 0;
                 if (!any8(valid)) continue;
                 const ClassificationTable::Samples c = (*src.classification)(density);
+                if (src.classification->has_emission()) {  // emits whether or not it absorbs
+                    const ClassificationTable::Emissions e = src.classification->emission(density);
+                    glow = glow + Vec3x8{e.red, e.green, e.blue} * select8(valid, kept, broadcast8(0.0f));
+                    glowing = true;
+                }
                 valid &= c.extinction > 0;
                 if (!any8(valid)) continue;
                 // Density change per pixel right, per pixel down (interpolated linearly between the
@@ -556,7 +565,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // Overlapping grids mix as media do: extinctions add, colours weigh by their share of the
             // extinction (shares of at most one: colour times extinction could leave float's range).
             const int8x lit = sigma_sum > 0;
-            if (!any8(lit)) continue;
+            if (!any8(lit) && !glowing) continue;
             samples_shaded_ += uint64_t(__builtin_popcount(lane_mask(lit & open)));
             const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             Vec3x8 emission{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};
@@ -566,6 +575,13 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
             store8(green_.data() + p, load8(green_.data() + p) + weight * emission.y);
             store8(blue_.data() + p, load8(blue_.data() + p) + weight * emission.z);
+            if (glowing) {  // apart, so that volumes without emission composite exactly as they did
+                const float8 stretch = slab_length * share * (1.0f / float(samples));
+                const float8 through = (1.0f - alpha) * emitted_length(sigma_sum, stretch, opacity);
+                store8(red_.data() + p, load8(red_.data() + p) + through * glow.x);
+                store8(green_.data() + p, load8(green_.data() + p) + through * glow.y);
+                store8(blue_.data() + p, load8(blue_.data() + p) + through * glow.z);
+            }
             const float8 new_alpha = alpha + weight;
             store8(alpha_.data() + p, new_alpha);
             const int8x half_way = (alpha < 0.5f) & (new_alpha >= 0.5f);

@@ -46,6 +46,13 @@ void TransferFunction::validate() const {
         if (!(gradient_opacity[i] >= 0 && gradient_opacity[i] <= 1))
             throw InvalidArgument(what + point + ": gradient_opacity must lie in [0, 1]");
     }
+    if (!emission.empty() && emission.size() != density.size())
+        throw InvalidArgument(what + std::to_string(density.size()) + " densities but " + std::to_string(emission.size()) +
+                              " emission values (one [r, g, b] per density, or none)");
+    for (size_t i = 0; i < emission.size(); ++i)
+        for (double e : emission[i])
+            if (!std::isfinite(e) || e < 0)
+                throw InvalidArgument(what + "control point " + std::to_string(i) + ": emission must be finite and not negative");
 }
 
 namespace {
@@ -70,14 +77,19 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
     scale_ = float(1.0 / step);
 
     for (auto* channel : {&red_, &green_, &blue_, &extinction_}) channel->resize(kEntries + 2);
+    if (tf.has_emission())
+        for (auto* channel : {&emit_red_, &emit_green_, &emit_blue_}) channel->resize(kEntries + 2);
     size_t segment = 0;  // control points segment, [segment, segment + 1]
     for (int e = 0; e <= kEntries; ++e) {
         const double d = first + e * step;
         while (segment + 1 < tf.density.size() && tf.density[segment + 1] < d) ++segment;
         std::array<double, 4> v = tf.rgba[segment];
+        std::array<double, 3> glow = tf.has_emission() ? tf.emission[segment] : std::array<double, 3>{};
         if (segment + 1 < tf.density.size() && d > tf.density[segment]) {
             const double t = std::min(1.0, (d - tf.density[segment]) / (tf.density[segment + 1] - tf.density[segment]));
             for (int c = 0; c < 4; ++c) v[c] += t * (tf.rgba[segment + 1][c] - v[c]);
+            if (tf.has_emission())
+                for (int c = 0; c < 3; ++c) glow[c] += t * (tf.emission[segment + 1][c] - glow[c]);
         }
         const double opacity = std::min(v[3], kMostOpacity);
         red_[e] = float(v[0]);
@@ -85,9 +97,11 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
         blue_[e] = float(v[2]);
         // Capped where a unit_distance of 1e-300 would make it infinite: opaque in any sample anyway.
         extinction_[e] = float(std::min(-std::log1p(-opacity) / unit_distance, 1e30));
+        if (tf.has_emission()) emit_red_[e] = float(glow[0]), emit_green_[e] = float(glow[1]), emit_blue_[e] = float(glow[2]);
         if (tf.has_gradient_opacity()) opacity_.push_back(float(opacity));
     }
-    for (auto* channel : {&red_, &green_, &blue_, &extinction_}) (*channel)[kEntries + 1] = (*channel)[kEntries];
+    for (auto* channel : {&red_, &green_, &blue_, &extinction_, &emit_red_, &emit_green_, &emit_blue_})
+        if (!channel->empty()) (*channel)[kEntries + 1] = (*channel)[kEntries];
     if (tf.has_gradient_opacity()) {
         opacity_.push_back(opacity_.back());
         per_unit_distance_ = float(std::min(1.0 / unit_distance, 1e30));
@@ -99,16 +113,20 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
         gradient_factor_.push_back(gradient_factor_.back());
     }
 
+    // Visible: absorbs or emits (an emitting density with no opacity still adds light).
+    auto visible = [&](int e) {
+        return extinction_[e] > 0 || (has_emission() && (emit_red_[e] > 0 || emit_green_[e] > 0 || emit_blue_[e] > 0));
+    };
     next_opaque_.resize(kEntries + 2);
     int next = kEntries + 2;
     for (int e = kEntries + 1; e >= 0; --e) {
-        if (extinction_[e] > 0) next = e;
+        if (visible(e)) next = e;
         next_opaque_[e] = next;
     }
-    // Interpolation reaches one entry beyond the first and last opaque ones; the ends extend forever.
+    // Interpolation reaches one entry beyond the first and last visible ones; the ends extend forever.
     int last_opaque = -1;
     for (int e = 0; e <= kEntries; ++e)
-        if (extinction_[e] > 0) last_opaque = e;
+        if (visible(e)) last_opaque = e;
     if (last_opaque < 0) {
         opaque_from_ = INFINITY, opaque_to_ = -INFINITY;
     } else {

@@ -1,0 +1,235 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+
+"""A volume's Blender material as PCVR media: what shaded mode renders when `volume.pcvr.source` is 'MATERIAL'.
+
+The volume shader that feeds the active Material Output's Volume socket is read, directly or through Add Shader
+nodes: Principled Volume, Volume Absorption, Volume Scatter and Emission. Each grid it names becomes a GridMedium,
+rendered as its own native grid with its own transfer function (media_transfer_function): the density grid
+absorbs and scatters, a grid linked to Emission Strength (flame) emits in proportion to its value, the
+temperature grid emits as a black body. Inputs are constants, or Attribute nodes naming grids. Cycles' Principled
+Volume (its SVM node) combines them so, per world unit, with D = Density x density grid and C = Color:
+
+| Cycles                                                       | PCVR                                          |
+|--------------------------------------------------------------|-----------------------------------------------|
+| scattering C D, absorption max(1 - C, 0) max(1 - sqrt(A), 0) D (A: Absorption Color) | extinction: the mean over R, G, B of their sum (one extinction per sample); colour: scattering over extinction per channel |
+| emission Emission Strength x Emission Color, everywhere in the volume | the same, where the density grid reaches |
+| blackbody: T = Temperature x temperature grid, tint x blackbody(T) x sigma x (1 + I (T^4 - 1)), sigma = 5.67e-8 1e-6 / pi, I: Blackbody Intensity | the same; blackbody(T) from blackbody.py |
+| Color Attribute (a vector grid) multiplies C                 | not read (PCVR renders float grids): a warning |
+| single scattering with the Henyey-Greenstein phase function (Anisotropy) | lit by the volume's shading (Blinn-Phong); anisotropy kept in GridMedium for the scattering model |
+
+A node it cannot follow (a Mix Shader, a Math node into Density, ...) leaves the media empty with a warning naming
+the node: the volume then renders with its transfer function. Read on Blender's main thread (scene_inputs.read).
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import blackbody
+
+# Stefan-Boltzmann's constant in Cycles' units for the Principled Volume's blackbody emission: W m^-2 K^-4, times
+# 1e-6 and over pi (radiance), so that 1000 K emits about 0.018 per world unit.
+BLACKBODY_SIGMA = 5.670373e-8 * 1e-6 / np.pi
+
+# Points of a medium's transfer function over its grid's values: enough that the exponential opacity and T^4 are
+# piecewise linear to well under 1% between them.
+POINTS = 128
+
+
+@dataclass(frozen=True)
+class GridMedium:
+    """What one grid adds to the medium, per world unit, as a function of its value v (clipped below at 0)."""
+    grid: str | None                           # grid name; None: the volume's own grid (its Grid setting)
+    extinction: float = 0.0                    # k: extinction k v
+    albedo: tuple = (1.0, 1.0, 1.0)            # share of the extinction scattered, per channel: the lit colour
+    anisotropy: float = 0.0                    # Henyey-Greenstein g of the scattering (the scattering model's phase)
+    emission: tuple = (0.0, 0.0, 0.0)          # e: emission e v (a grid linked to Emission Strength: flame)
+    constant_emission: tuple = (0.0, 0.0, 0.0)  # emitted wherever the grid reaches
+    kelvin: float = 0.0                        # temperature T = kelvin v of blackbody emission; 0: none
+    blackbody_intensity: float = 0.0           # I: sigma (1 + I (T^4 - 1)) times blackbody(T) times the tint
+    blackbody_tint: tuple = (1.0, 1.0, 1.0)
+
+    def emission_at(self, values):
+        """Emitted radiance (linear RGB) per world unit at each of `values` (1-D): shape (n, 3)."""
+        v = np.maximum(np.asarray(values, dtype=np.float64), 0.0)[:, None]
+        out = np.asarray(self.constant_emission) + v * np.asarray(self.emission)
+        if self.kelvin > 0:
+            t = self.kelvin * v[:, 0]
+            intensity = BLACKBODY_SIGMA * (1.0 + self.blackbody_intensity * (t ** 4 - 1.0))
+            # Cycles emits nothing below an intensity of 1e-5 (about 1200 K at I = 1).
+            intensity = np.where(intensity > 1e-5, intensity, 0.0)
+            out = out + intensity[:, None] * np.asarray(self.blackbody_tint) * blackbody.colour(t)
+        return out
+
+
+@dataclass(frozen=True)
+class VolumeMedia:
+    """A material read: one GridMedium per grid, and the warnings of what was not followed (`grids` empty: the
+    volume renders with its transfer function)."""
+    grids: tuple = ()
+    warnings: tuple = ()
+
+
+class Unsupported(Exception):
+    """A node the reader cannot follow: the message names it."""
+
+
+def _constant(socket):
+    if hasattr(socket.default_value, "__len__"):
+        return tuple(float(c) for c in socket.default_value)[:3]
+    return float(socket.default_value)
+
+
+def _linked_node(socket):
+    """The node whose output feeds `socket` (through reroutes), or None."""
+    while socket.is_linked:
+        node = socket.links[0].from_node
+        if node.bl_idname != 'NodeReroute':
+            return node
+        socket = node.inputs[0]
+    return None
+
+
+def _input(node, name):
+    """A socket's value: ('constant', value) or ('grid', attribute name), through Attribute nodes only."""
+    socket = node.inputs[name]
+    source = _linked_node(socket)
+    if source is None:
+        return "constant", _constant(socket)
+    if source.bl_idname == 'ShaderNodeAttribute' and source.attribute_type == 'GEOMETRY':
+        return "grid", source.attribute_name
+    raise Unsupported(f"node '{source.name}' ({source.bl_label}) feeding {node.name}'s {name}")
+
+
+def _constant_input(node, name):
+    kind, value = _input(node, name)
+    if kind != "constant":
+        raise Unsupported(f"{node.name}'s {name} takes grid '{value}'; PCVR reads it only as a constant")
+    return value
+
+
+def _rgb(colour):
+    return np.asarray(colour, dtype=np.float64)
+
+
+def _scattering_medium(grid, scattering, absorption, anisotropy):
+    """A GridMedium of per-channel scattering and absorption coefficients per unit value: one extinction (their
+    sum's mean over R, G, B) and the scattered share per channel as the colour."""
+    extinction = scattering + absorption
+    k = float(np.mean(extinction))
+    albedo = tuple(float(s / e) if e > 0 else 0.0 for s, e in zip(scattering, extinction))
+    return GridMedium(grid=grid, extinction=k, albedo=albedo, anisotropy=anisotropy)
+
+
+def _density_grid(node, density_socket="Density", attribute_socket="Density Attribute"):
+    """(grid name or None, constant factor) of a density: an Attribute link, else the Density Attribute."""
+    kind, value = _input(node, density_socket)
+    if kind == "grid":
+        return value, 1.0
+    attribute = node.inputs[attribute_socket].default_value if attribute_socket in node.inputs else ""
+    return (attribute or None), value
+
+
+def _principled(node, warnings):
+    grid, density = _density_grid(node)
+    colour = _rgb(_constant_input(node, "Color"))
+    absorption_colour = _rgb(_constant_input(node, "Absorption Color"))
+    if node.inputs["Color Attribute"].default_value:
+        warnings.append(f"{node.name}: Color Attribute '{node.inputs['Color Attribute'].default_value}' not read "
+                        "(PCVR renders float grids): the Color alone colours the volume")
+    scattering = colour * density
+    absorption = np.maximum(1.0 - colour, 0.0) * np.maximum(1.0 - np.sqrt(np.maximum(absorption_colour, 0.0)), 0.0) * density
+    # The density grid absorbs and scatters, and carries a constant emission (one native grid, not two).
+    medium = _scattering_medium(grid, scattering, absorption, float(_constant_input(node, "Anisotropy")))
+    emission_colour = np.asarray(_constant_input(node, "Emission Color"))
+    kind, strength = _input(node, "Emission Strength")
+    if kind == "constant" and strength > 0:
+        medium = dataclasses.replace(medium, constant_emission=tuple(float(c) for c in strength * emission_colour))
+    media = [medium] if density > 0 or kind == "constant" and strength > 0 else []
+    if kind == "grid":
+        media.append(GridMedium(grid=strength, emission=tuple(emission_colour)))
+    intensity = float(_constant_input(node, "Blackbody Intensity"))
+    if intensity > 1e-3:
+        attribute = node.inputs["Temperature Attribute"].default_value
+        kind, kelvin = _input(node, "Temperature")
+        if kind == "grid" or not attribute:
+            raise Unsupported(f"{node.name}: blackbody emission needs a constant Temperature and a Temperature "
+                              "Attribute naming a grid")
+        media.append(GridMedium(grid=attribute, kelvin=float(kelvin), blackbody_intensity=intensity,
+                                blackbody_tint=tuple(_constant_input(node, "Blackbody Tint"))))
+    return media
+
+
+def _absorption(node, warnings):
+    grid, density = _density_grid(node, attribute_socket="")
+    colour = _rgb(_constant_input(node, "Color"))
+    return [_scattering_medium(grid, np.zeros(3), np.maximum(1.0 - colour, 0.0) * density, 0.0)] if density > 0 else []
+
+
+def _scatter(node, warnings):
+    grid, density = _density_grid(node, attribute_socket="")
+    colour = _rgb(_constant_input(node, "Color"))
+    anisotropy = float(_constant_input(node, "Anisotropy")) if "Anisotropy" in node.inputs else 0.0
+    return [_scattering_medium(grid, colour * density, np.zeros(3), anisotropy)] if density > 0 else []
+
+
+def _emission(node, warnings):
+    colour = np.asarray(_constant_input(node, "Color"))
+    kind, strength = _input(node, "Strength")
+    if kind == "grid":
+        return [GridMedium(grid=strength, emission=tuple(colour))]
+    return [GridMedium(grid=None, constant_emission=tuple(strength * colour))] if strength > 0 else []
+
+
+def _add(node, warnings):
+    return _shader(node.inputs[0], warnings) + _shader(node.inputs[1], warnings)
+
+
+SHADERS = {
+    'ShaderNodeVolumePrincipled': _principled,
+    'ShaderNodeVolumeAbsorption': _absorption,
+    'ShaderNodeVolumeScatter': _scatter,
+    'ShaderNodeEmission': _emission,
+    'ShaderNodeAddShader': _add,
+}
+
+
+def _shader(socket, warnings):
+    node = _linked_node(socket)
+    if node is None:
+        return []
+    reader = SHADERS.get(node.bl_idname)
+    if reader is None:
+        raise Unsupported(f"node '{node.name}' ({node.bl_label}) feeding the volume shader")
+    return reader(node, warnings)
+
+
+def read(material):
+    """VolumeMedia of a Material (or None). Never raises: what cannot be followed is a warning."""
+    if material is None or material.node_tree is None:
+        return VolumeMedia(warnings=("no material with nodes: rendered with the transfer function",))
+    output = material.node_tree.get_output_node('CYCLES')
+    if output is None or not output.inputs["Volume"].is_linked:
+        return VolumeMedia(warnings=(f"material '{material.name}' has no volume shader: rendered with the transfer "
+                                     "function",))
+    warnings = []
+    try:
+        media = _shader(output.inputs["Volume"], warnings)
+    except Unsupported as ex:
+        return VolumeMedia(warnings=(f"material '{material.name}': cannot follow {ex}: rendered with the transfer "
+                                     "function",))
+    if not media:
+        warnings.append("its volume shader adds neither density nor light: rendered with the transfer function")
+    return VolumeMedia(grids=tuple(media), warnings=tuple(f"material '{material.name}': {w}" for w in warnings))
+
+
+def media_transfer_function(medium, value_range, density_scale, unit_distance):
+    """(density, rgba, emission) control points of a GridMedium over its grid's values (times the density
+    scale), for pcvr_native.TransferFunction with `unit_distance` (world units)."""
+    low, high = (float(v) * density_scale for v in value_range)
+    top = max(high, 1e-6)
+    values = np.linspace(min(low, 0.0), top, POINTS)
+    opacity = -np.expm1(-medium.extinction * np.maximum(values, 0.0) * unit_distance)
+    rgba = np.column_stack([np.tile(medium.albedo, (POINTS, 1)), np.minimum(opacity, 1.0)])
+    return values, rgba, medium.emission_at(values)
