@@ -264,6 +264,12 @@ def _native_lighting(prepared):
     transfer_functions = [native_transfer_function(volume) for volume in prepared.volumes]
     shadings = []
     for volume in prepared.volumes:
+        medium = volume.inputs.medium
+        if medium is not None:
+            # A Blender material is a scattering medium: single scattering with its phase function, as Cycles
+            # lights it (its transfer function's colour is the albedo), not Blinn-Phong on gradients.
+            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy))
+            continue
         use_shading, ambient, diffuse, specular, shininess = volume.inputs.material
         shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
                                             shininess=shininess, lit=use_shading))

@@ -15,7 +15,7 @@ Volume (its SVM node) combines them so, per world unit, with D = Density x densi
 | emission Emission Strength x Emission Color, everywhere in the volume | the same, where the density grid reaches |
 | blackbody: T = Temperature x temperature grid, tint x blackbody(T) x sigma x (1 + I (T^4 - 1)), sigma = 5.67e-8 1e-6 / pi, I: Blackbody Intensity | the same; blackbody(T) from blackbody.py |
 | Color Attribute (a vector grid) multiplies C                 | not read (PCVR renders float grids): a warning |
-| single scattering with the Henyey-Greenstein phase function (Anisotropy) | lit by the volume's shading (Blinn-Phong); anisotropy kept in GridMedium for the scattering model |
+| single scattering with the Henyey-Greenstein phase function (Anisotropy) | the same (pn.Shading(model="scatter", anisotropy=...)), the world's colour as ambient light |
 
 A node it cannot follow (a Mix Shader, a Math node into Density, ...) leaves the media empty with a warning naming
 the node: the volume then renders with its transfer function. Read on Blender's main thread (scene_inputs.read).

@@ -10,7 +10,7 @@ The plume is made here (seeded): a density that widens as it rises, smoothed noi
 foot and a temperature of 3 x flame (up to 3000 K through Quick Fire's Temperature of 1000), written as one
 .vdb with Blender's bundled OpenVDB. The materials are those Blender's object.quick_smoke operator makes
 (style 'SMOKE' and 'FIRE'). The camera looks at the plume from the side, a sun lights it from the left, the
-world is dark grey. --cycles N also renders each with Cycles at N samples (its default denoiser), timed the same
+world is dark grey; PCVR casts shadows as Cycles does (--no-shadows: none). --cycles N also renders each with Cycles at N samples (its default denoiser), timed the same
 way (the whole bpy.ops.render.render).
 """
 
@@ -127,6 +127,7 @@ def main():
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--cycles", type=int, default=0, help="Cycles samples (0: PCVR only)")
     parser.add_argument("--output", default=os.path.join(ROOT, "docs", "img"))
+    parser.add_argument("--no-shadows", dest="shadows", action="store_false", help="PCVR without shadows (Cycles has them)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         vdb_path = os.path.join(tmp, "plume.vdb")
@@ -137,6 +138,7 @@ def main():
             obj.data.pcvr.source = 'MATERIAL'
             scene.render.engine = 'PCVR'
             scene.pcvr.mode = 'SHADED'
+            scene.pcvr.shadows = args.shadows
             name = style.lower()
             print(f"{name}: PCVR {render(scene, os.path.join(args.output, f'{name}_pcvr.png')):.2f} s")
             if args.cycles:
