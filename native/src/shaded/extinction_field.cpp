@@ -142,15 +142,16 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
         // The coarsest level needed to stay within kMostVoxels.
         Grid grid = *v.grid;
         std::array<int32_t, 6> b = grid.index_bbox();
-        auto count = [&] { return uint64_t(b[3] - b[0] + 1 + 2 * pad) * uint64_t(b[4] - b[1] + 1 + 2 * pad) * uint64_t(b[5] - b[2] + 1 + 2 * pad); };
-        for (int k = 1; count() > kMostVoxels; ++k) {
+        auto side = [&](int a) { return uint64_t(int64_t(b[a + 3]) - b[a] + 1 + 2 * pad); };
+        auto count = [&] { return double(side(0)) * double(side(1)) * double(side(2)); };  // no wrapping
+        for (int k = 1; count() > double(kMostVoxels); ++k) {
             grid = v.grid->level(k, LevelReduction::MeanOverBackground);
             b = grid.index_bbox();
         }
         auto lattice = std::make_unique<Lattice>();
         Lattice& l = *lattice;
         for (int a = 0; a < 3; ++a) l.n[a] = b[a + 3] - b[a] + 1 + 2 * pad;
-        l.departure.assign(count(), 0.0f);
+        l.departure.assign(size_t(count()), 0.0f);
         const double background = grid.background();
         const std::vector<VoxelBlock>& blocks = grid.blocks();
         tbb::parallel_for(size_t(0), blocks.size(), [&](size_t bi) {
