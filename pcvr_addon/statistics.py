@@ -123,4 +123,11 @@ def _mode_rows(mode, stats):
                                      stats["tile_sheets_skipped"] + stats["tile_sheets_composited"])),
         ("Stride", format_strides(stats["strides"])),
         ("Time", f"{stats['seconds']:.3f} s"),
-    ] + [(label, f"{stats[key]:.3f} s (threads)") for label, key in seconds]
+    ] + [(label, f"{stats[key]:.3f} s (threads)") for label, key in seconds] + _shadow_rows(stats)
+
+
+def _shadow_rows(stats):
+    """The lights' transmittance volumes, where the render had shadows."""
+    if not stats.get("shadow_texels"):
+        return []
+    return [("Shadow texels", f"{stats['shadow_texels']:,}"), ("Shadows", f"{stats['seconds_shadows']:.3f} s")]

@@ -10,6 +10,7 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
+from pcvr_addon import statistics
 
 # A sun travelling along +x: its -Z axis turned about Y.
 SUN_ROTATION = (0.0, -math.pi / 2 + 0.1, 0.0)
@@ -40,9 +41,12 @@ def test_shadows_darken_the_far_blob_as_render_shaded_does(blobs_in_a_row):
     scene, objects, sun = blobs_in_a_row
     assert scene.pcvr.shadows is False  # off by default: images as before
     unshadowed = ls.combined(bs.render(scene))
+    assert "Shadows" not in dict(statistics.statistics_rows(*statistics.last_render[scene.session_uid]))
     scene.pcvr.shadows = True
     shadowed = ls.combined(bs.render(scene))
     assert far_half(shadowed).mean() < 0.7 * far_half(unshadowed).mean()
+    mode, stats = statistics.last_render[scene.session_uid]
+    assert dict(statistics.statistics_rows(mode, stats))["Shadow texels"] == f"{stats['shadow_texels']:,}"
     # The same call made directly: the sun at strength 4 / pi (docs/shaded-rendering-in-blender.md).
     light = pn.Light.sun(ls.sun_direction(SUN_ROTATION), strength=4.0 / math.pi)
     reference = pn.render_shaded([bs.world_grid(obj) for obj in objects], bs.reference_camera(),

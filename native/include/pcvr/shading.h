@@ -112,8 +112,8 @@ private:
         Vec3x8 towards;  // unit, from the samples towards the light
         Vec3x8 energy;   // what reaches them: colour * strength, over the squared distance, times the transmittance
     };
-    /// The light at eight samples; `transmittance` is read only where the light has one.
-    static Arriving arriving(const PreparedLight& light, const Vec3x8& position, float8 transmittance);
+    /// The light at eight samples; `*transmittance` is read only where the light has one.
+    static Arriving arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance);
     /// shade() with each shadowed light's transmittance at the samples (lights_' order, unshadowed ones unread).
     Vec3x8 shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
                      const float8* transmittance) const;

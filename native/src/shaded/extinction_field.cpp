@@ -35,14 +35,19 @@ struct ExtinctionField::Lattice {
         auto brick_index = [&](int bi, int bj, int bk) { return (size_t(bi) * bricks[1] + bj) * bricks[2] + bk; };
         // The range of each brick's own voxels (kBrick b to kBrick b + kBrick - 1), each voxel read once...
         std::vector<float> lo(count, INFINITY), hi(count, -INFINITY);
+        // (the last brick along each axis also takes the voxels beyond it: n - 1 may be a multiple of kBrick).
+        auto end = [&](int a, int b) { return b == bricks[a] - 1 ? n[a] : (b + 1) * kBrick; };
         tbb::parallel_for(0, bricks[0], [&](int bi) {
-            for (int i = bi * kBrick; i < std::min((bi + 1) * kBrick, n[0]); ++i)
-                for (int j = 0; j < n[1]; ++j)
-                    for (int k = 0; k < n[2]; ++k) {
-                        const float d = departure[index(i, j, k)];
-                        const size_t b = brick_index(bi, std::min(j / kBrick, bricks[1] - 1), std::min(k / kBrick, bricks[2] - 1));
-                        lo[b] = std::min(lo[b], d), hi[b] = std::max(hi[b], d);
+            for (int i = bi * kBrick; i < end(0, bi); ++i)
+                for (int j = 0; j < n[1]; ++j) {
+                    const float* row = departure.data() + index(i, j, 0);
+                    const size_t first = brick_index(bi, std::min(j / kBrick, bricks[1] - 1), 0);
+                    for (int bk = 0; bk < bricks[2]; ++bk) {
+                        float a = lo[first + bk], b = hi[first + bk];
+                        for (int k = bk * kBrick; k < end(2, bk); ++k) a = std::min(a, row[k]), b = std::max(b, row[k]);
+                        lo[first + bk] = a, hi[first + bk] = b;
                     }
+                }
         });
         // ...and with the next brick's along each axis, the cells that reach voxel kBrick b + kBrick.
         occupied.assign(count, 0.0f);
@@ -142,15 +147,16 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
         // The coarsest level needed to stay within kMostVoxels.
         Grid grid = *v.grid;
         std::array<int32_t, 6> b = grid.index_bbox();
-        auto count = [&] { return uint64_t(b[3] - b[0] + 1 + 2 * pad) * uint64_t(b[4] - b[1] + 1 + 2 * pad) * uint64_t(b[5] - b[2] + 1 + 2 * pad); };
-        for (int k = 1; count() > kMostVoxels; ++k) {
+        auto side = [&](int a) { return uint64_t(int64_t(b[a + 3]) - b[a] + 1 + 2 * pad); };
+        auto count = [&] { return double(side(0)) * double(side(1)) * double(side(2)); };  // no wrapping
+        for (int k = 1; count() > double(kMostVoxels); ++k) {
             grid = v.grid->level(k, LevelReduction::MeanOverBackground);
             b = grid.index_bbox();
         }
         auto lattice = std::make_unique<Lattice>();
         Lattice& l = *lattice;
         for (int a = 0; a < 3; ++a) l.n[a] = b[a + 3] - b[a] + 1 + 2 * pad;
-        l.departure.assign(count(), 0.0f);
+        l.departure.assign(size_t(count()), 0.0f);
         const double background = grid.background();
         const std::vector<VoxelBlock>& blocks = grid.blocks();
         tbb::parallel_for(size_t(0), blocks.size(), [&](size_t bi) {

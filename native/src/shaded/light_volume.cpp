@@ -68,7 +68,10 @@ LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const
 
 uint64_t LightVolume::lay_out(const std::vector<Vec3>& corners, double h) {
     uint64_t total = 0;
-    auto count = [](float lo, float hi, float step) { return std::max(2, int(std::ceil((hi - lo) / step)) + 1); };
+    // Texels along one side, at most 2^30 (far-apart grids of tiny voxels): the caller coarsens h until they fit.
+    auto count = [](float lo, float hi, float step) {
+        return int(std::clamp(std::ceil(double(hi - lo) / step) + 1.0, 2.0, double(1 << 30)));
+    };
     if (!point_) {
         Face& f = faces_[0];
         float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};

@@ -10,6 +10,9 @@
 /// as its thickness), lighting, the mixing of overlapping grids and front-to-back compositing are
 /// those of the sheet renderer; a sample where no voxel reaches (density exactly 0) is empty, and a
 /// ray stops once its opacity passes opacity_cutoff. MIP keeps the largest non-zero sample.
+/// With shadows (ShadedParams::shadows, Light::shadow), each lit sample marches a shadow ray towards each
+/// shadowed light through the same reconstruction, classified and clipped per grid, in steps of
+/// sheet_spacing voxels of the finest grid, and the light is multiplied by exp(-its optical depth).
 /// `pixel_step` > 1 renders every step-th pixel of each row and column.
 #pragma once
 

@@ -77,7 +77,7 @@ constexpr size_t kStackLights = 8;
 
 Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
     if (!lit_) return bounded(colour);
-    float8 on_stack[kStackLights] = {};  // unshadowed lights' entries are passed, never read
+    float8 on_stack[kStackLights];  // unshadowed lights' entries stay unset: arriving() reads none of them
     std::vector<float8> on_heap(lights_.size() > kStackLights ? lights_.size() : 0);
     float8* transmittance = on_heap.empty() ? on_stack : on_heap.data();
     for (size_t i = 0; i < lights_.size(); ++i)
@@ -85,7 +85,7 @@ Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8&
     return shade_lit(colour, gradient, to_eye, position, transmittance);
 }
 
-Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, float8 transmittance) {
+Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance) {
     Vec3x8 l = splat(light.vector), energy = splat(light.energy);
     if (light.point) {
         l = l - position;
@@ -93,7 +93,7 @@ Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& posi
         l = l * (1.0f / sqrt8(d2));
         energy = bounded(energy * (1.0f / d2));
     }
-    if (light.transmittance) energy = energy * transmittance;
+    if (light.transmittance) energy = energy * *transmittance;
     return {l, energy};
 }
 
@@ -102,7 +102,7 @@ Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8&
     const float g = anisotropy_;
     const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
     for (size_t i = 0; i < lights_.size(); ++i) {
-        const auto [l, energy] = arriving(lights_[i], position, transmittance[i]);
+        const auto [l, energy] = arriving(lights_[i], position, transmittance + i);
         // cos theta between the light's travel (-l) and the way to the eye.
         const float8 base = max8(1.0f + g * g + 2.0f * g * dot(l, to_eye), broadcast8(1e-12f));
         const float8 phase = numerator / (base * sqrt8(base));
@@ -127,7 +127,7 @@ Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec
         const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
         const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
         for (size_t li = 0; li < lights_.size(); ++li) {
-            const auto [l, energy] = arriving(lights_[li], position, transmittance[li]);
+            const auto [l, energy] = arriving(lights_[li], position, transmittance + li);
             const float8 n_dot_l = dot(n, l);
             const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
             diffuse = diffuse + energy * (diffuse_ * lit);
