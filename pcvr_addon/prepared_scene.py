@@ -270,7 +270,10 @@ def _native_lighting(prepared):
             # lights it (its transfer function's colour is the albedo), not Blinn-Phong on gradients.
             shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy))
             continue
-        use_shading, ambient, diffuse, specular, shininess = volume.inputs.material
+        use_shading, ambient, diffuse, specular, shininess, anisotropy = volume.inputs.material
+        if anisotropy is not None:
+            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=anisotropy, lit=use_shading))
+            continue
         shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
                                             shininess=shininess, lit=use_shading))
     lights = []

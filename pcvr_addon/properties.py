@@ -417,6 +417,23 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=0.0, soft_max=100.0, default=defaults.MATERIAL["shininess"],
         update=tag_changed,
     )
+    shading_model: EnumProperty(
+        name="Model",
+        description="How a sample reflects the lights",
+        items=[('BLINN_PHONG', "Blinn-Phong", "Surfaces lit along the density's gradient, with highlights (VTK, "
+                                              "3D Slicer)"),
+               ('SCATTER', "Scattering", "A medium that scatters the lights once, with a Henyey-Greenstein phase "
+                                         "function, its colour the albedo (Cycles' Principled Volume)")],
+        default='BLINN_PHONG',
+        update=tag_changed,
+    )
+    anisotropy: FloatProperty(
+        name="Anisotropy",
+        description="Direction of scattering: above 0 mostly forwards (bright looking into the light), below 0 "
+                    "mostly back",
+        min=-0.99, max=0.99, default=0.0,
+        update=tag_changed,
+    )
 
     @property
     def ramp(self):

@@ -305,7 +305,11 @@ class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
         layout = property_split(self.layout)
         settings = context.volume.pcvr
         layout.active = settings.use_shading
+        layout.prop(settings, "shading_model")
         col = layout.column(align=True)
+        if settings.shading_model == 'SCATTER':
+            col.prop(settings, "anisotropy")
+            return
         col.prop(settings, "ambient")
         col.prop(settings, "diffuse")
         col.prop(settings, "specular")

@@ -164,6 +164,21 @@ def test_volume_without_shading_shows_its_colours(blob_object):
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
 
 
+def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(blob_object):
+    scene = lit_blob_scene(blob_object)
+    blob_object.data.pcvr.shading_model, blob_object.data.pcvr.anisotropy = 'SCATTER', 0.5
+    image = ls.combined(bs.render(scene))
+    lights = [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
+              pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+    expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
+                                lights=lights, ambient=WORLD, method="regular",
+                                shading=pn.Shading(model="scatter", anisotropy=0.5))
+    assert expected[..., 3].max() > 0.9
+    np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
+    # Not Blinn-Phong's image: the model reached the renderer.
+    assert np.abs(image - reference(blob_object)).max() > 0.05 * expected.max()
+
+
 def test_each_volume_has_its_own_material(tmp_path, rng):
     """Two blobs side by side, one unshaded and one shiny: together they look as each does alone."""
     path = bs.write_vdb(tmp_path / "blob.vdb", bs.blob(rng))
