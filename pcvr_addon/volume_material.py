@@ -49,6 +49,7 @@ class GridMedium:
     kelvin: float = 0.0                        # temperature T = kelvin v of blackbody emission; 0: none
     blackbody_intensity: float = 0.0           # I: sigma (1 + I (T^4 - 1)) times blackbody(T) times the tint
     blackbody_tint: tuple = (1.0, 1.0, 1.0)
+    blackbody_colour_strength: float = 0.0     # a Blackbody node's colour of T = v (kelvin) times this strength
 
     def emission_at(self, values):
         """Emitted radiance (linear RGB) per world unit at each of `values` (1-D): shape (n, 3)."""
@@ -60,6 +61,9 @@ class GridMedium:
             # Cycles emits nothing below an intensity of 1e-5 (about 1200 K at I = 1).
             intensity = np.where(intensity > 1e-5, intensity, 0.0)
             out = out + intensity[:, None] * np.asarray(self.blackbody_tint) * blackbody.colour(t)
+        if self.blackbody_colour_strength > 0:
+            # The Blackbody node's colour (luminance 1) of the grid's value in kelvin, as an emission colour.
+            out = out + self.blackbody_colour_strength * blackbody.colour(v[:, 0])
         return out
 
 
@@ -109,6 +113,33 @@ def _constant_input(node, name):
     return value
 
 
+def _colour_input(node, name):
+    """A colour socket's value: ('constant', rgb), or ('blackbody', grid name) where a Blackbody node whose
+    Temperature an Attribute node gives feeds it (a constant Temperature is a constant colour)."""
+    source = _linked_node(node.inputs[name])
+    if source is None or source.bl_idname != 'ShaderNodeBlackbody':
+        return "constant", _constant_input(node, name)
+    kind, temperature = _input(source, "Temperature")
+    if kind == "grid":
+        return "blackbody", temperature
+    return "constant", tuple(float(c) for c in blackbody.colour(np.array([max(float(temperature), 1.0)]))[0])
+
+
+def _emitting(node, colour_socket, strength_socket):
+    """The media of an emission: Strength times Color, each a constant, a grid (Strength: flame) or a Blackbody
+    node's colour of a temperature grid (Color), but not a grid times a grid."""
+    colour_kind, colour = _colour_input(node, colour_socket)
+    kind, strength = _input(node, strength_socket)
+    if colour_kind == "blackbody":
+        if kind == "grid":
+            raise Unsupported(f"{node.name}: {strength_socket} from grid '{strength}' times a Blackbody colour of grid "
+                              f"'{colour}' (PCVR renders each grid on its own)")
+        return [GridMedium(grid=colour, blackbody_colour_strength=float(strength))] if strength > 0 else []
+    if kind == "grid":
+        return [GridMedium(grid=strength, emission=tuple(colour))]
+    return [GridMedium(grid=None, constant_emission=tuple(float(c) for c in strength * np.asarray(colour)))] if strength > 0 else []
+
+
 def _rgb(colour):
     return np.asarray(colour, dtype=np.float64)
 
@@ -142,13 +173,13 @@ def _principled(node, warnings):
     absorption = np.maximum(1.0 - colour, 0.0) * np.maximum(1.0 - np.sqrt(np.maximum(absorption_colour, 0.0)), 0.0) * density
     # The density grid absorbs and scatters, and carries a constant emission (one native grid, not two).
     medium = _scattering_medium(grid, scattering, absorption, float(_constant_input(node, "Anisotropy")))
-    emission_colour = np.asarray(_constant_input(node, "Emission Color"))
-    kind, strength = _input(node, "Emission Strength")
-    if kind == "constant" and strength > 0:
-        medium = dataclasses.replace(medium, constant_emission=tuple(float(c) for c in strength * emission_colour))
-    media = [medium] if density > 0 or kind == "constant" and strength > 0 else []
-    if kind == "grid":
-        media.append(GridMedium(grid=strength, emission=tuple(emission_colour)))
+    emitted = _emitting(node, "Emission Color", "Emission Strength")
+    # A constant emission rides on the density grid (one native grid, not two).
+    constant = [m for m in emitted if m.grid is None]
+    if constant:
+        medium = dataclasses.replace(medium, constant_emission=constant[0].constant_emission)
+    media = [medium] if density > 0 or constant else []
+    media += [m for m in emitted if m.grid is not None]
     intensity = float(_constant_input(node, "Blackbody Intensity"))
     if intensity > 1e-3:
         attribute = node.inputs["Temperature Attribute"].default_value
@@ -175,11 +206,7 @@ def _scatter(node, warnings):
 
 
 def _emission(node, warnings):
-    colour = np.asarray(_constant_input(node, "Color"))
-    kind, strength = _input(node, "Strength")
-    if kind == "grid":
-        return [GridMedium(grid=strength, emission=tuple(colour))]
-    return [GridMedium(grid=None, constant_emission=tuple(strength * colour))] if strength > 0 else []
+    return _emitting(node, "Color", "Strength")
 
 
 def _add(node, warnings):

@@ -160,3 +160,47 @@ def test_a_node_feeding_density_is_named():
     from pcvr_addon import volume_material
     media = volume_material.read(material)
     assert media.grids == () and "node 'Math' (Math) feeding Principled Volume's Density" in media.warnings[0]
+
+
+def _blackbody_into(material, node_name, socket, temperature):
+    """A Blackbody node feeding `socket` of the material's node `node_name`: Temperature a constant, or an
+    Attribute node naming a grid."""
+    tree = material.node_tree
+    node = tree.nodes.new("ShaderNodeBlackbody")
+    if isinstance(temperature, str):
+        attribute = tree.nodes.new("ShaderNodeAttribute")
+        attribute.attribute_type, attribute.attribute_name = 'GEOMETRY', temperature
+        tree.links.new(attribute.outputs["Fac"], node.inputs["Temperature"])
+    else:
+        node.inputs["Temperature"].default_value = temperature
+    tree.links.new(node.outputs["Color"], tree.nodes[node_name].inputs[socket])
+
+
+def test_a_blackbody_node_colours_the_emission():
+    from pcvr_addon import volume_material
+    # A constant temperature is a constant colour: the Blackbody node's, luminance 1.
+    material = ms.principled_material(Density=0.0, Emission_Strength=2.0)
+    _blackbody_into(material, "Principled Volume", "Emission Color", 1500.0)
+    (medium,) = volume_material.read(material).grids
+    np.testing.assert_allclose(medium.constant_emission, 2.0 * blackbody.colour(np.array([1500.0]))[0], rtol=1e-6)
+    # A temperature grid: the colour of each value in kelvin, times the strength, on that grid.
+    material = ms.principled_material(Density=0.0, Emission_Strength=2.0)
+    _blackbody_into(material, "Principled Volume", "Emission Color", "temperature")
+    (medium,) = volume_material.read(material).grids
+    assert medium.grid == "temperature"
+    kelvin = np.array([900.0, 1800.0, 3000.0])
+    np.testing.assert_allclose(medium.emission_at(kelvin), 2.0 * blackbody.colour(kelvin), rtol=1e-12)
+
+
+def test_a_grid_times_a_blackbody_grid_is_named():
+    """Strength from the flame grid times the Blackbody colour of the temperature grid: a product of two grids,
+    which PCVR (each grid on its own) cannot render; the warning names both."""
+    material = ms.principled_material(Density=0.0)
+    tree = material.node_tree
+    flame = tree.nodes.new("ShaderNodeAttribute")
+    flame.attribute_type, flame.attribute_name = 'GEOMETRY', "flame"
+    tree.links.new(flame.outputs["Fac"], tree.nodes["Principled Volume"].inputs["Emission Strength"])
+    _blackbody_into(material, "Principled Volume", "Emission Color", "temperature")
+    from pcvr_addon import volume_material
+    media = volume_material.read(material)
+    assert media.grids == () and "grid 'flame'" in media.warnings[0] and "grid 'temperature'" in media.warnings[0]
