@@ -46,13 +46,10 @@ public:
     /// fit and never outside [0, 1].
     template <class T, class Clamp, class Abs>
     T operator()(T s, Clamp clamp, Abs abs) const {
-        static_assert(kCoefficients == 9, "Estrin's scheme below is written for degree 8 in u");
         const T t = clamp(s * inv_radius_);
-        const T u = t * t, u2 = u * u, u4 = u2 * u2;
-        // Estrin's scheme: five dependent steps where Horner's takes nine, for the splat's loop evaluates D
-        // at every tap and slab and waited on the chain.
-        const T p01 = u * odd_[1] + odd_[0], p23 = u * odd_[3] + odd_[2], p45 = u * odd_[5] + odd_[4], p67 = u * odd_[7] + odd_[6];
-        const T p = (u2 * p23 + p01) + u4 * ((u2 * p67 + p45) + u4 * odd_[8]);
+        const T u = t * t;
+        T p = T{} + odd_[kCoefficients - 1];
+        for (int i = kCoefficients - 2; i >= 0; --i) p = p * u + odd_[i];
         // 1/2 + t (...) at t = +-1 is 1/2 +- (1/2 + rounding): the sign of t picks the exact end.
         return clamp(2.0f * t * (p + abs_ * abs(t))) * 0.5f + 0.5f;
     }
