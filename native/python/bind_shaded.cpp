@@ -45,9 +45,10 @@ std::optional<bool> flag_from_python(nb::handle value, const char* what, bool no
 }
 
 /// A sun (vector: its direction of travel) or a point light (vector: its position), checked.
-Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double strength, nb::handle shadow) {
+Light make_light(Light::Kind kind, nb::handle vector, nb::handle color, double strength, nb::handle shadow, double angle = 0.0) {
     const bool sun = kind == Light::Kind::Sun;
     Light light{kind, vec3_from_python(vector, sun ? "direction" : "position"), vec3_from_python(color, "color"), strength};
+    light.angle = angle;
     const std::optional<bool> casts = flag_from_python(shadow, sun ? "Light.sun: shadow" : "Light.point: shadow", true);
     light.shadow = !casts ? Light::Shadow::Default : *casts ? Light::Shadow::On : Light::Shadow::Off;
     Lighting{{light}, {0, 0, 0}, {}}.validate();
@@ -302,11 +303,13 @@ void bind_shaded(nb::module_& m) {
     nb::class_<Light>(m, "Light", "A light for render_shaded: Light.sun(...) or Light.point(...).")
         .def_static(
             "sun",
-            [](nb::handle direction, nb::handle color, double strength, nb::handle shadow) {
-                return make_light(Light::Kind::Sun, direction, color, strength, shadow);
+            [](nb::handle direction, nb::handle color, double strength, nb::handle shadow, double angle) {
+                return make_light(Light::Kind::Sun, direction, color, strength, shadow, angle);
             },
             "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0, "shadow"_a = nb::none(),
-            "Parallel light travelling along `direction` (world space) with irradiance `strength`.\n" SHADOW_DOC)
+            "angle"_a = 0.0,
+            "Parallel light travelling along `direction` (world space) with irradiance `strength`; `angle`: the\n"
+            "angular diameter of its disc in radians (Blender's sun Angle), which softens its shadows.\n" SHADOW_DOC)
         .def_static(
             "point",
             [](nb::handle position, nb::handle color, double strength, nb::handle shadow) {
@@ -319,6 +322,7 @@ void bind_shaded(nb::module_& m) {
                      "The sun's direction of travel, or the point light's position.")
         .def_prop_ro("color", [](const Light& l) { return vec3_to_python(l.color); })
         .def_prop_ro("strength", [](const Light& l) { return l.strength; })
+        .def_prop_ro("angle", [](const Light& l) { return l.angle; }, "A sun's angular diameter (radians); 0: hard shadows.")
         .def_prop_ro("shadow", [](const Light& l) -> std::optional<bool> {
             if (l.shadow == Light::Shadow::Default) return std::nullopt;
             return l.shadow == Light::Shadow::On;

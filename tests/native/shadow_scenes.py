@@ -57,3 +57,12 @@ def slab_and_receiver(k: float, density: float, thickness: int, receiver: bool =
     if receiver:
         values[24:30, 9:15, 9:15] = 0.5
     return pn.Grid.from_dense(values, np.eye(4))
+
+
+def half_caster_and_receiver() -> pn.Grid:
+    """A slab of density 1 across x = 4..7 covering y < 16 only (the caster: its shadow has an edge), and a box of
+    density 0.5 at x = 26..31 beyond it, in a 40 x 32 x 24 grid (world = index). A sun along +x."""
+    values = np.zeros((40, 32, 24), dtype=np.float32)
+    values[4:8, :16, :] = 1.0
+    values[26:32, 4:28, 4:20] = 0.5
+    return pn.Grid.from_dense(values, np.eye(4))

@@ -48,6 +48,9 @@ struct Light {
     Vec3 color{1, 1, 1};    ///< linear RGB
     double strength = 1.0;  ///< Sun: irradiance. Point: intensity (irradiance at distance 1).
     Shadow shadow = Shadow::Default;
+    /// Sun: the angular diameter of its disc in radians (Blender's Angle), which softens its shadows: a
+    /// point sees the part of the disc the volumes leave uncovered. 0: a hard shadow.
+    double angle = 0.0;
 
     static Light sun(const Vec3& direction, const Vec3& color, double strength) { return {Kind::Sun, direction, color, strength}; }
     static Light point(const Vec3& position, const Vec3& color, double strength) { return {Kind::Point, position, color, strength}; }

@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "shaded/extinction_field.h"
+#include "shaded/penumbra.h"
 
 namespace pcvr {
 
@@ -62,8 +63,16 @@ LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const
     for (Face& f : faces_)
         if (f.used) f.offset = total, total += f.texels();
     transmittance_.assign(total + 1, kWhole);  // one more: a texel pair's read at the last texel
+    spread_ = point_ ? 0.0f : float(std::tan(0.5 * light.angle));
+    if (spread_ > 0) depth_.assign(total, 0.0f), occluder_.assign(total, 0.0f);
     for (const Face& f : faces_)
         if (f.used) integrate(f, field, control);
+    if (spread_ > 0) {
+        const Face& f = faces_[0];
+        soften_penumbrae(transmittance_.data(), depth_.data(), occluder_.data(), SunLattice{f.nu, f.nv, f.nw, f.du, f.w0, f.dw},
+                         spread_, kWhole, control);
+        std::vector<float>().swap(depth_), std::vector<float>().swap(occluder_);
+    }
 }
 
 uint64_t LightVolume::lay_out(const std::vector<Vec3>& corners, double h) {
@@ -125,8 +134,9 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
     tbb::parallel_for(0, f.nv, [&](int iv) {
         control.throw_if_cancelled();
         // The previous texel's extinction and depth along each column of the row; the trapezoid between them.
-        std::vector<float> sigma_before(padded, 0.0f), tau(padded, 0.0f);
+        std::vector<float> sigma_before(padded, 0.0f), tau(padded, 0.0f), tau_w(padded, 0.0f);
         std::vector<uint16_t> whole(padded);
+        const bool soft = spread_ > 0;
         const float v = f.v0 + iv * f.dv;
         for (int iw = 0; iw < f.nw; ++iw) {
             const float w = f.w0 + iw * f.dw;
@@ -137,6 +147,16 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
                 const float8 step = point_ ? f.dw * sqrt8(1.0f + u * u + v * v) : broadcast8(f.dw);
                 const float8 before = load8(sigma_before.data() + iu);
                 const float8 depth = iw == 0 ? broadcast8(0.0f) : load8(tau.data() + iu) + 0.5f * (before + sigma) * step;
+                if (soft) {
+                    // The depth-weighted mean w of what shadows the texel (penumbra.h), its own w where nothing does.
+                    const float8 moment = load8(tau_w.data() + iu) + (depth - load8(tau.data() + iu)) * (w - 0.5f * f.dw);
+                    store8(tau_w.data() + iu, moment);
+                    const size_t at = f.offset + (size_t(iv) * f.nw + iw) * f.nu + iu;
+                    for (int l = 0; l < 8 && iu + l < f.nu; ++l) {
+                        depth_[at + l] = depth[l];
+                        occluder_[at + l] = depth[l] > 1e-6f ? moment[l] / depth[l] : w;
+                    }
+                }
                 store8(tau.data() + iu, depth);
                 store8(sigma_before.data() + iu, sigma);
                 const int8x rounded = __builtin_convertvector(exp8(-depth) * kWhole + 0.5f, int8x);

@@ -66,6 +66,9 @@ private:
     float8 transmittance(const Face& f, float8 u, float8 v, float8 w) const;
 
     bool point_;
+    float spread_ = 0;     // sun: tan(angle / 2), > 0: soft shadows (penumbra.h)
+    // Soft shadows only, while the lattice is built: each texel's optical depth and its occluders' mean w.
+    std::vector<float> depth_, occluder_;
     Vec3f pivot_;          // point: the light's position; sun: unused
     Vec3f frame_[3];       // sun: unit rows e1, e2 and the direction of travel
     std::vector<Face> faces_;  // sun: one; point: six, 2 axis + (sign < 0)

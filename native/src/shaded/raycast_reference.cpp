@@ -129,6 +129,30 @@ public:
         const double reach = light_.kind == Light::Kind::Sun ? INFINITY : length(dir);
         if (!(length(dir) > 0)) return 1.0f;
         dir = dir / length(dir);
+        if (!(light_.angle > 0)) return along(x, dir, reach);
+        // A sun's disc: rays to kDiscPoints points spread evenly over it (Vogel's spiral), their mean.
+        constexpr int kDiscPoints = 32;
+        const Vec3 helper = std::abs(dir.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+        const Vec3 e1 = cross(helper, dir) / length(cross(helper, dir)), e2 = cross(dir, e1);
+        const double radius = std::tan(0.5 * light_.angle), golden = 2.39996322972865332;
+        double sum = 0;
+        for (int k = 0; k < kDiscPoints; ++k) {
+            const double r = radius * std::sqrt((k + 0.5) / kDiscPoints), phi = k * golden;
+            const Vec3 d = dir + e1 * (r * std::cos(phi)) + e2 * (r * std::sin(phi));
+            sum += along(x, d / length(d), reach);
+        }
+        return float(sum / kDiscPoints);
+    }
+    float8 at(const Vec3x8& position) const override {
+        float8 out;
+        for (int l = 0; l < 8; ++l) out[l] = at(Vec3f{position.x[l], position.y[l], position.z[l]});
+        return out;
+    }
+
+private:
+    static constexpr double kOpaqueDepth = 30;  // exp(-30): nothing more to see
+    /// The transmittance from x along the unit direction `dir` up to `reach`.
+    float along(const Vec3& x, const Vec3& dir, double reach) const {
         double from = INFINITY, to = -INFINITY;
         for (const RayGrid& g : grids_) {
             double a = 0, b = reach;
@@ -148,14 +172,7 @@ public:
         }
         return float(std::exp(-tau));
     }
-    float8 at(const Vec3x8& position) const override {
-        float8 out;
-        for (int l = 0; l < 8; ++l) out[l] = at(Vec3f{position.x[l], position.y[l], position.z[l]});
-        return out;
-    }
 
-private:
-    static constexpr double kOpaqueDepth = 30;  // exp(-30): nothing more to see
     Light light_;
     const std::vector<RayGrid>& grids_;
     const Kernel& kernel_;

@@ -42,6 +42,8 @@ void Lighting::validate() const {
         if (l.kind == Light::Kind::Sun && length(l.vector) == 0) throw InvalidArgument(what + "a sun needs a direction");
         if (!finite(l.color) || !non_negative(l.color)) throw InvalidArgument(what + "color must be three numbers >= 0");
         if (!std::isfinite(l.strength) || l.strength < 0) throw InvalidArgument(what + "strength must be finite and >= 0");
+        if (!(l.angle >= 0 && l.angle < 3.14159)) throw InvalidArgument(what + "angle must be in [0, pi) radians");
+        if (l.kind == Light::Kind::Point && l.angle != 0) throw InvalidArgument(what + "a point light has no angle");
     }
 }
 
