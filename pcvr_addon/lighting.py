@@ -39,6 +39,7 @@ class LightSpec:
     strength: float     # sun: irradiance; point: irradiance at distance 1 (both already divided by pi)
     name: str = ""
     shadow: bool = True  # Blender's Cast Shadow: with the scene's shadows on, the volumes attenuate it
+    angle: float = 0.0   # sun: Blender's Angle, the angular diameter of its disc (radians): soft shadows
 
 
 def _power(light):
@@ -80,7 +81,7 @@ def light_spec(light, matrix_world, name=""):
     if light.type == 'SUN':
         # A sun shines along its object's -Z axis.
         direction = tuple(-matrix[:3, 2])
-        return LightSpec("sun", direction, colour, power / math.pi, name, _casts_shadow(light))
+        return LightSpec("sun", direction, colour, power / math.pi, name, _casts_shadow(light), float(light.angle))
     if not getattr(light, "normalize", True):
         power *= _unnormalised_area(light)
     if light.type == 'AREA':

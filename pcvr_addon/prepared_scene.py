@@ -278,9 +278,14 @@ def _native_lighting(prepared):
                                             shininess=shininess, lit=use_shading))
     lights = []
     for spec in prepared.inputs.lights:
-        make = pcvr_native.Light.sun if spec.kind == "sun" else pcvr_native.Light.point
-        # The scene's shadows (render_shaded's `shadows`) reach the lights whose Cast Shadow is on.
-        lights.append(make(spec.vector, color=spec.color, strength=spec.strength, shadow=None if spec.shadow else False))
+        # The scene's shadows (render_shaded's `shadows`) reach the lights whose Cast Shadow is on; a sun's Angle
+        # softens them.
+        shadow = None if spec.shadow else False
+        if spec.kind == "sun":
+            lights.append(pcvr_native.Light.sun(spec.vector, color=spec.color, strength=spec.strength, shadow=shadow,
+                                                angle=spec.angle))
+        else:
+            lights.append(pcvr_native.Light.point(spec.vector, color=spec.color, strength=spec.strength, shadow=shadow))
     return transfer_functions, lights, prepared.inputs.world, shadings
 
 

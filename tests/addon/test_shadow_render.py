@@ -61,3 +61,18 @@ def test_a_light_that_casts_no_shadow_is_not_attenuated(blobs_in_a_row):
     scene.pcvr.shadows = True
     sun.data.use_shadow = False
     assert np.array_equal(ls.combined(bs.render(scene)), unshadowed)
+
+
+def test_a_suns_angle_softens_its_shadow_as_render_shaded_does(blobs_in_a_row):
+    scene, objects, sun = blobs_in_a_row
+    scene.pcvr.shadows = True
+    sun.data.angle = 0.4  # radians: Blender's sun Angle, the disc's angular diameter
+    soft = ls.combined(bs.render(scene))
+    light = pn.Light.sun(ls.sun_direction(SUN_ROTATION), strength=4.0 / math.pi, angle=sun.data.angle)
+    reference = pn.render_shaded([bs.world_grid(obj) for obj in objects], bs.reference_camera(),
+                                 ls.reference_transfer_function(), lights=[light], ambient=(0.0, 0.0, 0.0),
+                                 method="regular", shading=pn.Shading(), shadows=True)
+    assert np.abs(soft - reference).max() <= TOLERANCE * reference.max()
+    sun.data.angle = 0.0
+    hard = ls.combined(bs.render(scene))
+    assert np.abs(soft - hard).max() > 0.01 * hard.max()  # the angle reached the shadows
