@@ -29,7 +29,7 @@
 /// Supersampling. Below a pixel per voxel every footprint is integrated over its pixels
 /// (splat/pixel_prefilter.h), 5 to 8 times the work of a voxel splatted at magnification 1 (128^3 blobs:
 /// 65-97 ms at 1/4 to 1/32, 9-14 ms at m = 1, one core). Where every voxel of an automatic level 0 projects to
-/// at most 1/8 pixel in an orthographic view, the image is rendered at s x s sub-pixels a pixel instead, s the
+/// at most 1/2 pixel in an orthographic view, the image is rendered at s x s sub-pixels a pixel instead, s the
 /// fewest that give every voxel a sub-pixel, and box-averaged: the pixel means by the midpoint rule, one sample
 /// a voxel. Relative RMSE against pixel means of 3 x max(8, 1/m) sub-pixels, 48^3 blobs / 64^3 CT phantom:
 ///
@@ -40,9 +40,13 @@
 /// | 1/16          | 0.10% / 0.05% (16)       | 0.011% / 0.006%      | blobs 10-14 / 66-97, CT 8.5-9.4 / 52-77 |
 /// | 1/32          | 0.08% / 0.02% (32)       | 0.010% / 0.003%      |                                     |
 ///
-/// Ten times the error of integrating, within the 0.5% asked, at the cost of magnification 1. At 1/4 the
-/// error nears 0.5%; two sub-pixels a voxel with `regular` splats came within 1.3x of integrating's error but
-/// at 2-3x the time of m = 1, and `pcvr`'s post filter over two sub-pixels blurs (0.24-0.28%). Perspective views
+/// Ten times the error of integrating, within the 0.5% asked, at the cost of magnification 1. At 1/2 and 1/4
+/// the pixel means of the kernel model are missed by more (blobs 0.30 / 0.25%, CT phantom 0.71 / 0.33%, with
+/// the paper's passband), but what counts is the volume's own line integrals: against the analytic pixel means
+/// of the 128^3 blobs (sampled Gaussians, tests/native/test_xray_levels.py), with the default compensated
+/// passband, supersampled 0.36% (1/2) and 0.28% (1/4), integrated per pixel 0.13% and 0.29%, the paper's pair
+/// integrated 1.26% and 1.15%; so the threshold is 1/2, where one core took 13.5 ms supersampled against 110 ms
+/// integrated (m = 1: 13.9 ms). Perspective views
 /// gained 12% at most (the near voxels span many sub-pixels) at 5x the error, so they integrate. Levels above 0
 /// are not supersampled: level 1 at 1/64 over 32 sub-pixels was 0.15% / 0.32% off (integrated: 0.08% / 0.17%).
 #pragma once
@@ -66,7 +70,7 @@ constexpr double kLevelPixelsPerVoxel = 1.0 / 32.0;
 
 /// Where every voxel (of level 0) projects to at most this many pixels, an automatic level renders the
 /// image supersampled and box-averages it: see the table above.
-constexpr double kSupersampleBelowPixelsPerVoxel = 1.0 / 8.0;
+constexpr double kSupersampleBelowPixelsPerVoxel = 1.0 / 2.0;
 
 /// The largest side of a supersampled image (16 MiB of floats, per worker): larger views of finer voxels
 /// are zoomed out less than 1/8 anyway, or integrate the rest over the sub-pixels' areas.
