@@ -168,6 +168,5 @@ def section(res: dict | None) -> list[str]:
 
 
 if __name__ == "__main__":
-    def _log(msg):
-        print(msg, file=sys.stderr, flush=True)
-    print("\n".join(section(run("--quick" in sys.argv, _log))))
+    import standalone
+    standalone.main(__doc__, run, section)

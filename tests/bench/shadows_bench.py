@@ -22,7 +22,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.append(str(HERE))
@@ -123,6 +122,5 @@ def section(res: dict | None) -> list[str]:
 
 
 if __name__ == "__main__":
-    def _log(msg):
-        print(msg, file=sys.stderr, flush=True)
-    print("\n".join(section(run("--quick" in sys.argv, _log))))
+    import standalone
+    standalone.main(__doc__, run, section)
