@@ -29,6 +29,13 @@ inline Vec3 cross(const Vec3& a, const Vec3& b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 inline double length(const Vec3& a) { return std::sqrt(dot(a, a)); }
+/// Two unit vectors completing the unit vector d to a right-handed orthonormal frame (e1, e2, d): e1 is
+/// perpendicular to d and to the axis d is least aligned with, e2 = d x e1.
+inline void complete_frame(const Vec3& d, Vec3& e1, Vec3& e2) {
+    const Vec3 axis = std::abs(d.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+    e1 = cross(axis, d) / length(cross(axis, d));
+    e2 = cross(d, e1);
+}
 
 /// A rounded coordinate as an int, clamped to [lo, hi] first: a point projected from close to the
 /// eye plane can lie far beyond int's range.

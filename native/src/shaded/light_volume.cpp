@@ -48,10 +48,9 @@ LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const
         faces_.resize(6);
         for (int f = 0; f < 6; ++f) faces_[f].axis = f / 2, faces_[f].sign = f % 2 ? -1.0f : 1.0f;
     } else {
-        // e1 perpendicular to the direction from the axis it is least aligned with, e2 completing the frame.
         const Vec3 d = light.vector / length(light.vector);
-        const Vec3 helper = std::abs(d.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-        const Vec3 e1 = cross(helper, d) / length(cross(helper, d)), e2 = cross(d, e1);
+        Vec3 e1, e2;
+        complete_frame(d, e1, e2);
         frame_[0] = to_float(e1), frame_[1] = to_float(e2), frame_[2] = to_float(d);
         faces_.resize(1);
     }

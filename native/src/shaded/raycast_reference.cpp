@@ -132,8 +132,8 @@ public:
         if (!(light_.angle > 0)) return along(x, dir, reach);
         // A sun's disc: rays to kDiscPoints points spread evenly over it (Vogel's spiral), their mean.
         constexpr int kDiscPoints = 32;
-        const Vec3 helper = std::abs(dir.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-        const Vec3 e1 = cross(helper, dir) / length(cross(helper, dir)), e2 = cross(dir, e1);
+        Vec3 e1, e2;
+        complete_frame(dir, e1, e2);
         const double radius = std::tan(0.5 * light_.angle), golden = 2.39996322972865332;
         double sum = 0;
         for (int k = 0; k < kDiscPoints; ++k) {
