@@ -92,8 +92,6 @@ public:
         for (int i = kFitDegree - 1; i >= 0; --i) p = p * x + fit_[i];
         return select8(rho2 < radius2_, p, broadcast8(0.0f));
     }
-    /// The same for one rho^2.
-    float weight(float rho2) const { return weights(broadcast8(rho2))[0]; }
     /// Whether weights() evaluates the polynomial.
     bool fitted() const { return fitted_; }
 
