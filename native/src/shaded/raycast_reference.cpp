@@ -230,7 +230,7 @@ struct Marcher {
             const Grid& grid = *v.grid;
             if (grid.active_voxel_count() == 0) continue;
             const ViewProjection projection(camera, grid.index_to_world());
-            spacing = std::min(spacing, depth_per_voxel(projection, grid, false));
+            spacing = std::min(spacing, depth_per_voxel(projection, grid, SheetLattice()));
             const Mat4 to_index = *grid.index_to_world().inverse();
             const auto b = grid.index_bbox();
             const double R = kernel.radius();

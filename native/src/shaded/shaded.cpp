@@ -65,8 +65,9 @@ void cap_strides(BlockPlan& plan, int most) {
     }
 }
 
-/// Sheets hold densities times world lengths (a slab's) in float32, where voxels' contributions add
-/// up: beyond this they could leave its range (3.4e38) and turn into infinities and NaN.
+/// Sheets hold densities times slab lengths (in the sheet parameter, at most a slab's world length) in
+/// float32, where voxels' contributions add up: beyond this they could leave its range (3.4e38) and
+/// turn into infinities and NaN.
 constexpr double kMostSheetValue = 1e36;
 
 /// Throws InvalidArgument where a grid's densities times its scale, or their integral over a slab,
@@ -197,17 +198,24 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     const bool spread = params.method == ShadedMethod::BilinearSpread;
 
     // The sheets: from the near clip plane, spaced by the finest grid's voxel along the view axis;
-    // planes for orthographic views, spheres around the eye for perspective ones.
-    const SheetGeometry geometry(camera);
+    // planes for orthographic views, spheres around the eye for perspective ones (in the metric where
+    // the grids' voxels are cubes, when they agree on one).
+    SheetGeometry geometry(camera);
     SheetLattice sheets;
     sheets.spherical = !camera.orthographic();
     sheets.eye = geometry.origin0;
+    if (sheets.spherical) {
+        std::vector<Mat4> shapes;
+        for (const ShadedVolume& v : volumes)
+            if (v.grid->active_voxel_count() > 0) shapes.push_back(v.grid->index_to_world());
+        sheets.metric = sheet_metric(shapes);
+        geometry.use_metric(sheets.metric, camera.width(), camera.height());
+    }
     std::vector<ViewProjection> projections;
     double spacing = INFINITY;
     for (const ShadedVolume& v : volumes) {
         projections.emplace_back(camera, v.grid->index_to_world());
-        if (v.grid->active_voxel_count() > 0)
-            spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid, sheets.spherical));
+        if (v.grid->active_voxel_count() > 0) spacing = std::min(spacing, depth_per_voxel(projections.back(), *v.grid, sheets));
     }
     if (!std::isfinite(spacing)) return;  // nothing to render
     const auto [near_depth, far_depth] = clip_depths(camera);
@@ -217,8 +225,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     // the image's corners for spheres.
     double nearest = near_depth, farthest = far_depth;
     if (sheets.spherical) {
-        nearest = near_depth * geometry.world_per_depth;
-        farthest = far_depth * geometry.longest_ray;
+        nearest = near_depth * geometry.least_metric_ray;
+        farthest = far_depth * geometry.longest_metric_ray;
     }
     sheets.first_depth = nearest - sheets.spacing;
     sheets.count = -sheet_floor(-(farthest - sheets.first_depth) / sheets.spacing);  // the ceiling
@@ -306,7 +314,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
 
             const CullingReach culling =
-                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets.spherical),
+                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets),
                               mip ? 1 : params.samples_per_sheet);
             const Vec3& n = view.projection().depth_gradient();
             const double reach = kernel.radius() * length(n);  // in depth, for the clip planes

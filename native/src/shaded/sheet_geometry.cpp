@@ -1,8 +1,59 @@
 #include "shaded/sheet_geometry.h"
 
 #include <algorithm>
+#include <cmath>
+#include <optional>
+#include <vector>
 
 namespace pcvr {
+
+namespace {
+
+/// The upper-left 3 x 3 of a^T a, and how far it is from c^2 times the identity (relative).
+double gram_scale(const Mat4& a, double& c) {
+    double g[3][3] = {};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            for (int k = 0; k < 3; ++k) g[i][j] += a.m[k][i] * a.m[k][j];
+    const double c2 = (g[0][0] + g[1][1] + g[2][2]) / 3.0;
+    double off = 0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) off = std::max(off, std::abs(g[i][j] - (i == j ? c2 : 0.0)));
+    c = std::sqrt(c2);
+    return c2 > 0 ? off / c2 : INFINITY;
+}
+
+/// Voxels whose shape differs by less than this (relative, in the Gram matrix) count as one shape:
+/// the slab shares then move by at most ~1e-6 of a voxel across a footprint.
+constexpr double kSameShape = 1e-6;
+
+}  // namespace
+
+double round_scale(const Mat4& metric, const Mat4& index_to_world) {
+    double c = 0;
+    return gram_scale(metric * index_to_world, c) <= kSameShape ? c : 0.0;
+}
+
+Mat4 sheet_metric(const std::vector<Mat4>& index_to_worlds) {
+    std::optional<Mat4> metric;
+    for (const Mat4& index_to_world : index_to_worlds) {
+        const std::optional<Mat4> inverse = index_to_world.inverse();
+        if (!inverse) return Mat4();
+        Mat4 m = *inverse;
+        m.m[0][3] = m.m[1][3] = m.m[2][3] = 0;
+        // Scaled to keep volumes: the world's own metric for cubic voxels.
+        const double det = m.m[0][0] * (m.m[1][1] * m.m[2][2] - m.m[1][2] * m.m[2][1]) -
+                           m.m[0][1] * (m.m[1][0] * m.m[2][2] - m.m[1][2] * m.m[2][0]) +
+                           m.m[0][2] * (m.m[1][0] * m.m[2][1] - m.m[1][1] * m.m[2][0]);
+        const double scale = 1.0 / std::cbrt(std::abs(det));
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) m.m[i][j] *= scale;
+        if (!metric) metric = m;
+        else if (round_scale(*metric, index_to_world) == 0) return Mat4();  // shapes differ: world spheres
+    }
+    return metric ? *metric : Mat4();
+}
+
 
 SheetGeometry::SheetGeometry(const Camera& camera) {
     const Mat4& w2c = camera.world_to_camera();
@@ -26,6 +77,20 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
     longest_ray = 0;
     for (double px : {0.0, double(camera.width() - 1)})
         for (double py : {0.0, double(camera.height() - 1)}) longest_ray = std::max(longest_ray, length(direction(px, py)));
+    use_metric(Mat4(), camera.width(), camera.height());
+}
+
+void SheetGeometry::use_metric(const Mat4& metric, int width, int height) {
+    metric_dir0 = metric.transform_vector(dir0);
+    metric_dir_dx = metric.transform_vector(dir_dx);
+    metric_dir_dy = metric.transform_vector(dir_dy);
+    longest_metric_ray = 0;
+    for (double px : {0.0, double(width - 1)})
+        for (double py : {0.0, double(height - 1)})
+            longest_metric_ray = std::max(longest_metric_ray, length(metric_dir0 + metric_dir_dx * px + metric_dir_dy * py));
+    // |M dir| >= |dir| / |M^-1|, and the shortest direction is the axis's.
+    const std::optional<Mat4> inverse = metric.inverse();
+    least_metric_ray = inverse ? world_per_depth / largest_singular_value(*inverse) : 0.0;
 }
 
 }  // namespace pcvr

@@ -1,7 +1,10 @@
 /// @file sheet_geometry.h
 /// @brief Where the sheets lie: every pixel's ray as an affine function of depth, and the frames of eight
-/// pixels' samples on a sheet (planes of constant depth, or spheres around a perspective eye).
+/// pixels' samples on a sheet (planes of constant depth, or spheres around a perspective eye in the
+/// sheet metric, SheetLattice).
 #pragma once
+
+#include <vector>
 
 #include "pcvr/camera.h"
 #include "pcvr/lanes.h"
@@ -16,8 +19,14 @@ struct SheetGeometry {
     Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
     double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
     double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
+    /// The directions in the sheet metric (metric * dir0, ...; the world's own unless use_metric) and
+    /// bounds of |metric * direction| over the image: sheet parameter per unit of depth.
+    Vec3 metric_dir0, metric_dir_dx, metric_dir_dy;
+    double least_metric_ray = 1, longest_metric_ray = 1;
 
     explicit SheetGeometry(const Camera& camera);
+    /// Spheres in this metric (the linear part of `metric`): see SheetLattice.
+    void use_metric(const Mat4& metric, int width, int height);
     Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
     Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
 };
@@ -30,11 +39,24 @@ struct SampleFrames {
     float8 depth_rate;  ///< camera-space depth per unit of the sheet parameter
 };
 
+/// The metric of spherical sheets for grids with these index-to-world transforms (of those with active
+/// voxels): their common index metric, scaled to keep volumes, when all of them have voxels of one
+/// shape up to rotation and scale (a CT's 1 x 1 x 2 voxels, its levels, a mask on the same lattice):
+/// their kernels are round there, and each one's slab shares hold at every tap, as for cubic voxels
+/// in world space. The world's own (identity) otherwise: cubic voxels, or voxel shapes that differ,
+/// where anisotropic kernels take each tap's own share.
+Mat4 sheet_metric(const std::vector<Mat4>& index_to_worlds);
+
+/// The metric length of one index unit when a grid's voxels are cubes in `metric` (its kernels
+/// round), else 0.
+double round_scale(const Mat4& metric, const Mat4& index_to_world);
+
 /// Eight lanes of one vector.
 inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8(float(v.y)), broadcast8(float(v.z))}; }
 
 /// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
-/// world radius u around the eye. Inline: the walk asks for them for every eight pixels of every sheet.
+/// radius u around the eye in the sheet metric. Inline: the walk asks for them for every eight pixels
+/// of every sheet.
 inline SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
     const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
     // Relative to origin0 (the eye in perspective): float resolves positions near the camera.
@@ -49,19 +71,20 @@ inline SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, floa
         f.depth_rate = broadcast8(1.0f);
         return f;
     }
-    // On the sphere of radius u around the eye: the point u along the unit direction d = dir / |dir|,
-    // which turns per pixel by the part of dir's change across d, over |dir|.
-    const float8 inverse_length = 1.0f / sqrt8(dot(dir, dir));
-    const Vec3x8 d = dir * inverse_length;
-    auto turn = [&](const Vec3& change) {
-        const Vec3x8 c = lanes3(change);
-        return (c - d * dot(d, c)) * (inverse_length * float(u));
+    // On the sphere of radius u around the eye: the point where the metric length of the way there is
+    // u, u / |M dir| along dir; it moves per pixel by dir's change less its part along the ray that
+    // keeps the metric length, over |M dir|.
+    const Vec3x8 metric_dir = lanes3(geo.metric_dir0 + geo.metric_dir_dy * double(py)) + lanes3(geo.metric_dir_dx) * px;
+    const float8 inverse_length = 1.0f / sqrt8(dot(metric_dir, metric_dir));
+    const Vec3x8 d = dir * inverse_length, metric_d = metric_dir * inverse_length;
+    auto turn = [&](const Vec3& change, const Vec3& metric_change) {
+        return (lanes3(change) - d * dot(metric_d, lanes3(metric_change))) * (inverse_length * float(u));
     };
     f.position = origin + d * float(u);
-    f.per_pixel_x = turn(geo.dir_dx);
-    f.per_pixel_y = turn(geo.dir_dy);
+    f.per_pixel_x = turn(geo.dir_dx, geo.metric_dir_dx);
+    f.per_pixel_y = turn(geo.dir_dy, geo.metric_dir_dy);
     f.along = d;
-    f.depth_rate = inverse_length;  // dir advances one unit of depth per |dir| of world length
+    f.depth_rate = inverse_length;  // dir advances one unit of depth per |M dir| of the sheet parameter
     f.depth = inverse_length * float(u);
     return f;
 }

@@ -356,24 +356,22 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
 /// (ClassificationTable::extinction) and a clipped grid's weak gradients (sample_clip.h): there the frame
 /// [per_pixel_x, per_pixel_y, along] was scaled by per_length = 1 / |along| (ppx its first column), and the
 /// gradient's rows are those of its inverse times its determinant (from_x the first), while the sheets hold
-/// density times slab_length. The true gradient is per_length gradient / determinant / slab_length; dividing
+/// density times the spacing. The true gradient is per_length gradient / determinant / spacing; dividing
 /// by the determinant first keeps tiny and huge voxels within float's range. Out of line: without gradient
 /// opacity or clipping the walk's loop stays as lean as it was.
 [[gnu::noinline]] float8 gradient_magnitude(const Vec3x8& gradient, const Vec3x8& ppx, const Vec3x8& from_x, float8 per_length,
-                                            float slab_length) {
+                                            float spacing) {
     const Vec3x8 times_slab = gradient * (per_length / dot(ppx, from_x));
-    return sqrt8(dot(times_slab, times_slab)) * (1.0f / slab_length);
+    return sqrt8(dot(times_slab, times_slab)) * (1.0f / spacing);
 }
 
 }  // namespace
 
 bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
     if (!sheets.spherical) return u - half >= near_depth && u + half <= far_depth;
-    // depth = u / |direction|, |direction| from world_per_depth (on the axis) to longest_ray.
-    return (u - half) / geometry->longest_ray >= near_depth && (u + half) / geometry->world_per_depth <= far_depth;
+    // depth = u / |M direction|, between the bounds of |M direction| over the image.
+    return (u - half) / geometry->longest_metric_ray >= near_depth && (u + half) / geometry->least_metric_ray <= far_depth;
 }
-
-double SheetWalkSetup::ray_length_per_unit() const { return sheets.spherical ? 1.0 : length(geometry->dir0); }
 
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {
     const float spacing = float(setup.sheets.spacing);
@@ -402,7 +400,7 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 // Zero means no voxel reaches: empty, not a density of 0.
                 const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
                 const int8x kept = setup.grids[gi].clip ? counted & setup.grids[gi].clip->inside<float8>(f.position) : counted;
-                const float8 density = peak / (spacing * sqrt8(dot(f.along, f.along))) + setup.grids[gi].background;
+                const float8 density = peak * (1.0f / spacing) + setup.grids[gi].background;
                 store8(most, select8(kept, max8(load8(most), density), load8(most)));
             }
     }
@@ -461,9 +459,10 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             for (int64_t k : {s - 1, s + 1, s + 2}) box.include(tile_box(g.box(k), g.halo, rect));
     }
 
-    // Slabs are as long along every ray (see ray_length_per_unit), and samples away from the clip
-    // planes count in full: the frames are only needed where something is classified.
-    const float slab_length = float(setup.sheets.spacing * setup.ray_length_per_unit());
+    // Sheets hold density times the slab's length in the sheet parameter, the same on every ray; its
+    // world length (the opacity's) is the frame's. Samples away from the clip planes count in full:
+    // the frames are only needed where something is classified.
+    const float per_spacing = 1.0f / spacing;
     const double half_extent = 0.5 * setup.sheets.spacing / samples;
     const bool whole = setup.within_clip_everywhere(u, half_extent);
     const AlongRay along(t);
@@ -474,7 +473,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         float8 v[4];
         sheets_at(src, i, v);
         const float8 raw = along.value_at(v);
-        return any8(open & (raw != 0) & src.classification->maybe_opaque(raw / slab_length + src.background));
+        return any8(open & (raw != 0) & src.classification->maybe_opaque(raw * per_spacing + src.background));
     };
 
     size_t newly_opaque = 0;
@@ -504,6 +503,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const Vec3x8 ahead = f.along * per_length, ppx = f.per_pixel_x * per_length, ppy = f.per_pixel_y * per_length;
             const Vec3x8 from_x = cross(ppy, ahead), from_y = cross(ahead, ppx), from_u = cross(ppx, ppy);
             const Vec3x8 to_eye = ahead * -1.0f;
+            const float8 slab_length = spacing / per_length;  // world length of the slab along each ray
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 glow{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};  // emitted radiance per world unit
             bool glowing = false;
@@ -517,7 +517,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 float8 v[4];
                 sheets_at(src, i, v);
                 const float8 raw = along.value_at(v);
-                const float8 density = raw / slab_length + src.background;
+                const float8 density = raw * per_spacing + src.background;
                 int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
                 // The share of the sample's stretch of ray inside the grid's clip region.
@@ -545,7 +545,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const Vec3x8 field_gradient = from_x * g1 + from_y * g2 + from_u * g3;
                 const bool gradient_opacity = src.classification->has_gradient_opacity();
                 const float8 magnitude = gradient_opacity || src.clip
-                                             ? gradient_magnitude(field_gradient, ppx, from_x, per_length, slab_length)
+                                             ? gradient_magnitude(field_gradient, ppx, from_x, per_length, spacing)
                                              : broadcast8(0.0f);
                 float8 extinction = c.extinction;
                 if (gradient_opacity) {

@@ -71,9 +71,6 @@ struct SheetWalkSetup {
     /// True when every pixel's stretch of ray from u - half to u + half (sheet parameter) lies between
     /// the clip planes, so that no sample needs its share.
     bool within_clip_everywhere(double u, double half) const;
-    /// World length of the ray per unit of the sheet parameter: 1 on spheres; planes are orthographic,
-    /// where every ray is the same.
-    double ray_length_per_unit() const;
     /// The share of the ray from depth - half_extent to depth + half_extent between the clip planes:
     /// spherical sheets cross the planes, and a sample half in front of the near plane counts half.
     float8 clip_share(float8 depth, float8 half_extent) const {

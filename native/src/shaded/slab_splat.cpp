@@ -71,7 +71,7 @@ struct SlabBatch {
     float cx[kBatch], cy[kBatch];                // centre
     float qxx[kBatch], qxy[kBatch], qyy[kBatch];  // rho^2 per node offset
     float ext_x[kBatch], ext_y[kBatch];          // half-widths of the ellipse's bounding box
-    float amp[kBatch];                           // value * density scale * world length per index length
+    float amp[kBatch];                           // value * density scale * sheet parameter per index length along the ray
     float s0[kBatch];                            // s (index units along the ray) of the first slab's front, at the centre
     float s_dx[kBatch], s_dy[kBatch];            // change of s per node offset
     float s_step[kBatch];                        // s between consecutive slab boundaries
@@ -81,14 +81,18 @@ struct SlabBatch {
     float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
 };
 
-double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical) {
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, const SheetLattice& sheets) {
+    if (sheets.spherical) {
+        const double round = round_scale(sheets.metric, grid.index_to_world());
+        if (round > 0) return round;
+    }
     Footprint centre;
     const auto [i0, j0, k0, i1, j1, k1] = grid.index_bbox();
     const Vec3 middle{0.5 * (i0 + i1), 0.5 * (j0 + j1), 0.5 * (k0 + k1)};
     // Behind the eye there is no central ray through the grid: fall back to the steepest direction.
     if (!projection.footprint_unclipped(middle, centre))
-        return spherical ? largest_singular_value(grid.index_to_world()) : length(projection.depth_gradient());
-    return spherical ? centre.line_scale : centre.depth_per_index;
+        return sheets.spherical ? largest_singular_value(grid.index_to_world()) : length(projection.depth_gradient());
+    return sheets.spherical ? centre.line_scale : centre.depth_per_index;
 }
 
 SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params)
@@ -96,12 +100,30 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     if (!params.kernel || !params.table || !params.profile || params.stride < 1)
         throw InvalidArgument("SlabView: kernel, footprint table, depth profile and a stride >= 1 are required");
     const Vec3& n = projection_.depth_gradient();
-    index_to_camera_ = camera.world_to_camera() * grid.index_to_world();
-    const Mat4 camera_to_world = *camera.world_to_camera().inverse();
-    world_per_camera_ = length(camera_to_world.column(2));
+    if (sheets.spherical) {
+        round_scale_ = round_scale(sheets.metric, grid.index_to_world());
+        if (round_scale_ > 0) {
+            // Index space, where the spheres are round too: -z along the depth gradient, the eye at 0.
+            const Vec3 axis = n * (1.0 / length(n));
+            Vec3 side[2];
+            complete_frame(axis, side[0], side[1]);
+            const Vec3 rows[3] = {side[0], side[1], axis * -1.0};
+            const Vec3& eye = projection_.eye();
+            for (int r = 0; r < 3; ++r) {
+                order_frame_.m[r][0] = rows[r].x, order_frame_.m[r][1] = rows[r].y, order_frame_.m[r][2] = rows[r].z;
+                order_frame_.m[r][3] = -dot(rows[r], eye);
+            }
+            order_scale_ = round_scale_ / length(n);
+        } else {
+            order_frame_ = camera.world_to_camera() * grid.index_to_world();
+            order_scale_ = length(camera.world_to_camera().inverse()->column(2));  // world length of a camera unit
+        }
+    }
     // A kernel's reach in the sheet parameter: along the depth gradient for planes; for spheres the
-    // longest world length of an index-space radius (the largest singular value of the linear part).
-    depth_reach_ = params.kernel->radius() * (sheets.spherical ? largest_singular_value(grid.index_to_world()) : length(n));
+    // longest metric length of an index-space radius (the largest singular value of the linear part).
+    depth_reach_ = params.kernel->radius() *
+                   (sheets.spherical ? (round_scale_ > 0 ? round_scale_ : largest_singular_value(sheets.metric * grid.index_to_world()))
+                                     : length(n));
     slabs_per_voxel_ = int(std::ceil(2.0 * depth_reach_ / sheets.spacing - 1e-9)) + 1;
     if (!(slabs_per_voxel_ <= kMostSlabs)) {
         const double factor = 2.0 * depth_reach_ / (kMostSlabs - 1) / sheets.spacing;
@@ -172,20 +194,20 @@ uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, uint8_t brick
 
 double SlabView::limit_scale(const VoxelBlock& block) const {
     if (!sheets_.spherical) return 1.0;
-    // The block's voxel centres in camera space: their largest cosine to the axis is at most the
+    // The block's voxel centres in the order frame: their largest cosine to the axis is at most the
     // largest depth over the hypotenuse with the smallest distance from the axis.
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int corner = 0; corner < 8; ++corner) {
         const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
                      double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
                      double(block.origin[2] + ((corner & 4) ? VoxelBlock::kDim - 1 : 0))};
-        const Vec3 c = index_to_camera_.transform_point(p);
+        const Vec3 c = order_frame_.transform_point(p);
         for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a]);
     }
     auto nearest_to_zero = [](double a, double b) { return a <= 0 && b >= 0 ? 0.0 : std::min(std::abs(a), std::abs(b)); };
     const double off_axis = std::hypot(nearest_to_zero(lo[0], hi[0]), nearest_to_zero(lo[1], hi[1]));
     const double deepest = std::max(-lo[2], 1e-300);  // depth = -z
-    return deepest / std::hypot(deepest, off_axis) / world_per_camera_;
+    return deepest / std::hypot(deepest, off_axis) / order_scale_;
 }
 
 double SlabView::front(const VoxelBlock& block) const {
@@ -417,7 +439,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
             const double det = shape_.qxx * shape_.qyy - shape_.qxy * shape_.qxy;
             const float ext_x = float(params_.kernel->radius() * std::sqrt(shape_.qyy / det));
             const float ext_y = float(params_.kernel->radius() * std::sqrt(shape_.qxx / det));
-            const float amp_per_value = float(density_scale * shape_.line_scale * (spread ? 1.0 / std::sqrt(det) : 1.0));
+            const float amp_per_value = float(density_scale * kappa * (spread ? 1.0 / std::sqrt(det) : 1.0));
             for (int l = 0; l < kBatch; ++l) {
                 b.qxx[l] = float(shape_.qxx);
                 b.qxy[l] = float(shape_.qxy);
@@ -442,18 +464,28 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 auto row = [&](int r) { return x * m.m[r][0] + y * m.m[r][1] + z * m.m[r][2] + m.m[r][3]; };
                 const double4 clip_w = row(3);
                 const FootprintLanes<double4> f = projection_.footprint_lanes(x, y, z, row(0), row(1), clip_w, sqrt4);
-                // Node units, and the sheet parameter: spheres take the world distance from the eye, which
-                // the ray through the centre covers at the world length per index length (line_scale); it
-                // changes across the footprint only where the kernel is not round in world space.
+                // Node units, and the sheet parameter: spheres take the metric distance from the eye,
+                // which the ray through the centre covers at kappa per index length. Where the grid's
+                // voxels are cubes in the metric that is its round scale on every ray, and the closest
+                // approach of every ray of the footprint lies at the centre's distance (to second
+                // order): every tap shares the centre's slabs. World spheres (the metric is the world's)
+                // cut anisotropic kernels at an angle: the distance moves across the footprint.
                 const double s2 = stride * stride;
                 const double4 qxx = f.qxx * s2, qxy = f.qxy * s2, qyy = f.qyy * s2, det = qxx * qyy - qxy * qxy;
-                double4 kappa = f.depth_per_index, parameter = f.depth;
-                if (sheets_.spherical) {
+                double4 kappa = f.depth_per_index, parameter = f.depth, distance_dx = f.depth_dx, distance_dy = f.depth_dy;
+                if (round_scale_ > 0) {
+                    const Vec3& eye = projection_.eye();
+                    const double4 ex = x - eye.x, ey = y - eye.y, ez = z - eye.z;
+                    kappa = double4{} + round_scale_;
+                    parameter = sqrt4(ex * ex + ey * ey + ez * ez) * round_scale_;
+                    distance_dx = distance_dy = double4{};
+                } else if (sheets_.spherical) {
                     const Mat4& w = grid_->index_to_world();
                     auto offset = [&](int r) { return x * w.m[r][0] + y * w.m[r][1] + z * w.m[r][2] + (w.m[r][3] - sheets_.eye[r]); };
                     const double4 ex = offset(0), ey = offset(1), ez = offset(2);
                     kappa = f.line_scale;
                     parameter = sqrt4(ex * ex + ey * ey + ez * ez);
+                    distance_dx = f.distance_dx, distance_dy = f.distance_dy;
                 }
                 const double radius = params_.kernel->radius();
                 const double4 ext_x = sqrt4(qyy / det) * radius, ext_y = sqrt4(qxx / det) * radius;
@@ -474,11 +506,11 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                     b.qyy[lane] = float(qyy[l]);
                     b.ext_x[lane] = float(ext_x[l]);
                     b.ext_y[lane] = float(ext_y[l]);
-                    b.amp[lane] = float(v[lane] * density_scale * f.line_scale[l] * (spread ? 1.0 / std::sqrt(det[l]) : 1.0));
+                    b.amp[lane] = float(v[lane] * density_scale * kappa[l] * (spread ? 1.0 / std::sqrt(det[l]) : 1.0));
                     b.first_sheet[lane] = sheet_floor(front);
                     b.s0[lane] = float((front - slabs[l]) * step[l]);
-                    b.s_dx[lane] = float(-(sheets_.spherical ? f.distance_dx[l] : f.depth_dx[l]) * stride / kappa[l]);
-                    b.s_dy[lane] = float(-(sheets_.spherical ? f.distance_dy[l] : f.depth_dy[l]) * stride / kappa[l]);
+                    b.s_dx[lane] = float(-distance_dx[l] * stride / kappa[l]);
+                    b.s_dy[lane] = float(-distance_dy[l] * stride / kappa[l]);
                     b.s_step[lane] = float(step[l]);
                 }
             }

@@ -28,6 +28,7 @@
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
 #include "shaded/occlusion_map.h"
+#include "shaded/sheet_geometry.h"
 #include "shaded/sheet_buffer.h"
 #include "splat/phase_table.h"
 #include "splat/slab_footprint.h"
@@ -47,12 +48,14 @@ inline int64_t sheet_floor(double x) {
 
 /// The surfaces cutting space into slabs: slab s spans [boundary(s), boundary(s + 1)] of the sheet
 /// parameter. Orthographic views: planes of constant depth (camera-space units along the view axis).
-/// Perspective views: spheres around the eye (`spherical`; the parameter is the world distance from
-/// the eye), which every ray crosses at right angles, so that a kernel's slabs are the same at every
-/// tap of its footprint (planes would cut off-axis kernels at an angle and need each tap's own share).
+/// Perspective views: spheres around the eye (`spherical`) in the sheet metric: the parameter is
+/// |metric (x - eye)| (the linear part of `metric`; sheet_geometry.h, sheet_metric), which every ray crosses at right
+/// angles where the metric makes voxels cubes, so that a kernel's slabs are the same at every tap of its
+/// footprint (planes would cut off-axis kernels at an angle and need each tap's own share).
 struct SheetLattice {
     bool spherical = false;
     Vec3 eye;                ///< world position of the eye (spherical)
+    Mat4 metric;             ///< world displacement to sheet-parameter space (spherical; linear part)
     double first_depth = 0;  ///< boundary 0: the near clip plane (spherical: its distance on the axis)
     double spacing = 1;      ///< between boundaries
     int64_t count = 0;       ///< slabs up to the far clip plane
@@ -94,8 +97,9 @@ struct DepositCounts {
 
 /// The sheet parameter's change over one index unit along the ray through the grid's centre: what
 /// "one voxel" of sheet spacing means for this grid (its voxel size along the view direction,
-/// anisotropy included): depth for planes, world length for spheres.
-double depth_per_voxel(const ViewProjection& projection, const Grid& grid, bool spherical);
+/// anisotropy included): depth for planes, metric length for spheres (the same along every ray
+/// where the grid's voxels are cubes in the metric).
+double depth_per_voxel(const ViewProjection& projection, const Grid& grid, const SheetLattice& sheets);
 
 class SlabView {
 public:
@@ -110,7 +114,8 @@ public:
     double depth_reach() const { return depth_reach_; }
     /// For the walk's order, which follows planar depth: a voxel of a block whose planar depth is at
     /// least `limit_scale(block) * (sheet parameter)` has at least that sheet parameter (1 for planes;
-    /// for spheres the block's largest cosine to the view axis over world units per camera unit).
+    /// for spheres the block's largest cosine to the depth axis, in the frame where they are round,
+    /// over the sheet parameter per unit of depth along that axis).
     /// And where the block's kernels begin in the sheet parameter.
     double limit_scale(const VoxelBlock& block) const;
     double front(const VoxelBlock& block) const;
@@ -155,8 +160,12 @@ private:
     Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
     double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
     Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
-    Mat4 index_to_camera_;
-    double world_per_camera_ = 1;   // world length of one camera-space unit
+    // Spheres: the metric length of an index unit where the grid's voxels are cubes in the sheet metric
+    // (0: world spheres, each tap its own share); the frame whose -z is the depth axis, eye at its
+    // origin, in which limit_scale measures cosines, and the sheet parameter per unit of z there.
+    double round_scale_ = 0;
+    Mat4 order_frame_;
+    double order_scale_ = 1;
     std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
 };
 
