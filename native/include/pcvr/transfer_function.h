@@ -72,7 +72,14 @@ public:
         const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
         const int8x i = __builtin_convertvector(x, int8x);
         const float8 f = x - __builtin_convertvector(i, float8);
-        return {lerp_entries(red_, i, f), lerp_entries(green_, i, f), lerp_entries(blue_, i, f), lerp_entries(extinction_, i, f)};
+        // A lane's two entries are eight consecutive floats: one load each and a transpose, where
+        // four pairs of gathers took three times as long (a fifth of the walk's time at 2048^2).
+        __m256 rows[4];
+        for (int l = 0; l < 4; ++l) rows[l] = _mm256_set_m128(entry(i[l + 4], f[l + 4]), entry(i[l], f[l]));
+        const __m256 rg01 = _mm256_unpacklo_ps(rows[0], rows[1]), be01 = _mm256_unpackhi_ps(rows[0], rows[1]);
+        const __m256 rg23 = _mm256_unpacklo_ps(rows[2], rows[3]), be23 = _mm256_unpackhi_ps(rows[2], rows[3]);
+        return {float8(_mm256_shuffle_ps(rg01, rg23, 0x44)), float8(_mm256_shuffle_ps(rg01, rg23, 0xEE)),
+                float8(_mm256_shuffle_ps(be01, be23, 0x44)), float8(_mm256_shuffle_ps(be01, be23, 0xEE))};
     }
     Sample operator()(float density) const {
         const Samples s = (*this)(broadcast8(density));
@@ -121,6 +128,12 @@ public:
 
 private:
     static constexpr int kGradientEntries = 1024;
+    /// Red, green, blue and extinction f of the way from entry i to i + 1.
+    __m128 entry(int i, float f) const {
+        const __m256 pair = _mm256_loadu_ps(entries_.data() + 4 * size_t(i));
+        const __m128 a = _mm256_castps256_ps128(pair), b = _mm256_extractf128_ps(pair, 1);
+        return _mm_fmadd_ps(_mm_set1_ps(f), _mm_sub_ps(b, a), a);
+    }
     static float8 lerp_entries(const std::vector<float>& table, int8x i, float8 f) {
         const float8 a = gather8(table.data(), i), b = gather8(table.data() + 1, i);
         return a + f * (b - a);
@@ -128,7 +141,8 @@ private:
 
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.
-    std::vector<float> red_, green_, blue_, extinction_;
+    std::vector<float> entries_;     // red, green, blue and extinction of each entry, side by side
+    std::vector<float> extinction_;  // the extinctions again, for lookups of them alone
     std::vector<float> emit_red_, emit_green_, emit_blue_;  // like the colours; empty without emission
     std::vector<int> next_opaque_;  // per entry: the first entry at or after it that absorbs or emits
     float opaque_from_, opaque_to_;  // densities outside (opaque_from, opaque_to) neither absorb nor emit

@@ -76,7 +76,8 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
     first_ = float(first);
     scale_ = float(1.0 / step);
 
-    for (auto* channel : {&red_, &green_, &blue_, &extinction_}) channel->resize(kEntries + 2);
+    entries_.resize(4 * size_t(kEntries + 2));
+    extinction_.resize(kEntries + 2);
     if (tf.has_emission())
         for (auto* channel : {&emit_red_, &emit_green_, &emit_blue_}) channel->resize(kEntries + 2);
     size_t segment = 0;  // control points segment, [segment, segment + 1]
@@ -92,16 +93,16 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
                 for (int c = 0; c < 3; ++c) glow[c] += t * (tf.emission[segment + 1][c] - glow[c]);
         }
         const double opacity = std::min(v[3], kMostOpacity);
-        red_[e] = float(v[0]);
-        green_[e] = float(v[1]);
-        blue_[e] = float(v[2]);
         // Capped where a unit_distance of 1e-300 would make it infinite: opaque in any sample anyway.
         extinction_[e] = float(std::min(-std::log1p(-opacity) / unit_distance, 1e30));
+        for (int c = 0; c < 3; ++c) entries_[4 * size_t(e) + c] = float(v[c]);
+        entries_[4 * size_t(e) + 3] = extinction_[e];
         if (tf.has_emission()) emit_red_[e] = float(glow[0]), emit_green_[e] = float(glow[1]), emit_blue_[e] = float(glow[2]);
         if (tf.has_gradient_opacity()) opacity_.push_back(float(opacity));
     }
-    for (auto* channel : {&red_, &green_, &blue_, &extinction_, &emit_red_, &emit_green_, &emit_blue_})
+    for (auto* channel : {&extinction_, &emit_red_, &emit_green_, &emit_blue_})
         if (!channel->empty()) (*channel)[kEntries + 1] = (*channel)[kEntries];
+    std::copy_n(entries_.begin() + 4 * kEntries, 4, entries_.begin() + 4 * (kEntries + 1));
     if (tf.has_gradient_opacity()) {
         opacity_.push_back(opacity_.back());
         per_unit_distance_ = float(std::min(1.0 / unit_distance, 1e30));
