@@ -18,6 +18,24 @@ TEST(exp8_agrees_with_the_library_exp) {
     }
 }
 
+TEST(table_lookups_interpolate_each_lanes_two_entries) {
+    std::vector<float> pairs(40), quads(4 * 40);
+    for (size_t k = 0; k < pairs.size(); ++k) pairs[k] = float(k * k) * 0.5f;
+    for (size_t k = 0; k < quads.size(); ++k) quads[k] = float((k * 7) % 13) - float(k) * 0.25f;
+    const int8x i = {0, 38, 5, 5, 17, 2, 30, 11};
+    const float8 f = {0.0f, 1.0f, 0.25f, 0.75f, 0.5f, 0.125f, 0.9f, 0.3f};
+    const float8 p = lerp_pairs8(pairs.data(), i, f);
+    float8 q[4];
+    lerp_quads8(quads.data(), i, f, q);
+    for (int l = 0; l < 8; ++l) {
+        CHECK_NEAR(p[l], pairs[i[l]] + f[l] * (pairs[i[l] + 1] - pairs[i[l]]), 1e-5);
+        for (int c = 0; c < 4; ++c) {
+            const float a = quads[4 * i[l] + c], b = quads[4 * (i[l] + 1) + c];
+            CHECK_NEAR(q[c][l], a + f[l] * (b - a), 1e-5);
+        }
+    }
+}
+
 TEST(post_filters_reach_and_overshoot) {
     for (int stride : {1, 3, 4, 8}) {
         CHECK(PostFilter(PostFilterShape::Bilinear, stride).reach_nodes() == 1);

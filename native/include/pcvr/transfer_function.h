@@ -74,12 +74,9 @@ public:
         const float8 f = x - __builtin_convertvector(i, float8);
         // A lane's two entries are eight consecutive floats: one load each and a transpose, where
         // four pairs of gathers took three times as long (a fifth of the walk's time at 2048^2).
-        __m256 rows[4];
-        for (int l = 0; l < 4; ++l) rows[l] = _mm256_set_m128(entry(i[l + 4], f[l + 4]), entry(i[l], f[l]));
-        const __m256 rg01 = _mm256_unpacklo_ps(rows[0], rows[1]), be01 = _mm256_unpackhi_ps(rows[0], rows[1]);
-        const __m256 rg23 = _mm256_unpacklo_ps(rows[2], rows[3]), be23 = _mm256_unpackhi_ps(rows[2], rows[3]);
-        return {float8(_mm256_shuffle_ps(rg01, rg23, 0x44)), float8(_mm256_shuffle_ps(rg01, rg23, 0xEE)),
-                float8(_mm256_shuffle_ps(be01, be23, 0x44)), float8(_mm256_shuffle_ps(be01, be23, 0xEE))};
+        float8 c[4];
+        lerp_quads8(entries_.data(), i, f, c);
+        return {c[0], c[1], c[2], c[3]};
     }
     Sample operator()(float density) const {
         const Samples s = (*this)(broadcast8(density));
@@ -128,16 +125,7 @@ public:
 
 private:
     static constexpr int kGradientEntries = 1024;
-    /// Red, green, blue and extinction f of the way from entry i to i + 1.
-    __m128 entry(int i, float f) const {
-        const __m256 pair = _mm256_loadu_ps(entries_.data() + 4 * size_t(i));
-        const __m128 a = _mm256_castps256_ps128(pair), b = _mm256_extractf128_ps(pair, 1);
-        return _mm_fmadd_ps(_mm_set1_ps(f), _mm_sub_ps(b, a), a);
-    }
-    static float8 lerp_entries(const std::vector<float>& table, int8x i, float8 f) {
-        const float8 a = gather8(table.data(), i), b = gather8(table.data() + 1, i);
-        return a + f * (b - a);
-    }
+    static float8 lerp_entries(const std::vector<float>& table, int8x i, float8 f) { return lerp_pairs8(table.data(), i, f); }
 
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.

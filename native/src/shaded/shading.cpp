@@ -139,8 +139,7 @@ Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec
                 const float8 n_dot_h = clamp8(dot(n, h) / sqrt8(h2), 0.0f, 1.0f);
                 const float8 x = n_dot_h * float(kPowerSteps);
                 const int8x k = __builtin_convertvector(x, int8x);
-                const float8 below = gather8(power_.data(), k), above = gather8(power_.data() + 1, k);
-                const float8 power = below + (x - __builtin_convertvector(k, float8)) * (above - below);
+                const float8 power = lerp_pairs8(power_.data(), k, x - __builtin_convertvector(k, float8));
                 specular = specular + energy * select8(n_dot_l > 0, specular_ * power, broadcast8(0.0f));
             }
         }
