@@ -54,7 +54,7 @@ TEST(samples_lie_on_spheres_of_the_metric_and_their_frames_are_the_derivatives) 
     const Camera cam = perspective_camera();
     SheetGeometry geo(cam);
     const Mat4 metric = sheet_metric({ct_voxels(0.3, 1.0)});
-    geo.use_metric(metric, cam.width(), cam.height());
+    geo.use_metric(metric, cam);
     const double u = 4.7;
     const float py = 37.0f;
     const float8 px = float8{3, 50, 100, 151, 200, 250, 290, 319};

@@ -204,13 +204,12 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     SheetLattice sheets;
     sheets.spherical = !camera.orthographic();
     sheets.eye = geometry.origin0;
-    if (sheets.spherical) {
-        std::vector<Mat4> shapes;
-        for (const ShadedVolume& v : volumes)
-            if (v.grid->active_voxel_count() > 0) shapes.push_back(v.grid->index_to_world());
-        sheets.metric = sheet_metric(shapes);
-        geometry.use_metric(sheets.metric, camera.width(), camera.height());
-    }
+    std::vector<Mat4> shapes;
+    for (const ShadedVolume& v : volumes)
+        if (v.grid->active_voxel_count() > 0) shapes.push_back(v.grid->index_to_world());
+    sheets.metric = sheet_metric(shapes);
+    sheets.planes = sheet_planes(camera, sheets.metric);
+    geometry.use_metric(sheets.metric, camera);
     std::vector<ViewProjection> projections;
     double spacing = INFINITY;
     for (const ShadedVolume& v : volumes) {
@@ -223,10 +222,18 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     // From one sheet in front of the near plane (samples between sheets cover the ray from there on,
     // each counting for its share between the clip planes) to the far plane; along the rays through
     // the image's corners for spheres.
-    double nearest = near_depth, farthest = far_depth;
+    double nearest = INFINITY, farthest = -INFINITY;
     if (sheets.spherical) {
         nearest = near_depth * geometry.least_metric_ray;
         farthest = far_depth * geometry.longest_metric_ray;
+    } else {  // planes: u is affine over the view's box, whose corners bound it
+        for (double px : {0.0, double(camera.width() - 1)})
+            for (double py : {0.0, double(camera.height() - 1)})
+                for (double depth : {near_depth, far_depth}) {
+                    const double u = geometry.plane_u0 + geometry.plane_ux * px + geometry.plane_uy * py + depth / geometry.plane_k;
+                    nearest = std::min(nearest, u);
+                    farthest = std::max(farthest, u);
+                }
     }
     sheets.first_depth = nearest - sheets.spacing;
     sheets.count = -sheet_floor(-(farthest - sheets.first_depth) / sheets.spacing);  // the ceiling

@@ -29,6 +29,13 @@ constexpr double kSameShape = 1e-6;
 
 }  // namespace
 
+bool is_identity(const Mat4& metric) {
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            if (metric.m[i][j] != (i == j ? 1.0 : 0.0)) return false;
+    return true;
+}
+
 double round_scale(const Mat4& metric, const Mat4& index_to_world) {
     double c = 0;
     return gram_scale(metric * index_to_world, c) <= kSameShape ? c : 0.0;
@@ -77,10 +84,23 @@ SheetGeometry::SheetGeometry(const Camera& camera) {
     longest_ray = 0;
     for (double px : {0.0, double(camera.width() - 1)})
         for (double py : {0.0, double(camera.height() - 1)}) longest_ray = std::max(longest_ray, length(direction(px, py)));
-    use_metric(Mat4(), camera.width(), camera.height());
+    use_metric(Mat4(), camera);
 }
 
-void SheetGeometry::use_metric(const Mat4& metric, int width, int height) {
+SheetPlanes sheet_planes(const Camera& camera, const Mat4& metric) {
+    const Mat4& w2c = camera.world_to_camera();
+    const Vec3 depth_gradient{-w2c.m[2][0], -w2c.m[2][1], -w2c.m[2][2]};
+    if (is_identity(metric)) return {depth_gradient, -w2c.m[2][3]};
+    // u = (M d) . (M x) / |M d|, d the rays' direction, zero on the plane through the camera.
+    const Vec3 d = depth_gradient / length(depth_gradient);
+    const Vec3 md = metric.transform_vector(d);
+    const Vec3 gradient = Vec3{dot(metric.column(0), md), dot(metric.column(1), md), dot(metric.column(2), md)} / length(md);
+    const Vec3 camera_at = w2c.inverse()->transform_point({0, 0, 0});
+    return {gradient, -dot(gradient, camera_at)};
+}
+
+void SheetGeometry::use_metric(const Mat4& metric, const Camera& camera) {
+    const int width = camera.width(), height = camera.height();
     metric_dir0 = metric.transform_vector(dir0);
     metric_dir_dx = metric.transform_vector(dir_dx);
     metric_dir_dy = metric.transform_vector(dir_dy);
@@ -91,6 +111,13 @@ void SheetGeometry::use_metric(const Mat4& metric, int width, int height) {
     // |M dir| >= |dir| / |M^-1|, and the shortest direction is the axis's.
     const std::optional<Mat4> inverse = metric.inverse();
     least_metric_ray = inverse ? world_per_depth / largest_singular_value(*inverse) : 0.0;
+    if (camera.orthographic()) {
+        const SheetPlanes planes = sheet_planes(camera, metric);
+        plane_u0 = dot(planes.gradient, origin0) + planes.offset;
+        plane_ux = dot(planes.gradient, origin_dx);
+        plane_uy = dot(planes.gradient, origin_dy);
+        plane_k = 1.0 / dot(planes.gradient, dir0);
+    }
 }
 
 }  // namespace pcvr

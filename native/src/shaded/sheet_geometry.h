@@ -19,14 +19,20 @@ struct SheetGeometry {
     Vec3 dir0, dir_dx, dir_dy;           ///< world displacement per unit of depth along the ray
     double world_per_depth = 1;          ///< world length of a unit of depth along the view axis
     double longest_ray = 1;              ///< the largest |direction| over the image (its corners)
-    /// The directions in the sheet metric (metric * dir0, ...; the world's own unless use_metric) and
-    /// bounds of |metric * direction| over the image: sheet parameter per unit of depth.
+    /// Spheres (perspective): the directions in the sheet metric (metric * dir0, ...; the world's own
+    /// unless use_metric) and bounds of |metric * direction| over the image: sheet parameter per unit
+    /// of depth.
     Vec3 metric_dir0, metric_dir_dx, metric_dir_dy;
     double least_metric_ray = 1, longest_metric_ray = 1;
+    /// Planes (orthographic): the sheet parameter where pixel (px, py)'s ray has depth 0 is
+    /// plane_u0 + plane_ux px + plane_uy py, and it grows by 1 / plane_k per unit of depth (0, 0, 0
+    /// and 1 for planes of constant depth).
+    double plane_u0 = 0, plane_ux = 0, plane_uy = 0, plane_k = 1;
 
     explicit SheetGeometry(const Camera& camera);
-    /// Spheres in this metric (the linear part of `metric`): see SheetLattice.
-    void use_metric(const Mat4& metric, int width, int height);
+    /// Sheets in this metric (the linear part of `metric`): spheres around a perspective eye, or
+    /// sheet_planes for an orthographic camera; see SheetLattice.
+    void use_metric(const Mat4& metric, const Camera& camera);
     Vec3 direction(double px, double py) const { return dir0 + dir_dx * px + dir_dy * py; }
     Vec3 point(double px, double py, double z) const { return origin0 + origin_dx * px + origin_dy * py + direction(px, py) * z; }
 };
@@ -47,9 +53,21 @@ struct SampleFrames {
 /// where anisotropic kernels take each tap's own share.
 Mat4 sheet_metric(const std::vector<Mat4>& index_to_worlds);
 
+/// True for the world's own metric (a linear part of exactly the identity).
+bool is_identity(const Mat4& metric);
+
 /// The metric length of one index unit when a grid's voxels are cubes in `metric` (its kernels
 /// round), else 0.
 double round_scale(const Mat4& metric, const Mat4& index_to_world);
+
+/// Orthographic sheets: planes of u = dot(gradient, x) + offset (x in world space). Camera depth for
+/// the world's own metric; otherwise perpendicular to the rays in `metric` (tilted in world space:
+/// they cut voxels that are cubes there as the depth planes cut cubic voxels), u measured in it.
+struct SheetPlanes {
+    Vec3 gradient;
+    double offset = 0;
+};
+SheetPlanes sheet_planes(const Camera& camera, const Mat4& metric);
 
 /// Eight lanes of one vector.
 inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8(float(v.y)), broadcast8(float(v.z))}; }
@@ -63,12 +81,15 @@ inline SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, floa
     const Vec3x8 origin = lanes3(geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
     SampleFrames f;
     if (!spherical) {
-        f.position = origin + dir * float(u);
-        f.per_pixel_x = lanes3(geo.origin_dx + geo.dir_dx * u);
-        f.per_pixel_y = lanes3(geo.origin_dy + geo.dir_dy * u);
-        f.along = dir;
-        f.depth = broadcast8(float(u));
-        f.depth_rate = broadcast8(1.0f);
+        // The depth where the pixel's ray meets the plane u.
+        const float k = float(geo.plane_k), ux = float(geo.plane_ux * geo.plane_k);
+        const float8 depth = (float((u - geo.plane_u0 - geo.plane_uy * double(py)) * geo.plane_k)) - ux * px;
+        f.position = origin + dir * depth;
+        f.per_pixel_x = lanes3(geo.origin_dx) + lanes3(geo.dir_dx) * depth - dir * ux;
+        f.per_pixel_y = lanes3(geo.origin_dy) + lanes3(geo.dir_dy) * depth - dir * float(geo.plane_uy * geo.plane_k);
+        f.along = dir * k;
+        f.depth = depth;
+        f.depth_rate = broadcast8(k);
         return f;
     }
     // On the sphere of radius u around the eye: the point where the metric length of the way there is

@@ -220,7 +220,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             }
             // The voxels whose kernels reach sheet s + 2 come first in depth order (planar depth; for
             // spherical sheets a bound, SlabView::limit_scale).
-            const float limit = float((splat_front + view.depth_reach()) * tb.limit_scale - view.origin_depth(block));
+            const float limit = float((splat_front + view.depth_reach()) * tb.limit_scale - view.order_depth(block));
             const std::vector<float>& depth = view.depth_order().depth;
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
@@ -368,7 +368,18 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
 }  // namespace
 
 bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
-    if (!sheets.spherical) return u - half >= near_depth && u + half <= far_depth;
+    if (!sheets.spherical) {
+        // depth = (u - u at depth 0) k, the latter affine in the pixel: extremes at the image's corners.
+        const SheetGeometry& g = *geometry;
+        double lo = INFINITY, hi = -INFINITY;
+        for (double px : {0.0, double(width - 1)})
+            for (double py : {0.0, double(height - 1)}) {
+                const double at_zero = g.plane_u0 + g.plane_ux * px + g.plane_uy * py;
+                lo = std::min(lo, (u - half - at_zero) * g.plane_k);
+                hi = std::max(hi, (u + half - at_zero) * g.plane_k);
+            }
+        return lo >= near_depth && hi <= far_depth;
+    }
     // depth = u / |M direction|, between the bounds of |M direction| over the image.
     return (u - half) / geometry->longest_metric_ray >= near_depth && (u + half) / geometry->least_metric_ray <= far_depth;
 }

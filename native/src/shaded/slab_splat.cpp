@@ -82,10 +82,9 @@ struct SlabBatch {
 };
 
 double depth_per_voxel(const ViewProjection& projection, const Grid& grid, const SheetLattice& sheets) {
-    if (sheets.spherical) {
-        const double round = round_scale(sheets.metric, grid.index_to_world());
-        if (round > 0) return round;
-    }
+    // Where the grid's voxels are cubes in the metric, every ray crosses sheets at right angles there.
+    const double round = round_scale(sheets.metric, grid.index_to_world());
+    if (round > 0 && (sheets.spherical || !is_identity(sheets.metric))) return round;
     Footprint centre;
     const auto [i0, j0, k0, i1, j1, k1] = grid.index_bbox();
     const Vec3 middle{0.5 * (i0 + i1), 0.5 * (j0 + j1), 0.5 * (k0 + k1)};
@@ -99,7 +98,19 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     : grid_(&grid), projection_(camera, grid.index_to_world()), sheets_(sheets), params_(params) {
     if (!params.kernel || !params.table || !params.profile || params.stride < 1)
         throw InvalidArgument("SlabView: kernel, footprint table, depth profile and a stride >= 1 are required");
-    const Vec3& n = projection_.depth_gradient();
+    const Mat4& w = grid.index_to_world();
+    if (sheets.spherical) {
+        order_gradient_ = projection_.depth_gradient();
+        order_offset_ = projection_.depth({0, 0, 0});
+    } else {
+        const Vec3& a = sheets.planes.gradient;
+        order_gradient_ = Vec3{dot(w.column(0), a), dot(w.column(1), a), dot(w.column(2), a)};
+        order_offset_ = dot(w.column(3), a) + sheets.planes.offset;
+        const Vec3 ray = projection_.index_ray(0, 0).direction;
+        plane_kappa_ = dot(order_gradient_, ray) / length(ray);
+        tilted_ = round_scale(sheets.metric, w) > 0 && !is_identity(sheets.metric);
+    }
+    const Vec3& n = order_gradient_;
     if (sheets.spherical) {
         round_scale_ = round_scale(sheets.metric, grid.index_to_world());
         if (round_scale_ > 0) {
@@ -211,15 +222,19 @@ double SlabView::limit_scale(const VoxelBlock& block) const {
 }
 
 double SlabView::front(const VoxelBlock& block) const {
-    const Vec3& n = projection_.depth_gradient();
+    const Vec3& n = order_gradient_;
     const double span = VoxelBlock::kDim - 1;
-    const double nearest = origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+    const double nearest = order_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
     // Spheres: a voxel's distance is its planar depth over its cosine to the axis, at least this.
     return (sheets_.spherical ? std::max(0.0, nearest) / limit_scale(block) : nearest) - depth_reach_;
 }
 
 double SlabView::origin_depth(const VoxelBlock& block) const {
     return projection_.depth(Vec3{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])});
+}
+
+double SlabView::order_depth(const VoxelBlock& block) const {
+    return dot(order_gradient_, Vec3{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])}) + order_offset_;
 }
 
 namespace {
@@ -402,7 +417,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
     const double spacing = sheets_.spacing, inv_spacing = 1.0 / spacing;
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
     // Depths relative to the slab holding the block's origin keep the per-voxel arithmetic in small floats.
-    const double origin_slabs = (origin_depth(block) - sheets_.first_depth) * inv_spacing;
+    const double origin_slabs = (order_depth(block) - sheets_.first_depth) * inv_spacing;
     const int64_t base_sheet = sheet_floor(origin_slabs);
     const float base_fraction = float(origin_slabs - double(base_sheet));
     const float reach_slabs = float(depth_reach_ * inv_spacing);
@@ -426,7 +441,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
             const float8 cy = oy + float(node_gy_.x) * i + float(node_gy_.y) * j + float(node_gy_.z) * k;
             // Slab units: the first slab a voxel reaches, and where its centre lies relative to it.
             const float8 centre = base_fraction + load8(order_.depth.data() + batch) * float(inv_spacing);
-            const float kappa = float(shape_.depth_per_index);
+            const float kappa = float(plane_kappa_);
             for (int l = 0; l < kBatch; ++l) {
                 // Lanes past the block's last voxel lie at infinite depth (DepthOrder's padding) and
                 // splat nothing: their sheet is not converted from infinity.
@@ -447,8 +462,9 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 b.ext_x[l] = ext_x;
                 b.ext_y[l] = ext_y;
                 b.amp[l] = v[l] * amp_per_value;
-                b.s_dx[l] = float(-shape_.depth_dx / kappa);
-                b.s_dy[l] = float(-shape_.depth_dy / kappa);
+                // Tilted planes cross every ray of a round kernel at the centre's place along it.
+                b.s_dx[l] = tilted_ ? 0.0f : float(-shape_.depth_dx / shape_.depth_per_index);
+                b.s_dy[l] = tilted_ ? 0.0f : float(-shape_.depth_dy / shape_.depth_per_index);
                 b.s_step[l] = float(spacing / kappa);
             }
         } else {

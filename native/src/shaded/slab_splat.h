@@ -47,7 +47,8 @@ inline int64_t sheet_floor(double x) {
 }
 
 /// The surfaces cutting space into slabs: slab s spans [boundary(s), boundary(s + 1)] of the sheet
-/// parameter. Orthographic views: planes of constant depth (camera-space units along the view axis).
+/// parameter. Orthographic views: planes (`planes`), of constant depth (camera-space units along the
+/// view axis) or, where the metric makes the grids' voxels cubes, perpendicular to the rays there.
 /// Perspective views: spheres around the eye (`spherical`) in the sheet metric: the parameter is
 /// |metric (x - eye)| (the linear part of `metric`; sheet_geometry.h, sheet_metric), which every ray crosses at right
 /// angles where the metric makes voxels cubes, so that a kernel's slabs are the same at every tap of its
@@ -55,7 +56,8 @@ inline int64_t sheet_floor(double x) {
 struct SheetLattice {
     bool spherical = false;
     Vec3 eye;                ///< world position of the eye (spherical)
-    Mat4 metric;             ///< world displacement to sheet-parameter space (spherical; linear part)
+    Mat4 metric;             ///< world displacement to sheet-parameter space (linear part)
+    SheetPlanes planes;      ///< orthographic views: the planes' parameter (sheet_planes)
     double first_depth = 0;  ///< boundary 0: the near clip plane (spherical: its distance on the axis)
     double spacing = 1;      ///< between boundaries
     int64_t count = 0;       ///< slabs up to the far clip plane
@@ -129,7 +131,11 @@ public:
         std::vector<uint8_t> brick;  ///< the 4^3 brick of the voxel (TileBlock::bricks' bit)
     };
     const DepthOrder& depth_order() const { return order_; }
+    /// Camera depth of the block's origin (for the clip planes).
     double origin_depth(const VoxelBlock& block) const;
+    /// The block origin's place in the order of DepthOrder::depth: camera depth for spheres, the
+    /// sheet parameter for planes.
+    double order_depth(const VoxelBlock& block) const;
     /// Active voxels of the block's `bricks` from rank `first` on (what skipping the rest of it leaves out).
     uint64_t voxels_left(const VoxelBlock& block, int first, uint8_t bricks = 0xff) const;
     /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
@@ -166,6 +172,12 @@ private:
     double round_scale_ = 0;
     Mat4 order_frame_;
     double order_scale_ = 1;
+    // The order's gradient and offset in index space (DepthOrder, order_depth); planes: u per index
+    // length along the rays, and whether they are tilted (metric planes: every tap shares its slabs).
+    Vec3 order_gradient_;
+    double order_offset_ = 0;
+    double plane_kappa_ = 1;
+    bool tilted_ = false;
     std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
 };
 
