@@ -6,7 +6,7 @@ import numpy as np
 
 import blender_scenes as bs
 from _io_helpers import run_blender_openvdb
-from tools.material_preview import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
+from tools.smoke_plume import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
 
 N = 16
 VOXEL = 0.1
