@@ -65,3 +65,10 @@ def principled_material(name="Medium", **inputs):
 def use_material(obj, material):
     obj.data.materials.append(material)
     obj.data.pcvr.source = 'MATERIAL'
+
+
+def prepared():
+    """The current scene as a render prepares it (its volumes, media and the warnings the render reports)."""
+    from pcvr_addon import prepared_scene, scene_inputs
+    inputs, _ = scene_inputs.read(bpy.context.evaluated_depsgraph_get(), prepared_scene.export_grid)
+    return prepared_scene.prepare(inputs)
