@@ -27,8 +27,9 @@ def fire_grids(n=N):
 
 
 def write_multi_grid_vdb(path, grids):
-    """A .vdb file holding each of {name: values} (float grids, centred like bs.centred), written by Blender's
-    bundled OpenVDB in a fresh interpreter (pcvr_native writes one grid per file)."""
+    """A .vdb file holding each of {name: values} (float grids, or vector grids where values are (n, n, n, 3):
+    Mantaflow's `color`), centred like bs.centred, written by Blender's bundled OpenVDB in a fresh interpreter
+    (pcvr_native writes one float grid per file)."""
     arrays = {name: np.asarray(values, np.float32) for name, values in grids.items()}
     np.savez(str(path) + ".npz", **arrays)
     matrix = bs.centred(VOXEL, next(iter(arrays.values())).shape[0])
@@ -37,7 +38,7 @@ def write_multi_grid_vdb(path, grids):
         transform = vdb.createLinearTransform(np.array({matrix.tolist()!r}).T.tolist())
         grids = []
         for name in arrays.files:
-            grid = vdb.FloatGrid()
+            grid = vdb.Vec3SGrid() if arrays[name].ndim == 4 else vdb.FloatGrid()
             grid.copyFromArray(arrays[name])
             grid.name, grid.transform = name, transform
             grid.gridClass = vdb.GridClass.FOG_VOLUME
