@@ -5,8 +5,8 @@ volume of the bench part that sets PCVR's materials beside Cycles (tests/bench/b
 material tests.
 
 The plume is made here (seeded): a density that widens as it rises, smoothed noise in it, a flame near its
-foot and a temperature of 3 x flame (up to 3000 K through Quick Fire's Temperature of 1000), written as one
-.vdb with Blender's bundled OpenVDB. The materials are those Blender's object.quick_smoke operator makes
+foot and a temperature of 3 x flame (up to 3000 K through Quick Fire's Temperature of 1000), and optionally a
+`color` vector grid, written as one .vdb with Blender's bundled OpenVDB. The materials are those Blender's object.quick_smoke operator makes
 (style 'SMOKE' and 'FIRE').
 """
 
@@ -41,15 +41,25 @@ def plume(n=N, seed=7):
     return {name: values.astype(np.float32) for name, values in grids.items()}
 
 
+def colour(grids):
+    """A `color` grid for the plume, as a smoke simulation's: orange at its foot turning to violet as it rises,
+    zero where there is no smoke. (n, n, n, 3) float32."""
+    density = grids["density"]
+    height = np.linspace(0.0, 1.0, density.shape[2])[None, None, :, None]
+    rgb = (1 - height) * np.array([1.0, 0.45, 0.1]) + height * np.array([0.45, 0.25, 1.0])
+    return np.where(density[..., None] > 0, rgb, 0.0).astype(np.float32)
+
+
 def write_vdb(path, grids):
-    """Write {name: values} as float fog volumes of VOXEL-sized voxels into one .vdb at `path`."""
+    """Write {name: values} as fog volumes of VOXEL-sized voxels into one .vdb at `path`: float grids, and vector
+    grids where values are (n, n, n, 3)."""
     bpy.utils.expose_bundled_modules()
     import openvdb as vdb
 
     transform = vdb.createLinearTransform(voxelSize=VOXEL)
     written = []
     for name, values in grids.items():
-        grid = vdb.FloatGrid()
+        grid = vdb.Vec3SGrid() if values.ndim == 4 else vdb.FloatGrid()
         grid.copyFromArray(values)
         grid.name, grid.transform, grid.gridClass = name, transform, vdb.GridClass.FOG_VOLUME
         written.append(grid)

@@ -13,6 +13,7 @@ module, run as
 |         | extinction, -ln(1 - alpha) / voxel size (what pcvr_native makes of it)                              |
 | smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
 | fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
+| coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
 
 Each render is timed as a whole (bpy.ops.render.render, reading the file included: PCVR's grid cache is emptied
 first); PCVR's time is the least of the job's rounds, Cycles renders once at the job's samples (its default
@@ -134,13 +135,18 @@ def plume_scene(vdb_path, n, size):
     return scene, obj
 
 
-def plume(style):
+def plume(style, coloured=False):
+    """The plume with Blender's Quick Smoke material of `style`; `coloured`: with a `color` grid, which the
+    material's Color Attribute names."""
     def make(job, directory):
-        vdb_path = os.path.join(directory, "plume.vdb")
+        vdb_path = os.path.join(directory, f"plume_{style.lower()}{'_coloured' if coloured else ''}.vdb")
         grids = smoke_plume.plume(job["plume_size"])
-        smoke_plume.write_vdb(vdb_path, grids)
+        smoke_plume.write_vdb(vdb_path, {**grids, "color": smoke_plume.colour(grids)} if coloured else grids)
         scene, obj = plume_scene(vdb_path, job["plume_size"], job["plume_pixels"])
-        obj.data.materials.append(smoke_plume.quick_material(style))
+        material = smoke_plume.quick_material(style)
+        if coloured:
+            material.node_tree.nodes["Principled Volume"].inputs["Color Attribute"].default_value = "color"
+        obj.data.materials.append(material)
         obj.data.pcvr.source = 'MATERIAL'
         scene.pcvr.mode = 'SHADED'
         scene.pcvr.shadows = True
@@ -152,7 +158,7 @@ def plume(style):
     return make
 
 
-SCENES = {"ct_bone": ct_bone, "smoke": plume('SMOKE'), "fire": plume('FIRE')}
+SCENES = {"ct_bone": ct_bone, "smoke": plume('SMOKE'), "fire": plume('FIRE'), "coloured_smoke": plume('SMOKE', True)}
 
 
 def timed_render(scene):

@@ -6,12 +6,13 @@ in the same run, same material, same sun, Cycles at high samples as the referenc
 |---------|-----------------------------------------------------------------------------------------------|
 | scenes  | blender_materials.py, in a child process with the bpy module: the CT head (96^3, CT Bone preset)   |
 |         | in PCVR's Blinn-Phong and scattering-with-shadows shadings, and a 64^3 plume with Blender's Quick  |
-|         | Smoke and Quick Fire materials (PCVR with shadows); Cycles renders each with the same material at  |
+|         | Smoke and Quick Fire materials (PCVR with shadows), and the smoke with a `color` grid (Color         |
+|         | Attribute); Cycles renders each with the same material at                                           |
 |         | SAMPLES samples and at a quarter of them (quick: 48^3 and 32^3 volumes, fewer pixels and samples)   |
 | timing  | each render as a whole (bpy.ops.render.render, the file read included); PCVR the least of ROUNDS    |
 | error   | PSNR of linear RGB (peak 1) against Cycles at SAMPLES: over the whole frame, and over the volume's    |
 |         | pixels (those where either image leaves the world's colour by more than a PNG step, 1/255)        |
-| images  | docs/img/{ct_bone,smoke,fire}_{pcvr,cycles}.png and ct_bone_pcvr_scattering.png (quick: under       |
+| images  | docs/img/{ct_bone,smoke,fire,coloured_smoke}_{pcvr,cycles}.png, ct_bone_pcvr_scattering.png (quick: under |
 |         | out/bench/materials), linked from docs/shaded-rendering-in-blender.md                              |
 
     python tests/bench/materials_bench.py [--quick]      # prints the section
@@ -43,7 +44,9 @@ IMAGE_DIR = REPO / "docs" / "img"
 ROWS = [("ct_bone", "pcvr", "CT head, CT Bone preset: PCVR's Blinn-Phong (the preset)"),
         ("ct_bone", "pcvr_scattering", "CT head, CT Bone preset: PCVR scattering with shadows"),
         ("smoke", "pcvr", "plume, Quick Smoke: PCVR scattering with shadows"),
-        ("fire", "pcvr", "plume, Quick Fire: PCVR scattering with shadows")]
+        ("fire", "pcvr", "plume, Quick Fire: PCVR scattering with shadows"),
+        ("coloured_smoke", "pcvr", "plume, Quick Smoke with a `color` grid as its Color Attribute: PCVR scattering "
+                                   "with shadows")]
 PNG_STEP = 1.0 / 255.0
 
 

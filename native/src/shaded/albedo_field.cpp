@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <string>
+#include <unordered_map>
 
 #include "pcvr/errors.h"
 
@@ -11,20 +11,20 @@ namespace pcvr {
 
 namespace {
 
-/// The bounding box of a grid's blocks in block coordinates (index >> 3), inclusive; empty: i0 > i1.
-std::array<int64_t, 6> block_box(const Grid& grid) {
-    constexpr int64_t kHuge = std::numeric_limits<int64_t>::max();
-    std::array<int64_t, 6> box{kHuge, kHuge, kHuge, -kHuge, -kHuge, -kHuge};
-    for (const VoxelBlock& b : grid.blocks())
-        for (int a = 0; a < 3; ++a) {
-            box[a] = std::min(box[a], int64_t(b.origin[a]) >> 3);
-            box[a + 3] = std::max(box[a + 3], int64_t(b.origin[a]) >> 3);
-        }
-    return box;
+/// The texels' share of their neighbours' colour where they have no density of their own.
+constexpr float kBorrowed = 1e-3f;
+/// Voxels the lattice reaches beyond the density's active box on each side: the kernel's reach.
+constexpr int kMargin = 2;
+
+uint64_t block_key(int64_t i, int64_t j, int64_t k) {
+    return (uint64_t(i >> 3) & 0x1fffff) << 42 | (uint64_t(j >> 3) & 0x1fffff) << 21 | (uint64_t(k >> 3) & 0x1fffff);
 }
 
-uint64_t block_key(int64_t bi, int64_t bj, int64_t bk) {
-    return (uint64_t(bi) & 0x1fffff) << 42 | (uint64_t(bj) & 0x1fffff) << 21 | (uint64_t(bk) & 0x1fffff);
+/// A grid's blocks by their origin (block_key).
+std::unordered_map<uint64_t, const VoxelBlock*> blocks_by_origin(const Grid& grid) {
+    std::unordered_map<uint64_t, const VoxelBlock*> out;
+    for (const VoxelBlock& b : grid.blocks()) out.emplace(block_key(b.origin[0], b.origin[1], b.origin[2]), &b);
+    return out;
 }
 
 bool same_placement(const Mat4& a, const Mat4& b) {
@@ -37,73 +37,13 @@ bool same_placement(const Mat4& a, const Mat4& b) {
     return difference <= 1e-9 * std::max(scale, 1.0);
 }
 
+Mat4 translation(double x, double y, double z) {
+    Mat4 m = Mat4::identity();
+    m.m[0][3] = x, m.m[1][3] = y, m.m[2][3] = z;
+    return m;
+}
+
 }  // namespace
-
-AlbedoField::Voxels::Voxels(const Grid& grid, const std::array<int64_t, 6>& box) : background_(grid.background()), box_(box) {
-    const bool empty = box[0] > box[3];
-    const uint64_t count = empty ? 0 : uint64_t(box[3] - box[0] + 1) * uint64_t(box[4] - box[1] + 1) * uint64_t(box[5] - box[2] + 1);
-    if (!empty && count <= kMostDenseBlocks) dense_.assign(count, nullptr);
-    for (const VoxelBlock& b : grid.blocks()) {
-        const int64_t bi = int64_t(b.origin[0]) >> 3, bj = int64_t(b.origin[1]) >> 3, bk = int64_t(b.origin[2]) >> 3;
-        if (empty || bi < box[0] || bj < box[1] || bk < box[2] || bi > box[3] || bj > box[4] || bk > box[5]) continue;
-        if (dense_.empty())
-            hashed_.emplace(block_key(bi, bj, bk), &b);
-        else
-            dense_[(uint64_t(bi - box[0]) * uint64_t(box[4] - box[1] + 1) + uint64_t(bj - box[1])) * uint64_t(box[5] - box[2] + 1) +
-                   uint64_t(bk - box[2])] = &b;
-    }
-}
-
-const VoxelBlock* AlbedoField::Voxels::block(int64_t bi, int64_t bj, int64_t bk) const {
-    if (bi < box_[0] || bj < box_[1] || bk < box_[2] || bi > box_[3] || bj > box_[4] || bk > box_[5]) return nullptr;
-    if (!dense_.empty())
-        return dense_[(uint64_t(bi - box_[0]) * uint64_t(box_[4] - box_[1] + 1) + uint64_t(bj - box_[1])) * uint64_t(box_[5] - box_[2] + 1) +
-                      uint64_t(bk - box_[2])];
-    const auto it = hashed_.find(block_key(bi, bj, bk));
-    return it == hashed_.end() ? nullptr : it->second;
-}
-
-float AlbedoField::Voxels::value(int64_t i, int64_t j, int64_t k) const {
-    const VoxelBlock* b = block(i >> 3, j >> 3, k >> 3);
-    if (!b) return background_;
-    const int offset = int(((i & 7) << 6) | ((j & 7) << 3) | (k & 7));
-    return b->active(offset) ? b->value(offset) : background_;
-}
-
-void AlbedoField::add(double w, double d, const float colour[3], double sum[4]) {
-    if (!(d > 0) || !std::isfinite(d) || !(w > 0)) return;
-    for (int c = 0; c < 3; ++c)
-        if (std::isfinite(colour[c])) sum[c] += w * d * double(colour[c]);
-    sum[3] += w * d;
-}
-
-template <class Weight>
-void AlbedoField::accumulate(const int64_t lo[3], const int64_t hi[3], Weight&& weight, double sum[4]) const {
-    for (int64_t i = lo[0]; i <= hi[0]; ++i)
-        for (int64_t j = lo[1]; j <= hi[1]; ++j)
-            for (int64_t k = lo[2]; k <= hi[2]; ++k) {
-                const double d = double(voxels_[0].value(i, j, k)) - density_background_;
-                if (!(d > 0)) continue;
-                const float colour[3] = {voxels_[1].value(i, j, k), voxels_[2].value(i, j, k), voxels_[3].value(i, j, k)};
-                add(weight(i, j, k), d, colour, sum);
-            }
-}
-
-Vec3f AlbedoField::mean_colour(const Grid& density) const {
-    double sum[4] = {0, 0, 0, 0};
-    for (const VoxelBlock& b : density.blocks()) {
-        const int64_t bi = int64_t(b.origin[0]) >> 3, bj = int64_t(b.origin[1]) >> 3, bk = int64_t(b.origin[2]) >> 3;
-        const VoxelBlock* colour_blocks[3] = {voxels_[1].block(bi, bj, bk), voxels_[2].block(bi, bj, bk), voxels_[3].block(bi, bj, bk)};
-        for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
-            if (!b.active(offset)) continue;
-            const float colour[3] = {voxels_[1].value(colour_blocks[0], offset), voxels_[2].value(colour_blocks[1], offset),
-                                     voxels_[3].value(colour_blocks[2], offset)};
-            add(1.0, double(b.value(offset)) - density_background_, colour, sum);
-        }
-    }
-    if (!(sum[3] > 0)) return {1, 1, 1};
-    return {float(sum[0] / sum[3]), float(sum[1] / sum[3]), float(sum[2] / sum[3])};
-}
 
 std::unique_ptr<AlbedoField> AlbedoField::of(const ShadedVolume& volume, const Vec3& origin) {
     const auto& colour = volume.albedo_grids;
@@ -111,8 +51,7 @@ std::unique_ptr<AlbedoField> AlbedoField::of(const ShadedVolume& volume, const V
     return std::make_unique<AlbedoField>(*volume.grid, colour, origin);
 }
 
-AlbedoField::AlbedoField(const Grid& density, const std::array<const Grid*, 3>& colour, const Vec3& origin)
-    : density_background_(density.background()) {
+AlbedoField::AlbedoField(const Grid& density, const std::array<const Grid*, 3>& colour, const Vec3& origin) {
     static const char* kChannel[3] = {"red", "green", "blue"};
     for (int c = 0; c < 3; ++c) {
         if (!colour[c]) throw InvalidArgument("albedo_grids: the " + std::string(kChannel[c]) + " grid is missing (give all three)");
@@ -123,49 +62,125 @@ AlbedoField::AlbedoField(const Grid& density, const std::array<const Grid*, 3>& 
     }
     const std::optional<Mat4> to_index = density.index_to_world().inverse();
     if (!to_index) throw InvalidArgument("albedo_grids: grid '" + density.name() + "' has a singular index_to_world");
-    Mat4 from_origin = Mat4::identity();
-    from_origin.m[0][3] = origin.x, from_origin.m[1][3] = origin.y, from_origin.m[2][3] = origin.z;
-    to_index_ = *to_index * from_origin;
-    // Only voxels near density are weighted: the density grid's blocks bound every lookup that counts.
-    const std::array<int64_t, 6> box = block_box(density);
-    voxels_.emplace_back(density, box);
-    for (const Grid* g : colour) voxels_.emplace_back(*g, box);
-    // The whole volume's colour, for points beyond every voxel's reach that the post-filter's spread of a
-    // sheet still gives a trace of density.
-    mean_ = mean_colour(density);
+    if (density.blocks().empty()) return;  // no density: the factor is 1 everywhere
+
+    // The density's active box widened by the kernel's reach, a texel per voxel where that fits.
+    const std::array<int32_t, 6> box = density.index_bbox();
+    std::array<double, 3> low, extent;
+    double count = 1;
+    for (int a = 0; a < 3; ++a) {
+        low[a] = double(box[a]) - kMargin;
+        extent[a] = double(box[a + 3]) - double(box[a]) + 2 * kMargin;
+        count *= extent[a] + 1;
+    }
+    double spacing = std::max(1.0, std::cbrt(count / double(kMostTexels)));
+    for (;; spacing *= 1.01) {
+        for (int a = 0; a < 3; ++a) n_[a] = int64_t(std::ceil(extent[a] / spacing)) + 1;
+        if (uint64_t(n_[0]) * uint64_t(n_[1]) * uint64_t(n_[2]) <= kMostTexels) break;
+    }
+    const Mat4 scale = Mat4::from_rows({1 / spacing, 0, 0, 0, 0, 1 / spacing, 0, 0, 0, 0, 1 / spacing, 0, 0, 0, 0, 1});
+    to_lattice_ = scale * translation(-low[0], -low[1], -low[2]) * *to_index * translation(origin.x, origin.y, origin.z);
+    texels_.assign(size_t(n_[0] * n_[1] * n_[2]), Texel{});
+
+    const Texel whole = fill(density, colour, low, spacing);
+    if (whole.weight > 0) mean_ = {whole.red / whole.weight, whole.green / whole.weight, whole.blue / whole.weight};
+    dilate();
+}
+
+AlbedoField::Texel AlbedoField::fill(const Grid& density, const std::array<const Grid*, 3>& colour,
+                                     const std::array<double, 3>& low, double spacing) {
+    std::array<std::unordered_map<uint64_t, const VoxelBlock*>, 3> colour_blocks;
+    for (int c = 0; c < 3; ++c) colour_blocks[c] = blocks_by_origin(*colour[c]);
+    const float background = density.background();
+    double whole[4] = {0, 0, 0, 0};
+    for (const VoxelBlock& b : density.blocks()) {
+        const VoxelBlock* parts[3];
+        for (int c = 0; c < 3; ++c) {
+            const auto it = colour_blocks[c].find(block_key(b.origin[0], b.origin[1], b.origin[2]));
+            parts[c] = it == colour_blocks[c].end() ? nullptr : it->second;
+        }
+        for (int offset = 0; offset < VoxelBlock::kSize; ++offset) {
+            const double d = b.active(offset) ? double(b.value(offset)) - background : 0.0;
+            if (!(d > 0) || !std::isfinite(d)) continue;
+            float rgb[3];
+            for (int c = 0; c < 3; ++c) {
+                const float v = parts[c] && parts[c]->active(offset) ? parts[c]->value(offset) : colour[c]->background();
+                rgb[c] = std::isfinite(v) ? v : 0.0f;
+            }
+            const int64_t voxel[3] = {b.origin[0] + (offset >> 6), b.origin[1] + ((offset >> 3) & 7), b.origin[2] + (offset & 7)};
+            int64_t t[3];
+            for (int a = 0; a < 3; ++a) t[a] = std::clamp(int64_t(std::lround((double(voxel[a]) - low[a]) / spacing)), int64_t(0), n_[a] - 1);
+            Texel& texel = texels_[index(t[0], t[1], t[2])];
+            texel.red += float(d) * rgb[0], texel.green += float(d) * rgb[1], texel.blue += float(d) * rgb[2];
+            texel.weight += float(d);
+            whole[0] += d * rgb[0], whole[1] += d * rgb[1], whole[2] += d * rgb[2], whole[3] += d;
+        }
+    }
+    return {float(whole[0]), float(whole[1]), float(whole[2]), float(whole[3])};
+}
+
+void AlbedoField::dilate() {
+    // Tent weights over 5^3 texels: a box of three along each axis, twice.
+    std::vector<Texel> sums = texels_;
+    std::vector<Texel> line;
+    const size_t stride[3] = {size_t(n_[1] * n_[2]), size_t(n_[2]), 1};
+    for (int pass = 0; pass < 6; ++pass) {
+        const int a = pass % 3, b = (a + 1) % 3, c = (a + 2) % 3;
+        line.resize(size_t(n_[a]));
+        for (int64_t u = 0; u < n_[b]; ++u)
+            for (int64_t v = 0; v < n_[c]; ++v) {
+                const size_t start = size_t(u) * stride[b] + size_t(v) * stride[c];
+                for (int64_t x = 0; x < n_[a]; ++x) line[size_t(x)] = sums[start + size_t(x) * stride[a]];
+                for (int64_t x = 0; x < n_[a]; ++x) {
+                    Texel s = line[size_t(x)];
+                    for (int64_t y : {x - 1, x + 1}) {
+                        if (y < 0 || y >= n_[a]) continue;
+                        const Texel& o = line[size_t(y)];
+                        s.red += o.red, s.green += o.green, s.blue += o.blue, s.weight += o.weight;
+                    }
+                    sums[start + size_t(x) * stride[a]] = s;
+                }
+            }
+    }
+    for (size_t i = 0; i < texels_.size(); ++i)
+        if (!(texels_[i].weight > 0)) {
+            const Texel& s = sums[i];
+            texels_[i] = {kBorrowed * s.red, kBorrowed * s.green, kBorrowed * s.blue, kBorrowed * s.weight};
+        }
 }
 
 Vec3f AlbedoField::at(const Vec3f& position) const {
-    const Vec3 u = to_index_.transform_point({position.x, position.y, position.z});
-    if (!(std::abs(u.x) < 1e15 && std::abs(u.y) < 1e15 && std::abs(u.z) < 1e15)) return mean_;
-    const double x[3] = {u.x, u.y, u.z};
-    int64_t base[3];
-    double f[3];
-    for (int a = 0; a < 3; ++a) base[a] = int64_t(std::floor(x[a])), f[a] = x[a] - double(base[a]);
-    double sum[4] = {0, 0, 0, 0};
-    const int64_t hi[3] = {base[0] + 1, base[1] + 1, base[2] + 1};
-    accumulate(base, hi, [&](int64_t i, int64_t j, int64_t k) {
-        return (i == base[0] ? 1 - f[0] : f[0]) * (j == base[1] ? 1 - f[1] : f[1]) * (k == base[2] ? 1 - f[2] : f[2]);
-    }, sum);
-    if (!(sum[3] > 0)) {
-        // The kernel's fringe: the 4^3 voxels it reaches, nearer ones weighing more.
-        const int64_t lo[3] = {base[0] - 1, base[1] - 1, base[2] - 1}, far[3] = {base[0] + 2, base[1] + 2, base[2] + 2};
-        accumulate(lo, far, [&](int64_t i, int64_t j, int64_t k) {
-            const double di = x[0] - double(i), dj = x[1] - double(j), dk = x[2] - double(k);
-            return std::exp(-(di * di + dj * dj + dk * dk));
-        }, sum);
-    }
-    if (!(sum[3] > 0)) return mean_;
-    return {float(sum[0] / sum[3]), float(sum[1] / sum[3]), float(sum[2] / sum[3])};
+    const Vec3x8 lanes = at(Vec3x8{broadcast8(position.x), broadcast8(position.y), broadcast8(position.z)});
+    return {lanes.x[0], lanes.y[0], lanes.z[0]};
 }
 
 Vec3x8 AlbedoField::at(const Vec3x8& position) const {
-    Vec3x8 out;
-    for (int l = 0; l < 8; ++l) {
-        const Vec3f a = at(Vec3f{position.x[l], position.y[l], position.z[l]});
-        out.x[l] = a.x, out.y[l] = a.y, out.z[l] = a.z;
+    const Vec3x8 mean{broadcast8(mean_.x), broadcast8(mean_.y), broadcast8(mean_.z)};
+    if (texels_.empty()) return mean;
+    // at(Vec3f) eight lanes at once: lattice coordinates in float (positions relative to the origin are small).
+    const auto& m = to_lattice_.m;
+    float8 u[3], f[3];
+    int8x base[3], inside = int8x{} - 1;
+    for (int a = 0; a < 3; ++a) {
+        u[a] = float(m[a][0]) * position.x + float(m[a][1]) * position.y + float(m[a][2]) * position.z + float(m[a][3]);
+        inside &= (u[a] >= 0.0f) & (u[a] <= float(n_[a] - 1));
+        const float8 clamped = clamp8(u[a], 0.0f, float(n_[a] - 2));  // NaN: 0 (then outside)
+        base[a] = __builtin_convertvector(clamped, int8x);
+        f[a] = clamp8(u[a] - __builtin_convertvector(base[a], float8), 0.0f, 1.0f);
     }
-    return out;
+    const int32_t stride[3] = {int32_t(n_[1] * n_[2]), int32_t(n_[2]), 1};
+    const int8x first = base[0] * stride[0] + base[1] * stride[1] + base[2];
+    const float* channels = &texels_.front().red;
+    float8 sum[4] = {};
+    for (int corner = 0; corner < 8; ++corner) {
+        const int dx = corner >> 2, dy = (corner >> 1) & 1, dz = corner & 1;
+        const float8 w = (dx ? f[0] : 1.0f - f[0]) * (dy ? f[1] : 1.0f - f[1]) * (dz ? f[2] : 1.0f - f[2]);
+        const int8x at = 4 * (first + (dx * stride[0] + dy * stride[1] + dz));  // 4 floats a texel
+        for (int c = 0; c < 4; ++c) sum[c] += w * gather8(channels + c, at);
+    }
+    const int8x found = inside & (sum[3] > 0.0f);
+    const float8 weight = select8(found, sum[3], broadcast8(1.0f));
+    return {select8(found, sum[0] / weight, mean.x), select8(found, sum[1] / weight, mean.y), select8(found, sum[2] / weight, mean.z)};
 }
 
 }  // namespace pcvr

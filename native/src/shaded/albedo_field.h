@@ -3,29 +3,29 @@
 /// Color Attribute, Mantaflow's `color`), which multiplies the transfer function's colour at every sample
 /// (ShadedVolume::albedo_grids).
 ///
-/// At a point x the factor is the density-weighted colour of the eight voxels around it,
+/// At a point x the factor is the density-weighted colour of the eight lattice texels around it,
 ///
 ///     sum_j w_j d_j c_j / sum_j w_j d_j      (w_j trilinear, d_j the density's departure from its background, >= 0)
 ///
 /// the colour of the density that is there: a sample mixes the voxels' media, each scattering in proportion
-/// to its density, so voxels without density lend it no colour and the edge of a coloured smoke keeps its
-/// colour rather than fading towards the colour grid's zeros outside it. Where none of the eight has density
-/// (the kernel's fringe, up to two voxels beyond the last dense voxel), the same sum runs over the 4^3 voxels
-/// of the kernel's reach with Gaussian weights exp(-|x - x_j|^2); where that finds no density either (the
-/// post-filter and the samples between sheets spread a trace of density a little further), the factor is the
-/// whole volume's density-weighted colour (1 without density). The splatting renderers and the ray caster read the same factor at their samples' points
-/// (a sample's colour is not integrated over its stretch of ray, as its density is); extinction is not
-/// changed. Colours are taken as the grids hold them (an inactive voxel: its grid's background), not clamped.
+/// to its density, so voxels without density lend it no colour, and the edge of a coloured smoke keeps its
+/// colour rather than fading towards the colour grid's zeros outside it. The lattice has a texel per voxel (at
+/// most kMostTexels: past it texels are wider and sum the voxels nearest to them) over the density's active
+/// box widened by two voxels, the kernel's reach. A texel without density takes its neighbours' colour, the
+/// density-weighted sum over the 5^3 texels around it with tent weights, at a thousandth of their weight: where
+/// density is near it hardly counts, and in the kernel's fringe, where the reconstruction still has a little
+/// density but no voxel of the eight has any, the neighbours' colour is what there is. Beyond the lattice, or
+/// where no density is near at all, the factor is the whole volume's density-weighted colour (1 without
+/// density). The splatting renderers and the ray caster read the same factor at their samples' points (a
+/// sample's colour is not integrated over its stretch of ray, as its density is); extinction is not changed.
+/// Colours are taken as the grids hold them (an inactive voxel: its grid's background), not clamped.
 ///
-/// Voxels are found through a table of the grids' 8^3 blocks: dense over the blocks' bounding box (a
-/// pointer per block), or hashed where that box would hold more than kMostDenseBlocks. Immutable after
-/// construction: safe to read from many threads.
+/// Immutable after construction: safe to read from many threads.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
-#include <unordered_map>
 #include <vector>
 
 #include "pcvr/grid.h"
@@ -36,7 +36,8 @@ namespace pcvr {
 
 class AlbedoField final : public AlbedoModulation {
 public:
-    static constexpr uint64_t kMostDenseBlocks = uint64_t(1) << 22;
+    /// Texels at most (64 MiB of them, twice that while the lattice is built).
+    static constexpr uint64_t kMostTexels = uint64_t(1) << 22;
 
     /// The field of `volume` (its grid and albedo grids), or null when it has no albedo grids. Positions
     /// passed to at() are relative to `origin` (world). Throws InvalidArgument when an albedo grid does not
@@ -47,40 +48,23 @@ public:
 
     Vec3x8 at(const Vec3x8& position) const override;
     Vec3f at(const Vec3f& position) const override;
+    uint64_t texels() const { return texels_.size(); }
 
 private:
-    /// Voxel values by index through one grid's blocks.
-    class Voxels {
-    public:
-        Voxels(const Grid& grid, const std::array<int64_t, 6>& block_box);
-        /// Voxel (i, j, k)'s value, or the background where it is inactive or outside every block.
-        float value(int64_t i, int64_t j, int64_t k) const;
-        /// Voxel `offset` of a block (null: none there), or the background.
-        float value(const VoxelBlock* block, int offset) const {
-            return block && block->active(offset) ? block->value(offset) : background_;
-        }
-        /// The block at block coordinates (index >> 3), or null.
-        const VoxelBlock* block(int64_t bi, int64_t bj, int64_t bk) const;
-
-    private:
-        float background_;
-        std::array<int64_t, 6> box_;  // block coordinates (index >> 3): i0, j0, k0, i1, j1, k1 inclusive
-        std::vector<const VoxelBlock*> dense_;
-        std::unordered_map<uint64_t, const VoxelBlock*> hashed_;
+    struct Texel {
+        float red = 0, green = 0, blue = 0;  // colour times weight
+        float weight = 0;                     // density
     };
+    /// Sums each voxel with density into its nearest texel; returns the whole volume's sums.
+    Texel fill(const Grid& density, const std::array<const Grid*, 3>& colour, const std::array<double, 3>& low, double spacing);
+    /// Gives texels without density a thousandth of their neighbours' tent-weighted sums.
+    void dilate();
+    size_t index(int64_t x, int64_t y, int64_t z) const { return (size_t(x) * size_t(n_[1]) + size_t(y)) * size_t(n_[2]) + size_t(z); }
 
-    /// Adds w d c (three sums) and w d over voxels lo..hi (inclusive, per axis) with weights weight(i, j, k).
-    template <class Weight>
-    void accumulate(const int64_t lo[3], const int64_t hi[3], Weight&& weight, double sum[4]) const;
-    /// Adds density d and colour c to the sums (nothing where d is not positive and finite).
-    static void add(double w, double d, const float colour[3], double sum[4]);
-    /// The density-weighted colour of every voxel.
-    Vec3f mean_colour(const Grid& density) const;
-
-    Mat4 to_index_;  // from positions relative to the origin to the grids' index space
-    float density_background_;
-    std::vector<Voxels> voxels_;  // density, red, green, blue
-    Vec3f mean_{1, 1, 1};         // the density-weighted colour of every voxel
+    Mat4 to_lattice_;  // positions relative to the origin -> lattice coordinates (texel (0, 0, 0) at 0)
+    std::array<int64_t, 3> n_{0, 0, 0};
+    std::vector<Texel> texels_;  // [x][y][z], z fastest
+    Vec3f mean_{1, 1, 1};        // the density-weighted colour of every voxel
 };
 
 }  // namespace pcvr
