@@ -80,19 +80,19 @@ AlbedoField::AlbedoField(const Grid& density, const std::array<const Grid*, 3>& 
     }
     const Mat4 scale = Mat4::from_rows({1 / spacing, 0, 0, 0, 0, 1 / spacing, 0, 0, 0, 0, 1 / spacing, 0, 0, 0, 0, 1});
     to_lattice_ = scale * translation(-low[0], -low[1], -low[2]) * *to_index * translation(origin.x, origin.y, origin.z);
-    texels_.assign(size_t(n_[0] * n_[1] * n_[2]), Texel{});
+    texels_.assign(size_t(n_[0] * n_[1] * n_[2]) * kChannels, 0.0f);
 
-    const Texel whole = fill(density, colour, low, spacing);
-    if (whole.weight > 0) mean_ = {whole.red / whole.weight, whole.green / whole.weight, whole.blue / whole.weight};
+    const std::array<double, kChannels> whole = fill(density, colour, low, spacing);
+    if (whole[3] > 0) mean_ = {float(whole[0] / whole[3]), float(whole[1] / whole[3]), float(whole[2] / whole[3])};
     dilate();
 }
 
-AlbedoField::Texel AlbedoField::fill(const Grid& density, const std::array<const Grid*, 3>& colour,
-                                     const std::array<double, 3>& low, double spacing) {
+std::array<double, AlbedoField::kChannels> AlbedoField::fill(const Grid& density, const std::array<const Grid*, 3>& colour,
+                                                            const std::array<double, 3>& low, double spacing) {
     std::array<std::unordered_map<uint64_t, const VoxelBlock*>, 3> colour_blocks;
     for (int c = 0; c < 3; ++c) colour_blocks[c] = blocks_by_origin(*colour[c]);
     const float background = density.background();
-    double whole[4] = {0, 0, 0, 0};
+    std::array<double, kChannels> whole{0, 0, 0, 0};
     for (const VoxelBlock& b : density.blocks()) {
         const VoxelBlock* parts[3];
         for (int c = 0; c < 3; ++c) {
@@ -110,43 +110,39 @@ AlbedoField::Texel AlbedoField::fill(const Grid& density, const std::array<const
             const int64_t voxel[3] = {b.origin[0] + (offset >> 6), b.origin[1] + ((offset >> 3) & 7), b.origin[2] + (offset & 7)};
             int64_t t[3];
             for (int a = 0; a < 3; ++a) t[a] = std::clamp(int64_t(std::lround((double(voxel[a]) - low[a]) / spacing)), int64_t(0), n_[a] - 1);
-            Texel& texel = texels_[index(t[0], t[1], t[2])];
-            texel.red += float(d) * rgb[0], texel.green += float(d) * rgb[1], texel.blue += float(d) * rgb[2];
-            texel.weight += float(d);
+            float* texel = texels_.data() + kChannels * index(t[0], t[1], t[2]);
+            for (int c = 0; c < 3; ++c) texel[c] += float(d) * rgb[c];
+            texel[3] += float(d);
             whole[0] += d * rgb[0], whole[1] += d * rgb[1], whole[2] += d * rgb[2], whole[3] += d;
         }
     }
-    return {float(whole[0]), float(whole[1]), float(whole[2]), float(whole[3])};
+    return whole;
 }
 
 void AlbedoField::dilate() {
     // Tent weights over 5^3 texels: a box of three along each axis, twice.
-    std::vector<Texel> sums = texels_;
-    std::vector<Texel> line;
+    std::vector<float> sums = texels_;
+    std::vector<float> line;
     const size_t stride[3] = {size_t(n_[1] * n_[2]), size_t(n_[2]), 1};
     for (int pass = 0; pass < 6; ++pass) {
-        const int a = pass % 3, b = (a + 1) % 3, c = (a + 2) % 3;
-        line.resize(size_t(n_[a]));
-        for (int64_t u = 0; u < n_[b]; ++u)
-            for (int64_t v = 0; v < n_[c]; ++v) {
-                const size_t start = size_t(u) * stride[b] + size_t(v) * stride[c];
-                for (int64_t x = 0; x < n_[a]; ++x) line[size_t(x)] = sums[start + size_t(x) * stride[a]];
+        const int a = pass % 3, p = (a + 1) % 3, q = (a + 2) % 3;  // along axis a, line by line over p and q
+        line.resize(size_t(n_[a]) * kChannels);
+        for (int64_t u = 0; u < n_[p]; ++u)
+            for (int64_t v = 0; v < n_[q]; ++v) {
+                const size_t start = size_t(u) * stride[p] + size_t(v) * stride[q];
+                for (int64_t x = 0; x < n_[a]; ++x)
+                    std::copy_n(sums.data() + kChannels * (start + size_t(x) * stride[a]), kChannels, line.data() + kChannels * x);
                 for (int64_t x = 0; x < n_[a]; ++x) {
-                    Texel s = line[size_t(x)];
-                    for (int64_t y : {x - 1, x + 1}) {
-                        if (y < 0 || y >= n_[a]) continue;
-                        const Texel& o = line[size_t(y)];
-                        s.red += o.red, s.green += o.green, s.blue += o.blue, s.weight += o.weight;
-                    }
-                    sums[start + size_t(x) * stride[a]] = s;
+                    float* s = sums.data() + kChannels * (start + size_t(x) * stride[a]);
+                    for (int c = 0; c < kChannels; ++c)
+                        s[c] = line[kChannels * x + c] + (x > 0 ? line[kChannels * (x - 1) + c] : 0.0f) +
+                               (x + 1 < n_[a] ? line[kChannels * (x + 1) + c] : 0.0f);
                 }
             }
     }
-    for (size_t i = 0; i < texels_.size(); ++i)
-        if (!(texels_[i].weight > 0)) {
-            const Texel& s = sums[i];
-            texels_[i] = {kBorrowed * s.red, kBorrowed * s.green, kBorrowed * s.blue, kBorrowed * s.weight};
-        }
+    for (size_t i = 0; i < texels_.size(); i += kChannels)
+        if (!(texels_[i + 3] > 0))
+            for (int c = 0; c < kChannels; ++c) texels_[i + c] = kBorrowed * sums[i + c];
 }
 
 Vec3f AlbedoField::at(const Vec3f& position) const {
@@ -157,7 +153,7 @@ Vec3f AlbedoField::at(const Vec3f& position) const {
 Vec3x8 AlbedoField::at(const Vec3x8& position) const {
     const Vec3x8 mean{broadcast8(mean_.x), broadcast8(mean_.y), broadcast8(mean_.z)};
     if (texels_.empty()) return mean;
-    // at(Vec3f) eight lanes at once: lattice coordinates in float (positions relative to the origin are small).
+    // Lattice coordinates in float: positions relative to the origin (the camera) are small.
     const auto& m = to_lattice_.m;
     float8 u[3], f[3];
     int8x base[3], inside = int8x{} - 1;
@@ -170,13 +166,13 @@ Vec3x8 AlbedoField::at(const Vec3x8& position) const {
     }
     const int32_t stride[3] = {int32_t(n_[1] * n_[2]), int32_t(n_[2]), 1};
     const int8x first = base[0] * stride[0] + base[1] * stride[1] + base[2];
-    const float* channels = &texels_.front().red;
-    float8 sum[4] = {};
+    const float* channels = texels_.data();
+    float8 sum[kChannels] = {};
     for (int corner = 0; corner < 8; ++corner) {
         const int dx = corner >> 2, dy = (corner >> 1) & 1, dz = corner & 1;
         const float8 w = (dx ? f[0] : 1.0f - f[0]) * (dy ? f[1] : 1.0f - f[1]) * (dz ? f[2] : 1.0f - f[2]);
-        const int8x at = 4 * (first + (dx * stride[0] + dy * stride[1] + dz));  // 4 floats a texel
-        for (int c = 0; c < 4; ++c) sum[c] += w * gather8(channels + c, at);
+        const int8x at = kChannels * (first + (dx * stride[0] + dy * stride[1] + dz));
+        for (int c = 0; c < kChannels; ++c) sum[c] += w * gather8(channels + c, at);
     }
     const int8x found = inside & (sum[3] > 0.0f);
     const float8 weight = select8(found, sum[3], broadcast8(1.0f));

@@ -48,22 +48,21 @@ public:
 
     Vec3x8 at(const Vec3x8& position) const override;
     Vec3f at(const Vec3f& position) const override;
-    uint64_t texels() const { return texels_.size(); }
+    uint64_t texels() const { return texels_.size() / kChannels; }
 
 private:
-    struct Texel {
-        float red = 0, green = 0, blue = 0;  // colour times weight
-        float weight = 0;                     // density
-    };
-    /// Sums each voxel with density into its nearest texel; returns the whole volume's sums.
-    Texel fill(const Grid& density, const std::array<const Grid*, 3>& colour, const std::array<double, 3>& low, double spacing);
+    /// A texel's floats: colour times density (red, green, blue), then the density.
+    static constexpr int kChannels = 4;
+    /// Sums each voxel with density into its nearest texel; returns the whole volume's sums (as a texel's).
+    std::array<double, kChannels> fill(const Grid& density, const std::array<const Grid*, 3>& colour,
+                                       const std::array<double, 3>& low, double spacing);
     /// Gives texels without density a thousandth of their neighbours' tent-weighted sums.
     void dilate();
     size_t index(int64_t x, int64_t y, int64_t z) const { return (size_t(x) * size_t(n_[1]) + size_t(y)) * size_t(n_[2]) + size_t(z); }
 
     Mat4 to_lattice_;  // positions relative to the origin -> lattice coordinates (texel (0, 0, 0) at 0)
     std::array<int64_t, 3> n_{0, 0, 0};
-    std::vector<Texel> texels_;  // [x][y][z], z fastest
+    std::vector<float> texels_;  // kChannels per texel, [x][y][z], z fastest
     Vec3f mean_{1, 1, 1};        // the density-weighted colour of every voxel
 };
 
