@@ -38,8 +38,8 @@ class GridCache:
 
     def get(self, filepath, grid_name, read, kind="grid"):
         """The grid `grid_name` of `filepath`, calling `read(filepath, grid_name)` only when it is not
-        cached as `kind` ("grid", "stream", or "vector": a vector grid's three components). Raises FileNotFoundError for a missing file and whatever
-        `read` raises."""
+        cached as `kind` ("grid", "stream", or "vector": a vector grid's three components). Raises
+        FileNotFoundError for a missing file and whatever `read` raises."""
         key = self._key(filepath, grid_name, kind)
         with self._lock:
             grid = self._grids.get(key)
