@@ -191,11 +191,10 @@ def render_scene(key, job, directory):
         name = f"{key}_{variant}"
         npy = os.path.join(job["work_dir"], name + ".npy")
         np.save(npy, np.asarray(image, dtype=np.float32))
-        png = os.path.join(job["image_dir"], name + ".png")
-        if variant != "cycles_quarter":
+        png = None if variant == "cycles_quarter" else os.path.join(job["image_dir"], name + ".png")  # for scale only
+        if png:
             image_io.write_image(png, image)
-        rec["variants"][variant] = {"seconds": seconds, "samples": samples, "npy": npy,
-                                    "png": png if variant != "cycles_quarter" else None}
+        rec["variants"][variant] = {"seconds": seconds, "samples": samples, "npy": npy, "png": png}
         print(f"[blender {time.strftime('%H:%M:%S')}] {name}: {seconds:.2f} s", file=sys.stderr, flush=True)
     return rec
 
