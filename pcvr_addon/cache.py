@@ -38,8 +38,8 @@ class GridCache:
 
     def get(self, filepath, grid_name, read, kind="grid"):
         """The grid `grid_name` of `filepath`, calling `read(filepath, grid_name)` only when it is not
-        cached as `kind` ("grid" or "stream"). Raises FileNotFoundError for a missing file and whatever
-        `read` raises."""
+        cached as `kind` ("grid", "stream", or "vector": a vector grid's three components). Raises
+        FileNotFoundError for a missing file and whatever `read` raises."""
         key = self._key(filepath, grid_name, kind)
         with self._lock:
             grid = self._grids.get(key)
@@ -88,7 +88,10 @@ class GridCache:
 
 
 def resident_voxels(grid):
-    """What a cached grid holds in memory, in float voxels: a stream only its leaves' topology."""
+    """What a cached grid holds in memory, in float voxels: a stream only its leaves' topology; a vector grid's
+    components (a tuple of grids) all their voxels."""
+    if isinstance(grid, tuple):
+        return sum(resident_voxels(part) for part in grid)
     leaf_count = getattr(grid, "leaf_count", None)  # GridStream: about 100 bytes a leaf
     return leaf_count * 25 if leaf_count is not None else grid.active_voxel_count
 

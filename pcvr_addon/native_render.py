@@ -67,7 +67,8 @@ def _render_shaded(prepared, view, control, stats, sheets, level):
     transfer_functions, lights, ambient, shadings = prepared.lighting
     result = pcvr_native.render_shaded(
         prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shadings,
-        stats=stats, density_scale=prepared.density_scales, return_depth=with_depth, **prepared.clip_arguments,
+        stats=stats, density_scale=prepared.density_scales, albedo_grids=prepared.albedo_grids,
+        return_depth=with_depth, **prepared.clip_arguments,
         **dataclasses.asdict(sheets), **_level_argument(level), **control.arguments(prepared.inputs.threads))
     rgba, depth = result if with_depth else (result, None)
     return {"rgba": rgba, "depth": depth}

@@ -15,6 +15,11 @@ def read_grid(filepath, grid_name):
     return pcvr_native.read_vdb(filepath, grid_name)
 
 
+def read_vector_grid(filepath, grid_name):
+    import pcvr_native
+    return pcvr_native.read_vdb_vector(filepath, grid_name)
+
+
 def stream_grid(filepath, grid_name):
     import pcvr_native
     return pcvr_native.stream_vdb(filepath, grid_name)
@@ -65,6 +70,9 @@ class LoadedVolume:
     # Shaded and MIP of a volume too big to read whole: the GridStream its grid is level `level` of.
     stream: object = None
     level: int = 0
+    # Shaded mode with a material whose Color Attribute names a vector grid: its (red, green, blue) Grids, placed
+    # and at the grid's level, which render_shaded's albedo_grids multiplies the colour by.
+    albedo_grids: tuple | None = None
 
     @property
     def value_range(self):
@@ -108,6 +116,12 @@ class PreparedScene:
     @property
     def xray_attenuation(self):
         return [volume.xray_attenuation for volume in self.volumes]
+
+    @property
+    def albedo_grids(self):
+        """render_shaded's albedo_grids: one (red, green, blue) or None per volume; None when no volume has them."""
+        grids = [volume.albedo_grids for volume in self.volumes]
+        return grids if any(grids) else None
 
     @property
     def density_scales(self):
@@ -160,6 +174,14 @@ def _grid(volume, stream_above=None):
     return cache.grids.get(volume.filepath, volume.grid_name, read_grid)
 
 
+def _colour_grids(volume, level):
+    """The (red, green, blue) Grids of a VolumeInputs' Color Attribute, placed as its grid and at its level."""
+    parts = cache.grids.get(volume.filepath, volume.medium.colour_grid, read_vector_grid, kind="vector")
+    if level:
+        parts = [part.level(level, LEVEL_REDUCTIONS['SHADED']) for part in parts]
+    return tuple(part.with_index_to_world(volume.matrix @ part.index_to_world) for part in parts)
+
+
 def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
     """PreparedScene of RenderInputs. A volume that cannot be read is left out with a message in `errors`;
     `reading(name)` is told of each volume before it is read; a true `cancelled()` stops reading. Raises
@@ -188,6 +210,12 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
             continue
         placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
         loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
+        if volume.medium is not None and volume.medium.colour_grid:
+            try:
+                loaded[-1].albedo_grids = _colour_grids(volume, level)
+            except (OSError, ValueError, RuntimeError, MemoryError) as ex:
+                warnings.append(f"Volume object '{volume.name}': Color Attribute '{volume.medium.colour_grid}' not "
+                                f"read ({ex}): the Color alone colours it")
         if inputs.xray is not None and volume.mu_water_per_cm is not None:
             _attenuate(loaded[-1], volume.mu_water_per_cm * inputs.centimetres_per_unit)
     prepared = PreparedScene(inputs, loaded, errors, warnings=warnings)

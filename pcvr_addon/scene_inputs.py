@@ -177,6 +177,10 @@ def material_volume_inputs(source, mode, export_grid):
     present = {grid.name for grid in source.volume.grids}
     parts = [medium for medium in media.grids if (medium.grid or source.grid_name or "density") in present]
     warnings = tuple(f"Volume object '{source.name}': {w}" for w in media.warnings)
+    if not source.filepath and any(medium.colour_grid for medium in parts):
+        warnings += (f"Volume object '{source.name}': the Color Attribute of a volume made by modifiers is not read: "
+                     "the Color alone colours it",)
+    parts = [_with_colour_grid(medium, source, present) for medium in parts]
     if media.grids and not parts:
         warnings += (f"Volume object '{source.name}': its material names no grid the volume has "
                      f"({', '.join(sorted(present))}): rendered with the transfer function",)
@@ -186,6 +190,17 @@ def material_volume_inputs(source, mode, export_grid):
                                                    mode, export_grid),
                                      medium=medium, warnings=warnings if index == 0 else ())
                  for index, medium in enumerate(parts))
+
+
+def _with_colour_grid(medium, source, present):
+    """A GridMedium whose Color Attribute names a vector grid of the volume's file; one naming no grid it has
+    loses it, as Cycles leaves the Color alone when the attribute is missing."""
+    if medium.colour_grid is None:
+        return medium
+    grid = source.volume.grids.get(medium.colour_grid) if medium.colour_grid in present else None
+    if grid is None or grid.data_type not in {'VECTOR_FLOAT', 'VECTOR_DOUBLE'} or not source.filepath:
+        return dataclasses.replace(medium, colour_grid=None)
+    return medium
 
 
 def volume_inputs(source, mode, export_grid):

@@ -14,7 +14,7 @@ Volume (its SVM node) combines them so, per world unit, with D = Density x densi
 | scattering C D, absorption max(1 - C, 0) max(1 - sqrt(A), 0) D (A: Absorption Color) | extinction: the mean over R, G, B of their sum (one extinction per sample); colour: scattering over extinction per channel |
 | emission Emission Strength x Emission Color, everywhere in the volume | the same, where the density grid reaches |
 | blackbody: T = Temperature x temperature grid, tint x blackbody(T) x sigma x (1 + I (T^4 - 1)), sigma = 5.67e-8 1e-6 / pi, I: Blackbody Intensity | the same; blackbody(T) from blackbody.py |
-| Color Attribute (a vector grid) multiplies C                 | not read (PCVR renders float grids): a warning |
+| Color Attribute (a vector grid) multiplies C                 | the same, per sample: the density-weighted colour of the voxels around it (render_shaded's albedo_grids); the extinction stays Color's |
 | single scattering with the Henyey-Greenstein phase function (Anisotropy) | the same (pn.Shading(model="scatter", anisotropy=...)), the world's colour as ambient light |
 
 A node it cannot follow (a Mix Shader, a Math node into Density, ...) leaves the media empty with a warning naming
@@ -50,6 +50,7 @@ class GridMedium:
     blackbody_intensity: float = 0.0           # I: sigma (1 + I (T^4 - 1)) times blackbody(T) times the tint
     blackbody_tint: tuple = (1.0, 1.0, 1.0)
     blackbody_colour_strength: float = 0.0     # a Blackbody node's colour of T = v (kelvin) times this strength
+    colour_grid: str | None = None             # a vector grid whose colour multiplies the albedo (Color Attribute)
 
     def emission_at(self, values):
         """Emitted radiance (linear RGB) per world unit at each of `values` (1-D): shape (n, 3)."""
@@ -162,17 +163,15 @@ def _density_grid(node, density_socket="Density", attribute_socket="Density Attr
     return (attribute or None), value
 
 
-def _principled(node, warnings):
+def _principled(node):
     grid, density = _density_grid(node)
     colour = _rgb(_constant_input(node, "Color"))
     absorption_colour = _rgb(_constant_input(node, "Absorption Color"))
-    if node.inputs["Color Attribute"].default_value:
-        warnings.append(f"{node.name}: Color Attribute '{node.inputs['Color Attribute'].default_value}' not read "
-                        "(PCVR renders float grids): the Color alone colours the volume")
     scattering = colour * density
     absorption = np.maximum(1.0 - colour, 0.0) * np.maximum(1.0 - np.sqrt(np.maximum(absorption_colour, 0.0)), 0.0) * density
     # The density grid absorbs and scatters, and carries a constant emission (one native grid, not two).
     medium = _scattering_medium(grid, scattering, absorption, float(_constant_input(node, "Anisotropy")))
+    medium = dataclasses.replace(medium, colour_grid=node.inputs["Color Attribute"].default_value or None)
     emitted = _emitting(node, "Emission Color", "Emission Strength")
     # A constant emission rides on the density grid (one native grid, not two).
     constant = [m for m in emitted if m.grid is None]
@@ -192,25 +191,25 @@ def _principled(node, warnings):
     return media
 
 
-def _absorption(node, warnings):
+def _absorption(node):
     grid, density = _density_grid(node, attribute_socket="")
     colour = _rgb(_constant_input(node, "Color"))
     return [_scattering_medium(grid, np.zeros(3), np.maximum(1.0 - colour, 0.0) * density, 0.0)] if density > 0 else []
 
 
-def _scatter(node, warnings):
+def _scatter(node):
     grid, density = _density_grid(node, attribute_socket="")
     colour = _rgb(_constant_input(node, "Color"))
     anisotropy = float(_constant_input(node, "Anisotropy")) if "Anisotropy" in node.inputs else 0.0
     return [_scattering_medium(grid, colour * density, np.zeros(3), anisotropy)] if density > 0 else []
 
 
-def _emission(node, warnings):
+def _emission(node):
     return _emitting(node, "Color", "Strength")
 
 
-def _add(node, warnings):
-    return _shader(node.inputs[0], warnings) + _shader(node.inputs[1], warnings)
+def _add(node):
+    return _shader(node.inputs[0]) + _shader(node.inputs[1])
 
 
 SHADERS = {
@@ -222,14 +221,14 @@ SHADERS = {
 }
 
 
-def _shader(socket, warnings):
+def _shader(socket):
     node = _linked_node(socket)
     if node is None:
         return []
     reader = SHADERS.get(node.bl_idname)
     if reader is None:
         raise Unsupported(f"node '{node.name}' ({node.bl_label}) feeding the volume shader")
-    return reader(node, warnings)
+    return reader(node)
 
 
 def read(material):
@@ -240,15 +239,15 @@ def read(material):
     if output is None or not output.inputs["Volume"].is_linked:
         return VolumeMedia(warnings=(f"material '{material.name}' has no volume shader: rendered with the transfer "
                                      "function",))
-    warnings = []
     try:
-        media = _shader(output.inputs["Volume"], warnings)
+        media = _shader(output.inputs["Volume"])
     except Unsupported as ex:
         return VolumeMedia(warnings=(f"material '{material.name}': cannot follow {ex}: rendered with the transfer "
                                      "function",))
     if not media:
-        warnings.append("its volume shader adds neither density nor light: rendered with the transfer function")
-    return VolumeMedia(grids=tuple(media), warnings=tuple(f"material '{material.name}': {w}" for w in warnings))
+        return VolumeMedia(warnings=(f"material '{material.name}': its volume shader adds neither density nor light: "
+                                     "rendered with the transfer function",))
+    return VolumeMedia(grids=tuple(media))
 
 
 def media_transfer_function(medium, value_range, density_scale, unit_distance):

@@ -268,6 +268,18 @@ void bind_grid(nb::module_& m) {
         .def("__repr__", &grid_repr);
 
     m.def(
+        "read_vdb_vector",
+        [](const std::filesystem::path& path, const std::string& grid) {
+            nb::gil_scoped_release release;
+            const std::array<Grid, 3> parts = read_vdb_vector(path.string(), grid);
+            nb::gil_scoped_acquire acquire;
+            return nb::make_tuple(parts[0], parts[1], parts[2]);
+        },
+        "path"_a, "grid"_a,
+        "Read a vector grid (vec3s or vec3d) of a .vdb file as a tuple of three float Grids, its x, y and z\n"
+        "components (named 'NAME.x', ...), on the same voxels: e.g. a smoke simulation's 'color', for\n"
+        "render_shaded's albedo_grids. Raises as read_vdb, and GridError when the grid is not a vector.");
+    m.def(
         "read_vdb",
         [](const std::filesystem::path& path, std::optional<std::string> grid) {
             nb::gil_scoped_release release;

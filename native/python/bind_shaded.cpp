@@ -151,6 +151,30 @@ CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* 
     return parts;
 }
 
+/// render_shaded's albedo_grids: None, one (red, green, blue) triple of Grids for a single grid, or one entry per
+/// grid (None or a triple). The Grids are copied into `held` (handles sharing the voxels), which the volumes
+/// point into.
+void albedo_grids_from_python(nb::handle arg, std::vector<ShadedVolume>& volumes, std::vector<Grid>& held) {
+    if (arg.is_none()) return;
+    std::vector<nb::object> entries;
+    for (nb::handle item : arg) entries.push_back(nb::borrow(item));
+    if (!entries.empty() && nb::isinstance<Grid>(entries.front())) entries = {nb::borrow(arg)};  // one grid's triple
+    if (entries.size() != volumes.size())
+        throw nb::value_error("render_shaded: albedo_grids must be (red, green, blue) Grids, or one such triple or None per grid");
+    held.reserve(3 * entries.size());
+    for (size_t i = 0; i < entries.size(); ++i) {
+        if (entries[i].is_none()) continue;
+        size_t channel = 0;
+        for (nb::handle g : entries[i]) {
+            if (channel == 3 || !nb::isinstance<Grid>(g))
+                throw nb::value_error("render_shaded: each entry of albedo_grids must be three Grids (red, green, blue) or None");
+            held.push_back(nb::cast<Grid>(g));
+            volumes[i].albedo_grids[channel++] = &held.back();
+        }
+        if (channel != 3) throw nb::value_error("render_shaded: each entry of albedo_grids must be three Grids (red, green, blue) or None");
+    }
+}
+
 void fill_stats(nb::handle stats, const ShadedStats& s) {
     if (stats.is_none()) return;
     nb::list strides;
@@ -198,7 +222,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
-                            nb::handle clip_planes, nb::handle clip_box, nb::handle shadows) {
+                            nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -230,6 +254,8 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     std::vector<ShadedVolume> volumes;
     for (size_t i = 0; i < parts.grids.size(); ++i)
         volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i], &clips[i]});
+    std::vector<Grid> albedo;
+    albedo_grids_from_python(albedo_grids, volumes, albedo);
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     RgbaImage image;
@@ -366,7 +392,7 @@ void bind_shaded(nb::module_& m) {
           "opacity_cutoff"_a = 0.99, "threads"_a = 0, "progress"_a = nb::none(), "cancel"_a = nb::none(),
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
-          "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false,
+          "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -379,7 +405,10 @@ void bind_shaded(nb::module_& m) {
           "shadows: lights whose `shadow` is None reach each sample through the volumes (every grid, its transfer\n"
           "function and clip region), attenuated by exp(-optical depth); a light's own shadow=True/False wins.\n"
           "method='raycast' marches a shadow ray per sample; the others read a transmittance volume per light\n"
-          "built once per render (stats['shadow_texels'], stats['seconds_shadows']).");
+          "built once per render (stats['shadow_texels'], stats['seconds_shadows']).\n"
+          "albedo_grids: a colour per voxel that multiplies the transfer function's (Blender's Color Attribute):\n"
+          "(red, green, blue) Grids on the grid's own voxels (the same index_to_world), or one such triple or None\n"
+          "per grid. Each sample's factor is the colour of the voxels around it weighted by their density.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

@@ -6,7 +6,7 @@ import numpy as np
 
 import blender_scenes as bs
 from _io_helpers import run_blender_openvdb
-from tools.material_preview import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
+from tools.smoke_plume import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
 
 N = 16
 VOXEL = 0.1
@@ -27,8 +27,9 @@ def fire_grids(n=N):
 
 
 def write_multi_grid_vdb(path, grids):
-    """A .vdb file holding each of {name: values} (float grids, centred like bs.centred), written by Blender's
-    bundled OpenVDB in a fresh interpreter (pcvr_native writes one grid per file)."""
+    """A .vdb file holding each of {name: values} (float grids, or vector grids where values are (n, n, n, 3):
+    Mantaflow's `color`), centred like bs.centred, written by Blender's bundled OpenVDB in a fresh interpreter
+    (pcvr_native writes one float grid per file)."""
     arrays = {name: np.asarray(values, np.float32) for name, values in grids.items()}
     np.savez(str(path) + ".npz", **arrays)
     matrix = bs.centred(VOXEL, next(iter(arrays.values())).shape[0])
@@ -37,7 +38,7 @@ def write_multi_grid_vdb(path, grids):
         transform = vdb.createLinearTransform(np.array({matrix.tolist()!r}).T.tolist())
         grids = []
         for name in arrays.files:
-            grid = vdb.FloatGrid()
+            grid = vdb.Vec3SGrid() if arrays[name].ndim == 4 else vdb.FloatGrid()
             grid.copyFromArray(arrays[name])
             grid.name, grid.transform = name, transform
             grid.gridClass = vdb.GridClass.FOG_VOLUME
@@ -65,3 +66,10 @@ def principled_material(name="Medium", **inputs):
 def use_material(obj, material):
     obj.data.materials.append(material)
     obj.data.pcvr.source = 'MATERIAL'
+
+
+def prepared():
+    """The current scene as a render prepares it (its volumes, media and the warnings the render reports)."""
+    from pcvr_addon import prepared_scene, scene_inputs
+    inputs, _ = scene_inputs.read(bpy.context.evaluated_depsgraph_get(), prepared_scene.export_grid)
+    return prepared_scene.prepare(inputs)

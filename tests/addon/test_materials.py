@@ -49,9 +49,15 @@ def test_a_principled_volume_renders_as_render_shaded_with_its_coefficients(fire
                                       Anisotropy=anisotropy)
     scene, obj = fire_scene(fire_vdb, material)
     image = ls.combined(bs.render(scene))
+    expected = principled_reference(obj, colour, density, absorption_colour, anisotropy)
+    assert expected[..., 3].max() > 0.5
+    np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
 
-    # The reference, written out: grey extinction (the mean of Cycles' coefficients), the scattered share as
-    # the colour, 128 points over the grid's values, the opacity per voxel (0.1 units).
+
+def principled_reference(obj, colour, density, absorption_colour, anisotropy, **kw):
+    """fire_scene's object with a Principled Volume of these inputs, rendered through pcvr_native as the reader
+    should make it: grey extinction (the mean of Cycles' coefficients), the scattered share as the colour, 128
+    points over the grid's values, the opacity per voxel (0.1 units), the sun of fire_scene."""
     scattering, absorption = cycles_coefficients(colour, density, absorption_colour)
     k = float(np.mean(scattering + absorption))
     grid = bs.world_grid(obj, grid="density")
@@ -59,16 +65,40 @@ def test_a_principled_volume_renders_as_render_shaded_with_its_coefficients(fire
     rgba = [[*(scattering / (scattering + absorption)), 1 - math.exp(-k * v * 0.1)] for v in values]
     tf = pn.TransferFunction(values, rgba, unit_distance=0.1, emission=np.zeros((128, 3)))
     sun = pn.Light.sun(ls.sun_direction((0.4, 0.3, 0.0)), strength=1.0)
-    expected = pn.render_shaded(grid, bs.reference_camera(), tf, lights=[sun], ambient=(0.0, 0.0, 0.0),
-                                method="regular", shading=pn.Shading(model="scatter", anisotropy=anisotropy))
-    assert expected[..., 3].max() > 0.5
+    return pn.render_shaded(grid, bs.reference_camera(), tf, lights=[sun], ambient=(0.0, 0.0, 0.0), method="regular",
+                            shading=pn.Shading(model="scatter", anisotropy=anisotropy), **kw)
+
+
+def test_the_color_attribute_colours_each_voxel(tmp_path):
+    """Mantaflow's `color` grid (a vector grid, here red on one half of the smoke and blue on the other) named by
+    the Principled Volume's Color Attribute: the same render as pcvr_native's with the grid's components as
+    albedo_grids, and each half in its colour."""
+    grids = ms.fire_grids()
+    n = grids["density"].shape[0]
+    colour = np.zeros((n, n, n, 3), dtype=np.float32)
+    colour[:n // 2], colour[n // 2:] = (1.0, 0.3, 0.1), (0.1, 0.4, 1.0)
+    colour[grids["density"] == 0] = 0.0  # as Mantaflow writes it: no colour without smoke
+    path = ms.write_multi_grid_vdb(tmp_path / "coloured.vdb", {"density": grids["density"], "color": colour})
+    material = ms.principled_material(Color=(0.8, 0.8, 0.8, 1.0), Density=8.0, Color_Attribute="color")
+    scene, obj = fire_scene(path, material)
+    assert not ms.prepared().warnings
+    image = ls.combined(bs.render(scene))
+
+    matrix = np.array(obj.matrix_world)
+    albedo = tuple(g.with_index_to_world(matrix @ g.index_to_world) for g in pn.read_vdb_vector(path, "color"))
+    expected = principled_reference(obj, (0.8, 0.8, 0.8), 8.0, (0.0, 0.0, 0.0), 0.0, albedo_grids=albedo)
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
+    # The volume spans x from -0.8 to 0.8 (16 voxels of 0.1), image columns 8 to 40 of 48 (2.4 units wide).
+    red_half, blue_half = image[24, 14], image[24, 34]
+    assert red_half[0] > 3 * red_half[2] and blue_half[2] > 3 * blue_half[0]
 
 
 def test_quick_fire_glows_orange_where_the_flame_is(fire_vdb):
     scene, obj = fire_scene(fire_vdb, ms.quick_smoke_material('FIRE'))
+    assert not ms.prepared().warnings  # Blender's own setups are read whole: no node or grid left out
     image = ls.combined(bs.render(scene))
     obj.data.materials[0] = ms.quick_smoke_material('SMOKE')
+    assert not ms.prepared().warnings
     smoke = ls.combined(bs.render(scene))
 
     glow = image[..., :3] - smoke[..., :3]  # the blackbody emission alone
@@ -99,9 +129,7 @@ def test_an_unsupported_node_warns_and_renders_the_transfer_function(fire_vdb, c
     tree.links.new(mix.outputs["Shader"], tree.nodes["Material Output"].inputs["Volume"])
     scene, obj = fire_scene(fire_vdb, material)
     ls.set_ramp(obj, tf_range=(0.0, 0.2))
-    from pcvr_addon import prepared_scene, scene_inputs
-    inputs, _ = scene_inputs.read(bpy.context.evaluated_depsgraph_get(), prepared_scene.export_grid)
-    prepared = prepared_scene.prepare(inputs)
+    prepared = ms.prepared()
     assert any("Mix Shader" in w and "Fire" in w and "transfer function" in w for w in prepared.warnings)
     assert [volume.inputs.medium for volume in prepared.volumes] == [None]
 

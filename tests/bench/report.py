@@ -18,6 +18,7 @@ import clipping_bench
 import ct_head
 import evidence_report
 import magnification_curve
+import materials_bench
 import minification_bench
 import passband_bench
 import shaded_levels
@@ -442,6 +443,7 @@ def write(results: dict, output: Path) -> None:
     lines += ct_head.section(results.get("ct_head"))
     lines += clipping_bench.section(results.get("clipping"))
     lines += shadows_bench.section(results.get("shadows"))
+    lines += materials_bench.section(results.get("materials"))
     lines += viewport_bench.section(results.get("viewport"))
     lines += minification_bench.section(results.get("minification"))
     lines += shaded_levels.section(results.get("shaded_levels"))

@@ -22,6 +22,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | CT head     | ct_head.py       | shaded rendering of a real CT head (Debian's invesalius-examples) against VTK |
 | cut open    | clipping_bench.py | X-ray and shaded time and error of the CT head whole, cropped to half, cut by a plane |
 | shadows     | shadows_bench.py | shaded time with and without shadows, CT phantom and CT head, against the ray caster's shadow rays |
+| materials   | materials_bench.py | smoke, fire (Quick Smoke / Quick Fire) and a shadowed CT head by PCVR and Cycles in Blender: time, PSNR |
 
 Throughput: for each volume (a dense and a sparse cloud phantom at 128^3 and 256^3) and each magnification
 (1, 2, 4, 8 pixels per voxel) one oblique orthographic camera frames the whole volume, and:
@@ -96,6 +97,7 @@ STANDALONE_PARTS = [
     ("ct_head", "ct_head", "shaded rendering of a real CT head against VTK"),
     ("clipping", "clipping_bench", "cut open: crop boxes and clip planes"),
     ("shadows", "shadows_bench", "shadows: cost and accuracy"),
+    ("materials", "materials_bench", "Blender's volume materials beside Cycles"),
 ]
 
 
@@ -482,6 +484,8 @@ def parse_args(argv=None):
                    help="skip the CT head whole, cropped and cut by a plane")
     p.add_argument("--no-shadows", dest="shadows", action="store_false",
                    help="skip the cost and accuracy of shadows")
+    p.add_argument("--no-materials", dest="materials", action="store_false",
+                   help="skip smoke, fire and the CT head beside Cycles in Blender")
     args = p.parse_args(argv)
     args.skip_peers = set(args.skip_peers)
     # Full images of the CT phantom at m=4 stay on disk for the side-by-side figure.

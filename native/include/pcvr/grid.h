@@ -155,4 +155,9 @@ Grid read_vdb(const std::string& path, const std::string& grid_name = "");
 /// The grids of a file. Throws FileNotFound or VdbReadError.
 std::vector<GridInfo> list_grids(const std::string& path);
 
+/// Read a vector grid (vec3s, vec3d) of a .vdb file as three float Grids, its x, y and z components (named
+/// "NAME.x", "NAME.y", "NAME.z"): the same voxels, tiles and transform, each component's background. Throws
+/// as read_vdb, and GridError when the grid is not a vector grid.
+std::array<Grid, 3> read_vdb_vector(const std::string& path, const std::string& grid_name);
+
 }  // namespace pcvr

@@ -28,6 +28,7 @@
 /// a sheet did not touch, and tiles that became opaque.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -88,6 +89,10 @@ struct ShadedVolume {
     /// for the share of their stretch of ray inside, and cut faces are lit by the plane's normal
     /// (src/shaded/sample_clip.h).
     const ClipRegion* clip = nullptr;
+    /// A colour per voxel (red, green, blue grids on this grid's voxels: the same index_to_world) that
+    /// multiplies the transfer function's colour, density-weighted at each sample (src/shaded/albedo_field.h;
+    /// Blender's Color Attribute). All null: none.
+    std::array<const Grid*, 3> albedo_grids{};
 
     /// The render's lights with this volume's material.
     Lighting lit_by(const Lighting& lighting) const {

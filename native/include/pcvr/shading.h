@@ -77,6 +77,16 @@ public:
     virtual float at(const Vec3f& position) const = 0;
 };
 
+/// A colour that multiplies the transfer function's at each point: a volume's albedo per voxel
+/// (ShadedVolume::albedo_grids, src/shaded/albedo_field.h). Positions are relative to the Shader's origin.
+/// Implementations are immutable and safe to read from many threads.
+class AlbedoModulation {
+public:
+    virtual ~AlbedoModulation() = default;
+    virtual Vec3x8 at(const Vec3x8& position) const = 0;
+    virtual Vec3f at(const Vec3f& position) const = 0;
+};
+
 struct Lighting {
     std::vector<Light> lights;
     Vec3 ambient{0.1, 0.1, 0.1};  ///< ambient light colour (the world colour in Blender)
@@ -93,8 +103,10 @@ public:
     /// Positions passed to shade() are relative to `origin` (world): renderers pass them relative to
     /// the camera, so that float keeps its precision in scenes far from the world's origin.
     /// `transmittance`: empty, or one per light of `lighting` (null: that light casts no shadow); the
-    /// caller keeps them alive as long as the shader.
-    explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {});
+    /// caller keeps them alive as long as the shader. `albedo` (optional, kept alive likewise) multiplies
+    /// every sample's colour before it is lit.
+    explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {},
+                    const AlbedoModulation* albedo = nullptr);
 
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
@@ -122,6 +134,7 @@ private:
                      const float8* transmittance) const;
     Vec3x8 scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance) const;
     std::vector<PreparedLight> lights_;
+    const AlbedoModulation* albedo_;
     bool lit_, scatter_;
     Vec3f ambient_;  // ka * ambient colour (Scatter: the ambient colour)
     float diffuse_, specular_;

@@ -8,6 +8,7 @@
 
 #include "pcvr/errors.h"
 #include "pcvr/transfer_function.h"
+#include "pcvr/zeroed_buffer.h"
 #include "shaded/shaded_levels.h"
 
 namespace pcvr {
@@ -16,7 +17,7 @@ namespace pcvr {
 struct ExtinctionField::Lattice {
     static constexpr int kBrick = 4;  // voxels per brick side of the occupancy map
     int n[3] = {0, 0, 0};
-    std::vector<float> departure;
+    ZeroedBuffer<float> departure;
     /// Per brick of kBrick^3 voxels: 1 where a point whose trilinear cell lies in it (voxels kBrick b to
     /// kBrick b + kBrick) may have extinction, else 0. Most of a CT's box is air or, under a bone-like transfer
     /// function, transparent tissue: points there cost one lookup instead of eight.
@@ -100,11 +101,11 @@ void add_weighted(float* to, const float* from, size_t count, float w) {
 /// Convolves the [i][j][k] lattice `values` with u(oi) u(oj) u(ok), zero beyond its ends, into `out` (then
 /// swapped in). One sweep over i in chunks: each chunk convolves the slabs it reads along j and k in a buffer
 /// of its own (a slab fits in the cache), then sums them along i, so memory is read and written once.
-void convolve(std::vector<float>& values, std::vector<float>& out, const int (&n)[3], const std::vector<float>& u, int m) {
+void convolve(ZeroedBuffer<float>& values, ZeroedBuffer<float>& out, const int (&n)[3], const std::vector<float>& u, int m) {
     if (m == 0) return;
     constexpr int kChunk = 16;
     const size_t slab = size_t(n[1]) * n[2];
-    out.resize(values.size());
+    if (out.size() != values.size()) out = ZeroedBuffer<float>(values.size());  // every value is written below
     tbb::parallel_for(0, (n[0] + kChunk - 1) / kChunk, [&](int chunk) {
         const int i0 = chunk * kChunk, i1 = std::min(n[0], i0 + kChunk);
         const int first = std::max(0, i0 - m), last = std::min(n[0], i1 + m);
@@ -130,7 +131,7 @@ void convolve(std::vector<float>& values, std::vector<float>& out, const int (&n
                 add_weighted(to, planes.data() + size_t(i + o - first) * slab, slab, u[o + m]);
         }
     });
-    values.swap(out);
+    std::swap(values, out);
 }
 
 }  // namespace
@@ -139,7 +140,7 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
     const int m = int(std::ceil(kernel.radius())) - 1;  // whole offsets strictly within the radius
     double w0 = 1;
     const std::vector<float> u = axis_weights(kernel, m, w0);
-    std::vector<float> scratch;  // the convolution's other buffer, reused grid after grid
+    ZeroedBuffer<float> scratch;  // the convolution's other buffer, reused grid after grid
     const int pad = m + 1;  // the stencil's spread and a ring of zeros that trilinear reads towards
     for (const ShadedVolume& v : volumes) {
         if (v.grid->active_voxel_count() == 0) continue;
@@ -156,7 +157,8 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
         auto lattice = std::make_unique<Lattice>();
         Lattice& l = *lattice;
         for (int a = 0; a < 3; ++a) l.n[a] = b[a + 3] - b[a] + 1 + 2 * pad;
-        l.departure.assign(size_t(count()), 0.0f);
+        // Zero pages from the kernel, faulted in on all cores: most of a box is air, which stays 0.
+        l.departure = ZeroedBuffer<float>(size_t(count()));
         const double background = grid.background();
         const std::vector<VoxelBlock>& blocks = grid.blocks();
         tbb::parallel_for(size_t(0), blocks.size(), [&](size_t bi) {

@@ -11,6 +11,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/transfer_function.h"
+#include "shaded/albedo_field.h"
 #include "shaded/compositing.h"
 #include "shaded/emission.h"
 #include "shaded/sample_clip.h"
@@ -199,6 +200,7 @@ struct Marcher {
     std::vector<ClassificationTable> tables;
     std::vector<std::unique_ptr<ShadowRays>> shadow_rays;
     std::vector<Shader> shaders;
+    std::vector<std::unique_ptr<AlbedoField>> albedos;
     std::vector<RayGrid> grids;
     SheetGeometry geometry;
     double near_depth, far_depth, step;
@@ -241,7 +243,8 @@ struct Marcher {
                 const double unit = tf.unit_distance > 0 ? tf.unit_distance : smallest_voxel_spacing(grid);
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
-                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed);
+                albedos.push_back(AlbedoField::of(v, geometry.origin0));
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed, albedos.back().get());
                 shader = &shaders.back();
             }
             std::optional<SampleClip> clip;

@@ -14,6 +14,7 @@
 
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
+#include "shaded/albedo_field.h"
 #include "shaded/light_volume.h"
 #include "shaded/raycast_reference.h"
 #include "shaded/shaded_levels.h"
@@ -279,6 +280,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::vector<std::unique_ptr<SlabView>> views;
     std::vector<std::unique_ptr<ClassificationTable>> classifications;
     std::vector<std::unique_ptr<Shader>> shaders;
+    std::vector<std::unique_ptr<AlbedoField>> albedos;
     std::vector<std::unique_ptr<SampleClip>> sample_clips;
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
@@ -291,7 +293,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             const TransferFunction& tf = *volume.transfer_function;  // its unit resolved by LevelledVolumes
             classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
             classification = classifications.back().get();
-            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light()));
+            albedos.push_back(AlbedoField::of(volume, geometry.origin0));
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light(), albedos.back().get()));
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <algorithm>
+#include <deque>
 #include <vector>
 
 #include "pcvr/shaded.h"
@@ -49,6 +50,9 @@ public:
             grids_.push_back(v.grid->level(k, reduction));
             ShadedVolume at_level = v;
             at_level.grid = &grids_.back();
+            // Colours per voxel follow their grid to its level (means, as the density's).
+            for (const Grid*& colour : at_level.albedo_grids)
+                if (colour && k > 0) colour = &albedo_grids_.emplace_back(colour->level(k, reduction));
             if (v.transfer_function) {
                 transfer_functions_.push_back(*v.transfer_function);
                 if (!(transfer_functions_.back().unit_distance > 0))
@@ -67,6 +71,7 @@ public:
 
 private:
     std::vector<Grid> grids_;
+    std::deque<Grid> albedo_grids_;  // a deque: volumes_ point into it as it grows
     std::vector<TransferFunction> transfer_functions_;
     std::vector<ShadedVolume> volumes_;
     int level_ = 0;

@@ -47,7 +47,9 @@ void Lighting::validate() const {
     }
 }
 
-Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance) {
+Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance,
+               const AlbedoModulation* albedo)
+    : albedo_(albedo) {
     lighting.validate();
     if (!transmittance.empty() && transmittance.size() != lighting.lights.size())
         throw InvalidArgument("Shader: one transmittance per light, or none");
@@ -73,11 +75,13 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const L
 
 namespace {
 Vec3x8 splat(const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; }
+Vec3x8 times(const Vec3x8& a, const Vec3x8& b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
 /// Room for the transmittances of this many lights on the stack; more take the heap.
 constexpr size_t kStackLights = 8;
 }  // namespace
 
-Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+Vec3x8 Shader::shade(const Vec3x8& transfer_colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+    const Vec3x8 colour = albedo_ ? times(transfer_colour, albedo_->at(position)) : transfer_colour;
     if (!lit_) return bounded(colour);
     float8 on_stack[kStackLights];  // unshadowed lights' entries stay unset: arriving() reads none of them
     std::vector<float8> on_heap(lights_.size() > kStackLights ? lights_.size() : 0);
@@ -150,7 +154,12 @@ Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec
     return bounded(Vec3x8{c.x * diffuse.x + specular.x, c.y * diffuse.y + specular.y, c.z * diffuse.z + specular.z});
 }
 
-Vec3f Shader::shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
+Vec3f Shader::shade(const Vec3f& transfer_colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
+    Vec3f colour = transfer_colour;
+    if (albedo_) {
+        const Vec3f a = albedo_->at(position);
+        colour = {colour.x * a.x, colour.y * a.y, colour.z * a.z};
+    }
     if (!lit_) {
         const Vec3x8 c = bounded(splat(colour));
         return {c.x[0], c.y[0], c.z[0]};

@@ -39,18 +39,26 @@ namespace {
 
 using namespace vdb_reader;
 
-/// A float copy of any scalar grid: same topology, tiles, transform and metadata. Throws GridError
-/// (prefixed with `context`) for a finite value beyond float's range, which would become infinity.
-template <typename SrcGridT>
-vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src, const std::string& context) {
-    auto out = vdb::FloatGrid::create(static_cast<float>(src.background()));
+/// The value itself: a scalar grid's whole value.
+struct WholeValue {
+    template <typename T>
+    auto operator()(const T& value) const { return value; }
+};
+
+/// A float copy of any scalar grid (or of one component of a vector grid's values, `part`): same topology,
+/// tiles, transform and metadata. Throws GridError (prefixed with `context`) for a finite value beyond float's
+/// range, which would become infinity.
+template <typename SrcGridT, typename Part = WholeValue>
+vdb::FloatGrid::Ptr convert_to_float(const SrcGridT& src, const std::string& context, Part part = {}) {
+    auto out = vdb::FloatGrid::create(static_cast<float>(part(src.background())));
     static_cast<vdb::MetaMap&>(*out) = static_cast<const vdb::MetaMap&>(src);
     out->setTransform(src.transform().copy());
     std::atomic<bool> overflow{false};
     vdb::tools::transformValues(
-        src.cbeginValueOn(), *out, [&overflow](const typename SrcGridT::ValueOnCIter& it, auto& acc) {
-            const float value = static_cast<float>(*it);
-            if (std::isinf(value) && std::isfinite(double(*it))) overflow = true;
+        src.cbeginValueOn(), *out, [&overflow, part](const typename SrcGridT::ValueOnCIter& it, auto& acc) {
+            const auto source = part(*it);
+            const float value = static_cast<float>(source);
+            if (std::isinf(value) && std::isfinite(double(source))) overflow = true;
             if (it.isVoxelValue()) {
                 acc.setValue(it.getCoord(), value);
             } else {
@@ -116,6 +124,29 @@ Grid read_vdb(const std::string& path, const std::string& grid_name) {
         if (!reader.entries()[index].scalar) throw unsupported_value_type(reader.entries()[index].value_type, context);
         vdb::FloatGrid::Ptr grid = to_float_fog(reader.read_grid(index), context);
         return detail::make_grid(grid, path, name, context);
+    });
+}
+
+std::array<Grid, 3> read_vdb_vector(const std::string& path, const std::string& grid_name) {
+    detail::initialize_openvdb();
+    return guard_read(path, [&] {
+        Reader reader(path);
+        const int index = reader.find(grid_name);
+        if (index < 0)
+            throw GridError(quoted(path) + " has no grid named " + quoted(grid_name) + "; grids in the file: " + grid_list(reader));
+        const Entry& entry = reader.entries()[size_t(index)];
+        const std::string name = Reader::display_name(entry);
+        const std::string context = "grid " + quoted(name) + " in " + quoted(path);
+        if (entry.scalar) throw GridError(context + " has value type " + entry.value_type + ", not a vector (need vec3s or vec3d)");
+        const vdb::GridBase::Ptr grid = reader.read_grid(size_t(index));
+        std::array<vdb::FloatGrid::Ptr, 3> parts;
+        grid->apply<vdb::TypeList<vdb::Vec3SGrid, vdb::Vec3DGrid>>([&](const auto& g) {
+            for (int c = 0; c < 3; ++c) parts[c] = convert_to_float(g, context, [c](const auto& v) { return v[c]; });
+        });
+        if (!parts[0]) throw GridError(context + " has value type " + entry.value_type + ", which is not supported (need vec3s or vec3d)");
+        return std::array<Grid, 3>{detail::make_grid(parts[0], path, name + ".x", context),
+                                   detail::make_grid(parts[1], path, name + ".y", context),
+                                   detail::make_grid(parts[2], path, name + ".z", context)};
     });
 }
 

@@ -1,0 +1,223 @@
+"""The scenes of materials_bench.py, rendered in Blender by PCVR and by Cycles: a child process with the bpy
+module, run as
+
+    python blender_materials.py JOB.json      # writes the job's result (JSON), one .npy and one .png per render
+
+| scene   | what                                                                                              |
+|---------|---------------------------------------------------------------------------------------------------|
+| ct_bone | tools/ct_head.py's head in Hounsfield units, a quarter cut away, opened towards an orthographic     |
+|         | camera above (the command line's scene of a .vdb: a sun of pi W/m^2, Blender's default grey world), |
+|         | the CT Bone preset. PCVR renders it twice: the preset's Blinn-Phong shading (`pcvr`), and as a      |
+|         | scattering medium with shadows (`pcvr_scattering`); Cycles renders a Principled Volume whose colour  |
+|         | is the same ramp over the same range and whose density is the ramp's opacity per voxel as an        |
+|         | extinction, -ln(1 - alpha) / voxel size (what pcvr_native makes of it)                              |
+| smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
+| fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
+| coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
+
+Each render is timed as a whole (bpy.ops.render.render, reading the file included: PCVR's grid cache is emptied
+first); PCVR's time is the least of the job's rounds, Cycles renders once at the job's samples (its default
+denoiser) and once at a quarter of them. Images are the Combined pass in linear RGB (.npy) and its sRGB encoding
+(the Standard view transform, .png).
+"""
+
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+
+import bpy
+import numpy as np
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, REPO)
+
+import pcvr_addon  # noqa: E402
+from pcvr_addon import cache, command_scene, image_io, lighting, transfer_function  # noqa: E402
+from tools import ct_head, smoke_plume  # noqa: E402
+
+
+def fresh_scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if not hasattr(bpy.types.Scene, "pcvr"):
+        pcvr_addon.register()
+    return bpy.context.scene
+
+
+def cycles_ramp_material(volume_settings, voxel_size):
+    """A Principled Volume that shows `volume_settings`' transfer function as Cycles understands volumes."""
+    material = bpy.data.materials.new("CT Bone (Cycles)")
+    if material.node_tree is None:  # before 5.0
+        material.use_nodes = True
+    tree = material.node_tree
+    tree.nodes.clear()
+    node = tree.nodes.new
+    attribute = node("ShaderNodeAttribute")
+    attribute.attribute_type, attribute.attribute_name = 'GEOMETRY', "density"
+    to_position = node("ShaderNodeMapRange")  # Hounsfield units -> ramp position
+    to_position.inputs["From Min"].default_value = volume_settings.tf_min
+    to_position.inputs["From Max"].default_value = volume_settings.tf_max
+    ramp = node("ShaderNodeValToRGB")
+    transfer_function.set_ramp(ramp.color_ramp, transfer_function.ramp_elements(volume_settings.ramp))
+    # Opacity of a voxel's thickness -> extinction per unit length: -ln(1 - alpha) / voxel size.
+    clear = node("ShaderNodeMath")
+    clear.operation, clear.inputs[0].default_value = 'SUBTRACT', 1.0
+    log = node("ShaderNodeMath")
+    log.operation, log.inputs[1].default_value = 'LOGARITHM', math.e
+    extinction = node("ShaderNodeMath")
+    extinction.operation, extinction.inputs[1].default_value = 'MULTIPLY', -1.0 / voxel_size
+    volume = node("ShaderNodeVolumePrincipled")
+    volume.inputs["Density Attribute"].default_value = ""  # the density comes from the ramp alone
+    links = tree.links
+    links.new(attribute.outputs["Fac"], to_position.inputs["Value"])
+    links.new(to_position.outputs["Result"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], volume.inputs["Color"])
+    links.new(ramp.outputs["Alpha"], clear.inputs[1])
+    links.new(clear.outputs[0], log.inputs[0])
+    links.new(log.outputs[0], extinction.inputs[0])
+    links.new(extinction.outputs[0], volume.inputs["Density"])
+    links.new(volume.outputs[0], node("ShaderNodeOutputMaterial").inputs["Volume"])
+    return material
+
+
+def ct_bone(job, directory):
+    """{variant: callable making the scene render it}: the CT head in PCVR's two shadings and in Cycles."""
+    head = os.path.join(directory, "ct_head.vdb")
+    grid = ct_head.grid(job["ct_size"], cut_away=True, rotation=ct_head.opened_upwards())
+    grid.write_vdb(head, "density")
+    scene = fresh_scene()
+    obj = command_scene.vdb_scene(scene, head, magnification=job["ct_magnification"])
+    obj.data.pcvr.apply_preset("CT Bone")
+    scene.pcvr.mode = 'SHADED'
+    voxel_size = transfer_function.smallest_voxel_spacing(grid.index_to_world)
+
+    def pcvr(shading_model, shadows):
+        def use():
+            scene.render.engine = 'PCVR'
+            obj.data.pcvr.shading_model, scene.pcvr.shadows = shading_model, shadows
+        return use
+
+    def cycles():
+        if not obj.data.materials:
+            obj.data.materials.append(cycles_ramp_material(obj.data.pcvr, voxel_size))
+        scene.render.engine = 'CYCLES'
+
+    return scene, int(grid.active_voxel_count), {"pcvr": pcvr('BLINN_PHONG', False),
+                                                   "pcvr_scattering": pcvr('SCATTER', True), "cycles": cycles}
+
+
+def plume_scene(vdb_path, n, size):
+    """The plume of `n`^3 voxels seen from the side at `size`^2 pixels, a sun from the left, a dark grey world."""
+    scene = fresh_scene()
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = 'Standard'
+    volume = bpy.data.volumes.new("Plume")
+    volume.filepath = vdb_path
+    obj = bpy.data.objects.new("Plume", volume)
+    scene.collection.objects.link(obj)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    extent = n * smoke_plume.VOXEL
+    camera.data.type, camera.data.ortho_scale = 'ORTHO', extent * 1.05
+    camera.location, camera.rotation_euler = (extent / 2, -10.0, extent / 2), (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
+    sun.data.energy, sun.rotation_euler = 3.0, (0.0, 1.0, 0.3)
+    scene.collection.objects.link(sun)
+    world = bpy.data.worlds.new("World")
+    world.color = (0.05, 0.05, 0.05)
+    if world.node_tree is not None:
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
+    scene.world = world
+    return scene, obj
+
+
+def plume(style, coloured=False):
+    """The plume with Blender's Quick Smoke material of `style`; `coloured`: with a `color` grid, which the
+    material's Color Attribute names."""
+    def make(job, directory):
+        vdb_path = os.path.join(directory, f"plume_{style.lower()}{'_coloured' if coloured else ''}.vdb")
+        grids = smoke_plume.plume(job["plume_size"])
+        smoke_plume.write_vdb(vdb_path, {**grids, "color": smoke_plume.colour(grids)} if coloured else grids)
+        scene, obj = plume_scene(vdb_path, job["plume_size"], job["plume_pixels"])
+        material = smoke_plume.quick_material(style)
+        if coloured:
+            material.node_tree.nodes["Principled Volume"].inputs["Color Attribute"].default_value = "color"
+        obj.data.materials.append(material)
+        obj.data.pcvr.source = 'MATERIAL'
+        scene.pcvr.mode = 'SHADED'
+        scene.pcvr.shadows = True
+
+        def engine(name):
+            return lambda: setattr(scene.render, "engine", name)
+
+        return scene, int(np.count_nonzero(grids["density"])), {"pcvr": engine('PCVR'), "cycles": engine('CYCLES')}
+    return make
+
+
+SCENES = {"ct_bone": ct_bone, "smoke": plume('SMOKE'), "fire": plume('FIRE'), "coloured_smoke": plume('SMOKE', True)}
+
+
+def timed_render(scene):
+    cache.grids.clear()
+    start = time.perf_counter()
+    bpy.ops.render.render()
+    seconds = time.perf_counter() - start
+    return image_io.render_result_passes(scene)["ViewLayer.Combined"], seconds
+
+
+def render_scene(key, job, directory):
+    """One scene's record: each variant's least time over its runs, its image paths; Cycles also at a quarter
+    of the samples."""
+    scene, voxels, variants = SCENES[key](job, directory)
+    rec = {"voxels": voxels, "width": scene.render.resolution_x * scene.render.resolution_percentage // 100,
+           "height": scene.render.resolution_y * scene.render.resolution_percentage // 100,
+           "world": list(lighting.world_colour(scene.world)), "variants": {}}
+    runs = [(variant, None) for variant in variants if variant != "cycles"]
+    runs += [("cycles", job["samples"]), ("cycles_quarter", max(1, job["samples"] // 4))]
+    for variant, samples in runs:
+        variants[variant.removesuffix("_quarter")]()
+        if samples:
+            scene.cycles.samples = samples
+        best = None
+        for _ in range(1 if samples else job["rounds"]):
+            image, seconds = timed_render(scene)
+            if best is None or seconds < best[1]:
+                best = (image, seconds)
+        image, seconds = best
+        name = f"{key}_{variant}"
+        npy = os.path.join(job["work_dir"], name + ".npy")
+        np.save(npy, np.asarray(image, dtype=np.float32))
+        png = None if variant == "cycles_quarter" else os.path.join(job["image_dir"], name + ".png")  # for scale only
+        if png:
+            image_io.write_image(png, image)
+        rec["variants"][variant] = {"seconds": seconds, "samples": samples, "npy": npy, "png": png}
+        print(f"[blender {time.strftime('%H:%M:%S')}] {name}: {seconds:.2f} s", file=sys.stderr, flush=True)
+    return rec
+
+
+def main(job_path):
+    with open(job_path) as f:
+        job = json.load(f)
+    os.makedirs(job["work_dir"], exist_ok=True)
+    os.makedirs(job["image_dir"], exist_ok=True)
+    result = {"blender": bpy.app.version_string, "scenes": {}}
+    try:
+        with tempfile.TemporaryDirectory(prefix="pcvr-materials-") as directory:
+            for key in SCENES:
+                result["scenes"][key] = render_scene(key, job, directory)
+    finally:
+        if hasattr(bpy.types.Scene, "pcvr"):
+            pcvr_addon.unregister()
+    tmp = job["result"] + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(result, f, indent=1)
+    os.replace(tmp, job["result"])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
