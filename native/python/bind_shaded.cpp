@@ -185,6 +185,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["blocks_transparent"] = s.blocks_transparent;
     stats["bricks_transparent"] = s.bricks_transparent;
     stats["blocks_listed"] = s.blocks_listed;
+    stats["blocks_linearised"] = s.blocks_linearised;
     stats["voxels"] = s.voxels_splatted;
     stats["voxels_occluded"] = s.voxels_occluded;
     stats["taps"] = s.taps;

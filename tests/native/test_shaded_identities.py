@@ -53,10 +53,25 @@ def optical_render(grid, cam, method, **kw):
 @pytest.mark.parametrize("spacing, samples", [(1.0, 1), (0.5, 1), (1.0, 3), (0.37, 2)])
 def test_sheets_of_regular_splatting_sum_to_the_xray(ct, projection, spacing, samples):
     cam = camera(ct, projection, 3.0)
-    sheets = optical_render(ct, cam, "regular", sheet_spacing=spacing, samples_per_sheet=samples)
+    stats = {}
+    sheets = optical_render(ct, cam, "regular", sheet_spacing=spacing, samples_per_sheet=samples, stats=stats)
     xray = pn.render_xray(ct, cam, method="regular", passband="paper").astype(np.float64)
     tolerance = max(REGULAR_TOL if projection == "ortho" else 2e-4, CUBIC_TOL if samples > 1 else 0.0)
     assert np.abs(sheets - xray).max() <= tolerance * xray.max()
+
+
+@pytest.mark.parametrize("method", ["regular", "pcvr"])
+def test_sheets_of_linearised_blocks_sum_to_the_xray(ct, method):
+    """Far enough from the eye (here 12 half-diagonals), a block's footprints come from its affine
+    model (block_linearisation.h) in the sheets as in the X-ray: the identity holds for them too."""
+    from conftest import frame_perspective
+    from shaded_scenes import VIEW
+    cam = frame_perspective(ct, 3.0, direction=VIEW, distance=12.0).camera()
+    stats, same = {}, {"stride": 2 if method == "pcvr" else 0, "post_filter": "gauss1.4"}
+    sheets = optical_render(ct, cam, method, stats=stats, **same)
+    xray = pn.render_xray(ct, cam, method=method, passband="paper", **same).astype(np.float64)
+    assert stats["blocks_linearised"] == stats["blocks_listed"] > 0
+    assert np.abs(sheets - xray).max() <= 2e-4 * xray.max()
 
 
 @pytest.mark.parametrize("projection", ["ortho", "persp"])

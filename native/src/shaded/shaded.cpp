@@ -333,6 +333,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
             // rounding, the post filter's reach and the gradient's stencil.
             const double pixel_reach = regular ? 2.0 : double((filter.reach_nodes() + 1) * stride + finest);
+            std::vector<uint32_t> listed;
             for (const PlannedBlock& pb : list) {
                 const VoxelBlock& block = blocks[pb.index];
                 // Depth is affine: its extremes over the block are at the origin plus the negative
@@ -358,8 +359,11 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                 }
                 tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
                           float(view.limit_scale(block)), bricks);
+                listed.push_back(pb.index);
                 ++stats.blocks_listed;
             }
+            views.back()->linearise(listed);
+            stats.blocks_linearised += views.back()->blocks_linearised();
         }
         control.throw_if_cancelled();
     }

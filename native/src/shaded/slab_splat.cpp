@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <optional>
+
+#include <tbb/parallel_for.h>
 
 #include "pcvr/errors.h"
 #include "pcvr/lanes.h"
@@ -198,6 +201,33 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
         if (params.mode == SlabMode::Footprint && params.kernel->smooth_footprint() && 2 * half_width <= kMostWindow)
             window_ = std::make_unique<PhaseFootprintTable>(*params.kernel, shape_.qxx, shape_.qxy, shape_.qyy, half_width);
     }
+}
+
+void SlabView::linearise(const std::vector<uint32_t>& blocks) {
+    if (projection_.orthographic() || round_scale_ <= 0 || params_.mode != SlabMode::Footprint || blocks.empty()) return;
+    const std::vector<VoxelBlock>& all = grid_->blocks();
+    const Vec3& n = projection_.depth_gradient();
+    const double span = VoxelBlock::kDim - 1;
+    std::vector<std::optional<BlockLinearisation>> made(blocks.size());
+    tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+        const VoxelBlock& block = all[blocks[b]];
+        // Every kernel of the block in front of the eye, as a footprint needs (deposit's condition).
+        const double nearest = origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+        if (nearest > depth_reach_) made[b] = linearise_block(block, projection_, params_.stride, 0.0, 0.0, false, 0.0);
+    });
+    linear_slot_.assign(all.size(), -1);
+    for (size_t b = 0; b < blocks.size(); ++b)
+        if (made[b]) {
+            linear_slot_[blocks[b]] = int32_t(linearised_.size());
+            linearised_.push_back(*made[b]);
+        }
+    linearised_count_ = linearised_.size();
+}
+
+const BlockLinearisation* SlabView::linearised(const VoxelBlock& block) const {
+    if (linearised_.empty()) return nullptr;
+    const int32_t slot = linear_slot_[size_t(&block - grid_->blocks().data())];
+    return slot < 0 ? nullptr : &linearised_[size_t(slot)];
 }
 
 uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, uint8_t bricks) const {
@@ -484,6 +514,38 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 b.s_dx[l] = tilted_ ? 0.0f : float(-shape_.depth_dx / shape_.depth_per_index);
                 b.s_dy[l] = tilted_ ? 0.0f : float(-shape_.depth_dy / shape_.depth_per_index);
                 b.s_step[l] = float(spacing / kappa);
+            }
+        } else if (const BlockLinearisation* lin = linearised(block)) {
+            // Round kernels in a linearised block: centres exact as ratios of affine functions, forms
+            // from the block's model, the metric distance from the eye relative to the origin's (in
+            // float: |o + d| - |o| = (2 o.d + d.d) / (|o + d| + |o|), o the origin's offset from the eye).
+            const float8 i = load8(order_.i.data() + batch), j = load8(order_.j.data() + batch), k = load8(order_.k.data() + batch);
+            auto at = [&](const AffineInBlock& f) { return f.at + f.di * i + f.dj * j + f.dk * k; };
+            const float8 w = at(lin->w);
+            store8(b.cx, at(lin->x) / w - float(placement.node_x0));
+            store8(b.cy, at(lin->y) / w - float(placement.node_y0));
+            const float8 qxx = at(lin->qxx), qxy = at(lin->qxy), qyy = at(lin->qyy), det = qxx * qyy - qxy * qxy;
+            store8(b.qxx, qxx);
+            store8(b.qxy, qxy);
+            store8(b.qyy, qyy);
+            const float radius = float(params_.kernel->radius());
+            store8(b.ext_x, sqrt8(qyy / det) * radius);
+            store8(b.ext_y, sqrt8(qxx / det) * radius);
+            store8(b.amp, v * float(density_scale * round_scale_));
+            const Vec3 o = origin - projection_.eye();
+            const double eye_slabs = (round_scale_ * length(o) - sheets_.first_depth) * inv_spacing;
+            const int64_t base = sheet_floor(eye_slabs);
+            const float ox = float(o.x), oy = float(o.y), oz = float(o.z), o_length = float(length(o));
+            const float8 px = i + ox, py = j + oy, pz = k + oz;
+            const float8 further = (2.0f * (ox * i + oy * j + oz * k) + i * i + j * j + k * k) / (sqrt8(px * px + py * py + pz * pz) + o_length);
+            const float8 centre = float(eye_slabs - double(base)) + further * float(round_scale_ * inv_spacing);
+            const float step_index = float(spacing / round_scale_);
+            for (int l = 0; l < kBatch; ++l) {
+                const float front = std::floor(centre[l] - reach_slabs);
+                b.first_sheet[l] = base + int64_t(front);
+                b.s0[l] = (front - centre[l]) * step_index;
+                b.s_dx[l] = b.s_dy[l] = 0.0f;
+                b.s_step[l] = step_index;
             }
         } else {
             const Mat4& m = projection_.index_to_clip();

@@ -30,6 +30,7 @@
 #include "shaded/occlusion_map.h"
 #include "shaded/sheet_geometry.h"
 #include "shaded/sheet_buffer.h"
+#include "splat/block_linearisation.h"
 #include "splat/phase_table.h"
 #include "splat/slab_footprint.h"
 #include "view/view_projection.h"
@@ -151,7 +152,16 @@ public:
     DepositCounts deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
                           int64_t first_open_sheet, const OcclusionMap* occlusion, uint8_t bricks = 0xff) const;
 
+    /// Perspective views of kernels round in the sheet metric: models the footprints of these blocks
+    /// (indices into the grid's blocks) as affine functions of the voxel (block_linearisation.h), so
+    /// that deposits project eight voxels in float instead of each in double. Blocks the model misses
+    /// (near the eye) keep the exact projection. Call before rendering; uses every thread.
+    void linearise(const std::vector<uint32_t>& blocks);
+    /// Blocks linearised (for stats).
+    size_t blocks_linearised() const { return linearised_count_; }
+
 private:
+    const BlockLinearisation* linearised(const VoxelBlock& block) const;
     bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
                       const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2], uint64_t& taps) const;
 
@@ -176,6 +186,10 @@ private:
     // length along the rays, and whether they are tilted (metric planes: every tap shares its slabs).
     Vec3 order_gradient_;
     double order_offset_ = 0;
+    // linearise(): each listed block's slot in linearised_ (-1: exact projection).
+    std::vector<int32_t> linear_slot_;
+    std::vector<BlockLinearisation> linearised_;
+    size_t linearised_count_ = 0;
     double plane_kappa_ = 1;
     bool tilted_ = false;
     std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows

@@ -64,15 +64,15 @@ inline std::optional<AffineInBlock> fit_corners(double centre, const std::array<
 
 }  // namespace detail
 
-/// The linearisation of `block`'s footprints on `grid`, node coordinates relative to node
-/// (ref_x, ref_y); nullopt where the exact per-voxel projection is needed (see above).
-/// `antialias`: footprints narrower than a pixel are prefiltered, with the kernel's
-/// `kernel_variance` (index units^2).
-inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view,
-                                                         const SplatGrid& grid, int ref_x, int ref_y, bool antialias,
+/// The linearisation of `block`'s footprints on a subgrid of nodes `stride` pixels apart, node
+/// coordinates pixel / stride - (node_x0, node_y0); nullopt where the exact per-voxel projection is
+/// needed (see above). `antialias`: footprints narrower than a pixel are prefiltered, with the
+/// kernel's `kernel_variance` (index units^2).
+inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view, int stride,
+                                                         double node_x0, double node_y0, bool antialias,
                                                          double kernel_variance) {
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
-    const double stride2 = grid.stride() * grid.stride();
+    const double stride2 = double(stride) * stride;
     Footprint centre, corner[8];
     if (!view.footprint(origin + Vec3{3.5, 3.5, 3.5}, centre)) return std::nullopt;
     const bool narrow = antialias && prefiltered(centre);
@@ -80,7 +80,7 @@ inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block
         const Vec3 offset{7.0 * (c & 1), 7.0 * ((c >> 1) & 1), 7.0 * ((c >> 2) & 1)};
         Footprint& f = corner[c];
         if (!view.footprint(origin + offset, f) || (antialias && prefiltered(f)) != narrow) return std::nullopt;
-        if (narrow && FootprintCovariance(f.qxx * stride2, f.qxy * stride2, f.qyy * stride2, kernel_variance).tilted(grid.stride()))
+        if (narrow && FootprintCovariance(f.qxx * stride2, f.qxy * stride2, f.qyy * stride2, kernel_variance).tilted(stride))
             return std::nullopt;
     }
     const double form_scale = 0.5 * (centre.qxx + centre.qyy) * stride2;
@@ -93,11 +93,11 @@ inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block
                qyy = fit(&Footprint::qyy, form_scale, stride2), line = fit(&Footprint::line_scale, centre.line_scale, 1.0);
     if (!qxx || !qxy || !qyy || !line) return std::nullopt;
 
-    // node_x - ref_x = a clip_x / clip_w + b: both parts affine in the index.
+    // node_x = a clip_x / clip_w + b: both parts affine in the index.
     const Camera& cam = view.camera();
     const Mat4& m = view.index_to_clip();
-    const double ax = 0.5 * cam.width() / grid.stride(), bx = (0.5 * cam.width() - 0.5) / grid.stride() - grid.first_node_x() - ref_x;
-    const double ay = -0.5 * cam.height() / grid.stride(), by = (0.5 * cam.height() - 0.5) / grid.stride() - grid.first_node_y() - ref_y;
+    const double ax = 0.5 * cam.width() / stride, bx = (0.5 * cam.width() - 0.5) / stride - node_x0;
+    const double ay = -0.5 * cam.height() / stride, by = (0.5 * cam.height() - 0.5) / stride - node_y0;
     auto clip_row = [&](double a, int row, double b) {
         auto coeff = [&](int col) { return a * m.m[row][col] + b * m.m[3][col]; };
         const double at = coeff(0) * origin.x + coeff(1) * origin.y + coeff(2) * origin.z + coeff(3);
@@ -113,6 +113,14 @@ inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block
     out.line_scale = *line;
     out.prefiltered = narrow;
     return out;
+}
+
+/// The same on an X-ray's splat grid, node coordinates relative to node (ref_x, ref_y).
+inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view,
+                                                         const SplatGrid& grid, int ref_x, int ref_y, bool antialias,
+                                                         double kernel_variance) {
+    return linearise_block(block, view, grid.stride(), grid.first_node_x() + ref_x, grid.first_node_y() + ref_y, antialias,
+                           kernel_variance);
 }
 
 }  // namespace pcvr
