@@ -68,11 +68,11 @@ inline std::optional<AffineInBlock> fit_corners(double centre, const std::array<
 /// coordinates pixel / stride - (node_x0, node_y0); nullopt where the exact per-voxel projection is
 /// needed (see above). `antialias`: footprints narrower than a pixel are prefiltered, with the
 /// kernel's `kernel_variance` (index units^2).
-inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view, int stride,
+inline std::optional<BlockLinearisation> linearise_block(const VoxelBlock& block, const ViewProjection& view, double stride,
                                                          double node_x0, double node_y0, bool antialias,
                                                          double kernel_variance) {
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
-    const double stride2 = double(stride) * stride;
+    const double stride2 = stride * stride;
     Footprint centre, corner[8];
     if (!view.footprint(origin + Vec3{3.5, 3.5, 3.5}, centre)) return std::nullopt;
     const bool narrow = antialias && prefiltered(centre);
