@@ -65,10 +65,12 @@ def format_stats(stats):
 
 
 def _automatic_choices(stats):
-    """What the renderer chose for itself zoomed out: a coarser level of detail, or sub-pixels it averaged."""
+    """What the renderer chose for itself: a coarser level of detail or sub-pixels it averaged (zoomed
+    out), sheets following the voxels' shape (anisotropic voxels, shaded and MIP)."""
     level = f" | Level of detail {stats['level']}" if stats.get("level") else ""
     sub = stats.get("supersampling", 1)
-    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "")
+    metric = " | Sheets in the voxels' metric" if stats.get("sheet_metric") == "voxels" else ""
+    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric
 
 
 def status_line(mode, stats):
@@ -117,7 +119,7 @@ def _mode_rows(mode, stats):
         ("Transparent", _share(stats["blocks_transparent"], stats["blocks"])),
         ("Voxels splatted", f"{stats['voxels']:,}"),
         ("Behind opaque", _share(stats["voxels_occluded"], stats["voxels"] + stats["voxels_occluded"])),
-        ("Sheets", f"{stats['sheets']:,}"),
+        ("Sheets", f"{stats['sheets']:,}" + (" (in the voxels' metric)" if stats.get("sheet_metric") == "voxels" else "")),
         ("Tiles finished early", _share(stats["tiles_terminated"], stats["tiles"])),
         ("Empty tile sheets", _share(stats["tile_sheets_skipped"],
                                      stats["tile_sheets_skipped"] + stats["tile_sheets_composited"])),

@@ -186,6 +186,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["bricks_transparent"] = s.bricks_transparent;
     stats["blocks_listed"] = s.blocks_listed;
     stats["blocks_linearised"] = s.blocks_linearised;
+    stats["sheet_metric"] = s.sheets_in_voxel_metric ? "voxels" : "world";
     stats["voxels"] = s.voxels_splatted;
     stats["voxels_occluded"] = s.voxels_occluded;
     stats["taps"] = s.taps;

@@ -36,10 +36,11 @@ TEST(voxels_of_one_shape_are_cubes_in_their_sheet_metric) {
     CHECK(fine > 0 && coarse > 0);
     CHECK_NEAR(coarse / fine, 2.0, 1e-9);
     CHECK_NEAR(fine, std::cbrt(0.5 * 0.5 * 1.2), 1e-9);
-    // Cubic voxels: the world's own metric.
-    const Mat4 cubes = sheet_metric({Mat4::from_rows({0.3, 0, 0, 0, 0, 0.3, 0, 0, 0, 0, 0.3, 0, 0, 0, 0, 1})});
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) CHECK_NEAR(cubes.m[i][j], i == j ? 1.0 : 0.0, 1e-12);
+    // Cubic voxels, turned or not: exactly the world's own metric (whose inverse scaled to keep
+    // volumes is the identity only to rounding).
+    const Mat4 turned = ct_voxels(0.7, 1.0) * Mat4::from_rows({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0.5 / 1.2, 0, 0, 0, 0, 1});
+    for (const Mat4& cubic : {Mat4::from_rows({0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}), turned})
+        CHECK(is_identity(sheet_metric({cubic})));
 }
 
 TEST(voxels_of_different_shapes_keep_the_worlds_metric) {

@@ -171,6 +171,7 @@ def test_planes_tilted_into_the_voxels_metric_sum_to_the_xray(part):
     pn.render_shaded([grid, cubic_decoy()], cam, [tf, tf], method="regular", opacity_cutoff=1.0, samples_per_sheet=1,
                      cull_transparent=False, stats=depth_planes)
     assert tilted["voxels"] == depth_planes["voxels"]
+    assert (tilted["sheet_metric"], depth_planes["sheet_metric"]) == ("voxels", "world")
     assert tilted["taps"] <= 5 / 6 * depth_planes["taps"]
 
 

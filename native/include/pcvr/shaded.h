@@ -110,6 +110,9 @@ struct ShadedStats {
     uint64_t bricks_transparent = 0;  ///< 4^3 bricks of the listed blocks left out the same way
     uint64_t blocks_listed = 0;       ///< (block, tile) pairs to splat
     uint64_t blocks_linearised = 0;   ///< perspective: blocks whose footprints come from a model per block
+    /// The sheets follow the grids' voxel metric (their voxels are cubes in it: tilted planes, spheres
+    /// in index space) rather than the world's: an automatic choice, shown in the add-on's last-render line.
+    bool sheets_in_voxel_metric = false;
     uint64_t voxels_splatted = 0;     ///< voxel deposits (a voxel reaching k tiles counts k times)
     uint64_t voxels_occluded = 0;     ///< deposits skipped: footprint wholly on opaque pixels
     uint64_t taps = 0;                ///< node-slab pairs the deposits covered (window nodes times slabs)

@@ -209,6 +209,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     for (const ShadedVolume& v : volumes)
         if (v.grid->active_voxel_count() > 0) shapes.push_back(v.grid->index_to_world());
     sheets.metric = sheet_metric(shapes);
+    stats.sheets_in_voxel_metric = !is_identity(sheets.metric);
     sheets.planes = sheet_planes(camera, sheets.metric);
     geometry.use_metric(sheets.metric, camera);
     std::vector<ViewProjection> projections;

@@ -58,7 +58,11 @@ Mat4 sheet_metric(const std::vector<Mat4>& index_to_worlds) {
         if (!metric) metric = m;
         else if (round_scale(*metric, index_to_world) == 0) return Mat4();  // shapes differ: world spheres
     }
-    return metric ? *metric : Mat4();
+    // Voxels that are cubes in world space keep the world's metric exactly (the scaled inverse of
+    // 0.1 x the identity is the identity only to rounding).
+    bool cubes = true;
+    for (const Mat4& index_to_world : index_to_worlds) cubes = cubes && round_scale(Mat4(), index_to_world) > 0;
+    return metric && !cubes ? *metric : Mat4();
 }
 
 
