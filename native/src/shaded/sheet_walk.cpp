@@ -480,12 +480,6 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     auto sheets_at = [](const Source& src, size_t i, float8 (&v)[4]) {
         v[0] = load8(src.before + i), v[1] = load8(src.here + i), v[2] = load8(src.after + i), v[3] = load8(src.beyond + i);
     };
-    auto reaches_something = [&](const Source& src, size_t i, int8x open) {
-        float8 v[4];
-        sheets_at(src, i, v);
-        const float8 raw = along.value_at(v);
-        return any8(open & (raw != 0) & src.classification->maybe_opaque(raw * per_spacing + src.background));
-    };
 
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
@@ -495,10 +489,15 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
             int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
+            // Each source's four sheets and its sample, read once: most samples end here, where no
+            // source has a density that may be visible.
+            float8 sheet_values[64][4], raws[64];
             bool any = false;
-            for (int k = 0; k < source_count && !any; ++k) {
-                const GridState& g = *sources[k].grid;
-                any = reaches_something(sources[k], size_t(y + g.halo) * g.pitch() + size_t(x + g.halo), open);
+            for (int k = 0; k < source_count; ++k) {
+                const Source& src = sources[k];
+                sheets_at(src, size_t(y + src.grid->halo) * src.grid->pitch() + size_t(x + src.grid->halo), sheet_values[k]);
+                raws[k] = along.value_at(sheet_values[k]);
+                any = any || any8(open & (raws[k] != 0) & src.classification->maybe_opaque(raws[k] * per_spacing + src.background));
             }
             if (!any) continue;
             samples_classified_ += uint64_t(__builtin_popcount(lane_mask(open)));
@@ -525,9 +524,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const Source& src = sources[k];
                 const GridState& g = *src.grid;
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
-                float8 v[4];
-                sheets_at(src, i, v);
-                const float8 raw = along.value_at(v);
+                const float8(&v)[4] = sheet_values[k];
+                const float8 raw = raws[k];
                 const float8 density = raw * per_spacing + src.background;
                 int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
                 if (!any8(valid)) continue;
