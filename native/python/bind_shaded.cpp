@@ -367,18 +367,22 @@ void bind_shaded(nb::module_& m) {
                         "Henyey-Greenstein phase function of `anisotropy` g in (-1, 1), > 0 forwards).")
         .def("__init__",
              [](Shading* self, double ambient, double diffuse, double specular, double shininess, bool lit, const std::string& model,
-                double anisotropy) {
-                 new (self) Shading{ambient, diffuse, specular, shininess, lit, shading_model_from_name(model), anisotropy};
+                double anisotropy, bool ambient_occlusion) {
+                 new (self) Shading{ambient, diffuse, specular, shininess, lit, shading_model_from_name(model), anisotropy,
+                                    ambient_occlusion};
                  Lighting{{}, {0, 0, 0}, *self}.validate();
              },
              "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0, "lit"_a = true,
-             "model"_a = "blinn_phong", "anisotropy"_a = 0.0,
-             "lit=False: samples keep the transfer function's colours (shading off, as in VTK and 3D Slicer).")
+             "model"_a = "blinn_phong", "anisotropy"_a = 0.0, "ambient_occlusion"_a = false,
+             "lit=False: samples keep the transfer function's colours (shading off, as in VTK and 3D Slicer).\n"
+             "ambient_occlusion=True: the ambient light reaches each sample through the volumes, as the mean of its\n"
+             "transmittance towards +-x, +-y and +-z (the world's light in Cycles is shadowed so).")
         .def_rw("ambient", &Shading::ambient)
         .def_rw("diffuse", &Shading::diffuse)
         .def_rw("specular", &Shading::specular)
         .def_rw("shininess", &Shading::shininess)
         .def_rw("lit", &Shading::lit)
+        .def_rw("ambient_occlusion", &Shading::ambient_occlusion)
         .def_prop_ro("model", [](const Shading& s) { return s.model == Shading::Model::Scatter ? "scatter" : "blinn_phong"; })
         .def_prop_ro("anisotropy", [](const Shading& s) { return s.anisotropy; })
         .def("__repr__", [](const Shading& s) {

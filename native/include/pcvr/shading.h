@@ -25,6 +25,10 @@
 ///
 /// T is the fraction of a light's energy that reaches the sample through the volumes (1 without shadows):
 /// each light that casts shadows has a LightTransmittance, which the renderer builds once per render.
+///
+/// Ambient occlusion (Shading::ambient_occlusion, both models): the ambient colour reaches a sample as
+/// the world's light does in Cycles, through the volumes: times the mean of its transmittance towards
+/// the six directions +-x, +-y, +-z (ambient_occlusion_suns), each as a sun's shadow to infinity.
 #pragma once
 
 #include <vector>
@@ -66,7 +70,11 @@ struct Shading {
     bool lit = true;
     Model model = Model::BlinnPhong;
     double anisotropy = 0.0;  ///< Scatter only: the Henyey-Greenstein g
+    bool ambient_occlusion = false;  ///< the ambient light through the volumes (see above)
 };
+
+/// Ambient occlusion's six directions as suns, light arriving from +x, -x, +y, -y, +z and -z.
+std::vector<Light> ambient_occlusion_suns();
 
 /// The fraction of one light's energy that reaches points through the volumes of a render. Positions
 /// are relative to the Shader's origin. Implementations are immutable and safe to read from many threads.
@@ -105,8 +113,10 @@ public:
     /// `transmittance`: empty, or one per light of `lighting` (null: that light casts no shadow); the
     /// caller keeps them alive as long as the shader. `albedo` (optional, kept alive likewise) multiplies
     /// every sample's colour before it is lit.
+    /// `occluders`: empty, or the transmittances of ambient_occlusion_suns (the material's ambient
+    /// occlusion), kept alive likewise.
     explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {},
-                    const AlbedoModulation* albedo = nullptr);
+                    const AlbedoModulation* albedo = nullptr, std::vector<const LightTransmittance*> occluders = {});
 
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
@@ -130,10 +140,15 @@ private:
     /// The light at eight samples; `*transmittance` is read only where the light has one.
     static Arriving arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance);
     /// shade() with each shadowed light's transmittance at the samples (lights_' order, unshadowed ones unread).
+    /// `ambient_share`: the ambient light's share that reaches the samples (ambient occlusion; else 1).
     Vec3x8 shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
-                     const float8* transmittance) const;
-    Vec3x8 scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance) const;
+                     const float8* transmittance, float8 ambient_share) const;
+    Vec3x8 scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance,
+                   float8 ambient_share) const;
+    /// The mean transmittance of the occluders at eight samples (1 without).
+    float8 ambient_share(const Vec3x8& position) const;
     std::vector<PreparedLight> lights_;
+    std::vector<const LightTransmittance*> occluders_;
     const AlbedoModulation* albedo_;
     bool lit_, scatter_;
     Vec3f ambient_;  // ka * ambient colour (Scatter: the ambient colour)

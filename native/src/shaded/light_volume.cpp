@@ -208,17 +208,24 @@ float8 LightVolume::at(const Vec3x8& p) const {
 float LightVolume::at(const Vec3f& p) const { return at(lanes(p))[0]; }
 
 LightVolumes::LightVolumes(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows,
-                           const Kernel& kernel, const Vec3& origin, RenderControl& control) {
+                           bool ambient_occlusion, const Kernel& kernel, const Vec3& origin, RenderControl& control) {
     const std::vector<Light>& lights = lighting.lights;
-    if (std::none_of(lights.begin(), lights.end(), [&](const Light& l) { return l.casts_shadow(render_shadows); })) return;
+    const bool shadows = std::any_of(lights.begin(), lights.end(), [&](const Light& l) { return l.casts_shadow(render_shadows); });
+    if (!shadows && !ambient_occlusion) return;
     const ExtinctionField field(volumes, kernel, origin);
     for (const Light& light : lights) {
+        if (!shadows) break;
         if (field.empty() || !light.casts_shadow(render_shadows)) {
             per_light_.push_back(nullptr);
             continue;
         }
         volumes_.push_back(std::make_unique<LightVolume>(light, field, origin, field.smallest_spacing(), control));
         per_light_.push_back(volumes_.back().get());
+    }
+    if (!ambient_occlusion || field.empty()) return;
+    for (const Light& sun : ambient_occlusion_suns()) {
+        volumes_.push_back(std::make_unique<LightVolume>(sun, field, origin, 2.0 * field.smallest_spacing(), control));
+        occluders_.push_back(volumes_.back().get());
     }
 }
 

@@ -78,19 +78,23 @@ private:
     std::vector<uint16_t> transmittance_;
 };
 
-/// The light volumes of a render: one per light that casts shadows (Light::casts_shadow).
+/// The light volumes of a render: one per light that casts shadows (Light::casts_shadow), and with
+/// `ambient_occlusion` one per ambient_occlusion_suns direction, at twice the texel spacing (the ambient
+/// term is the mean of six: a texel's error weighs a sixth, and the lattices cost an eighth).
 class LightVolumes {
 public:
-    LightVolumes(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows, const Kernel& kernel,
-                 const Vec3& origin, RenderControl& control);
+    LightVolumes(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows, bool ambient_occlusion,
+                 const Kernel& kernel, const Vec3& origin, RenderControl& control);
     ~LightVolumes();
     /// For Shader: empty when no light casts shadows, else one per light (null: no shadow).
     const std::vector<const LightTransmittance*>& per_light() const { return per_light_; }
+    /// For Shader: the ambient occlusion directions' (empty without).
+    const std::vector<const LightTransmittance*>& occluders() const { return occluders_; }
     uint64_t texels() const;
 
 private:
     std::vector<std::unique_ptr<LightVolume>> volumes_;
-    std::vector<const LightTransmittance*> per_light_;
+    std::vector<const LightTransmittance*> per_light_, occluders_;
 };
 
 }  // namespace pcvr

@@ -228,6 +228,16 @@ struct Marcher {
                 shadowed.push_back(shadow_rays.back().get());
             }
         if (std::all_of(shadowed.begin(), shadowed.end(), [](const LightTransmittance* t) { return t == nullptr; })) shadowed.clear();
+        // Ambient occlusion: shadow rays towards its six directions.
+        std::vector<const LightTransmittance*> occluders;
+        const bool occlusion = lighting && std::any_of(volumes.begin(), volumes.end(), [&](const ShadedVolume& v) {
+                                   return v.lit_by(*lighting).material.ambient_occlusion;
+                               });
+        if (occlusion && std::isfinite(finest))
+            for (const Light& sun : ambient_occlusion_suns()) {
+                shadow_rays.push_back(std::make_unique<ShadowRays>(sun, grids, kernel, geometry.origin0, finest * params.sheet_spacing));
+                occluders.push_back(shadow_rays.back().get());
+            }
         for (const ShadedVolume& v : volumes) {
             const Grid& grid = *v.grid;
             if (grid.active_voxel_count() == 0) continue;
@@ -244,7 +254,9 @@ struct Marcher {
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
                 albedos.push_back(AlbedoField::of(v, geometry.origin0));
-                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed, albedos.back().get());
+                const Lighting lit = v.lit_by(*lighting);
+                shaders.emplace_back(lit, geometry.origin0, shadowed, albedos.back().get(),
+                                     lit.material.ambient_occlusion ? occluders : std::vector<const LightTransmittance*>{});
                 shader = &shaders.back();
             }
             std::optional<SampleClip> clip;

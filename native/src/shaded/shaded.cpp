@@ -271,7 +271,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::optional<LightVolumes> shadows;
     if (!mip) {
         const auto shadows_start = Clock::now();
-        shadows.emplace(volumes, *lighting, params.shadows, kernel, geometry.origin0, control);
+        const bool occlusion = std::any_of(volumes.begin(), volumes.end(),
+                                           [&](const ShadedVolume& v) { return v.lit_by(*lighting).material.ambient_occlusion; });
+        shadows.emplace(volumes, *lighting, params.shadows, occlusion, kernel, geometry.origin0, control);
         stats.shadow_texels = shadows->texels();
         stats.seconds_shadows = std::chrono::duration<double>(Clock::now() - shadows_start).count();
     }
@@ -295,7 +297,10 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
             classification = classifications.back().get();
             albedos.push_back(AlbedoField::of(volume, geometry.origin0));
-            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light(), albedos.back().get()));
+            const Lighting lit = volume.lit_by(*lighting);
+            shaders.push_back(std::make_unique<Shader>(lit, geometry.origin0, shadows->per_light(), albedos.back().get(),
+                                                       lit.material.ambient_occlusion ? shadows->occluders()
+                                                                                      : std::vector<const LightTransmittance*>{}));
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);

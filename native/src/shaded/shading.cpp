@@ -47,12 +47,25 @@ void Lighting::validate() const {
     }
 }
 
+std::vector<Light> ambient_occlusion_suns() {
+    std::vector<Light> suns;
+    for (int axis = 0; axis < 3; ++axis)
+        for (double sign : {1.0, -1.0}) {
+            Vec3 travel;  // from the direction the light comes from
+            (axis == 0 ? travel.x : axis == 1 ? travel.y : travel.z) = -sign;
+            suns.push_back(Light::sun(travel, {1, 1, 1}, 1.0));
+        }
+    return suns;
+}
+
 Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance,
-               const AlbedoModulation* albedo)
-    : albedo_(albedo) {
+               const AlbedoModulation* albedo, std::vector<const LightTransmittance*> occluders)
+    : occluders_(std::move(occluders)), albedo_(albedo) {
     lighting.validate();
     if (!transmittance.empty() && transmittance.size() != lighting.lights.size())
         throw InvalidArgument("Shader: one transmittance per light, or none");
+    if (!occluders_.empty() && occluders_.size() != ambient_occlusion_suns().size())
+        throw InvalidArgument("Shader: one occluder per ambient occlusion direction, or none");
     const Shading& m = lighting.material;
     lit_ = m.lit;
     scatter_ = m.model == Shading::Model::Scatter;
@@ -88,7 +101,14 @@ Vec3x8 Shader::shade(const Vec3x8& transfer_colour, const Vec3x8& gradient, cons
     float8* transmittance = on_heap.empty() ? on_stack : on_heap.data();
     for (size_t i = 0; i < lights_.size(); ++i)
         if (lights_[i].transmittance) transmittance[i] = lights_[i].transmittance->at(position);
-    return shade_lit(colour, gradient, to_eye, position, transmittance);
+    return shade_lit(colour, gradient, to_eye, position, transmittance, ambient_share(position));
+}
+
+float8 Shader::ambient_share(const Vec3x8& position) const {
+    if (occluders_.empty()) return broadcast8(1.0f);
+    float8 sum = broadcast8(0.0f);
+    for (const LightTransmittance* t : occluders_) sum += t->at(position);
+    return sum * (1.0f / float(occluders_.size()));
 }
 
 Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance) {
@@ -103,8 +123,9 @@ Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& posi
     return {l, energy};
 }
 
-Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance) const {
-    Vec3x8 radiance = splat(ambient_);
+Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance,
+                       float8 ambient_share) const {
+    Vec3x8 radiance = splat(ambient_) * ambient_share;
     const float g = anisotropy_;
     const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
     for (size_t i = 0; i < lights_.size(); ++i) {
@@ -120,9 +141,9 @@ Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8&
 }
 
 Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
-                         const float8* transmittance) const {
-    if (scatter_) return scatter(colour, to_eye, position, transmittance);
-    Vec3x8 diffuse = splat(ambient_), specular = splat({0, 0, 0});
+                         const float8* transmittance, float8 ambient_share) const {
+    if (scatter_) return scatter(colour, to_eye, position, transmittance, ambient_share);
+    Vec3x8 diffuse = splat(ambient_) * ambient_share, specular = splat({0, 0, 0});
     // Divided by its largest component before it is squared: the gradients of densities near 1e30
     // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
     const float8 largest = max8(max8(abs8(gradient.x), abs8(gradient.y)), abs8(gradient.z));
@@ -168,7 +189,8 @@ Vec3f Shader::shade(const Vec3f& transfer_colour, const Vec3f& gradient, const V
     std::vector<float8> transmittance(lights_.size());
     for (size_t i = 0; i < lights_.size(); ++i)
         if (lights_[i].transmittance) transmittance[i] = broadcast8(lights_[i].transmittance->at(position));
-    const Vec3x8 lit = shade_lit(splat(colour), splat(gradient), splat(to_eye), splat(position), transmittance.data());
+    const Vec3x8 lit = shade_lit(splat(colour), splat(gradient), splat(to_eye), splat(position), transmittance.data(),
+                                 ambient_share(splat(position)));
     return {lit.x[0], lit.y[0], lit.z[0]};
 }
 
