@@ -293,17 +293,18 @@ def _native_lighting(prepared):
     shadings = []
     for volume in prepared.volumes:
         medium = volume.inputs.medium
+        use_shading, ambient, diffuse, specular, shininess, anisotropy, occlusion = volume.inputs.material
         if medium is not None:
             # A Blender material is a scattering medium: single scattering with its phase function, as Cycles
             # lights it (its transfer function's colour is the albedo), not Blinn-Phong on gradients.
-            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy))
+            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy, ambient_occlusion=occlusion))
             continue
-        use_shading, ambient, diffuse, specular, shininess, anisotropy = volume.inputs.material
         if anisotropy is not None:
-            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=anisotropy, lit=use_shading))
+            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=anisotropy, lit=use_shading,
+                                                ambient_occlusion=occlusion))
             continue
         shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
-                                            shininess=shininess, lit=use_shading))
+                                            shininess=shininess, lit=use_shading, ambient_occlusion=occlusion))
     lights = []
     for spec in prepared.inputs.lights:
         # The scene's shadows (render_shaded's `shadows`) reach the lights whose Cast Shadow is on; a sun's Angle

@@ -434,6 +434,13 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=-0.99, max=0.99, default=0.0,
         update=tag_changed,
     )
+    ambient_occlusion: BoolProperty(
+        name="Ambient Occlusion",
+        description="Shadow the world's ambient light through the volumes, as Cycles does: each sample gets the mean "
+                    "of the light arriving from six directions (costs six light volumes per render)",
+        default=False,
+        update=tag_changed,
+    )
 
     @property
     def ramp(self):

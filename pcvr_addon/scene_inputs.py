@@ -51,7 +51,7 @@ class VolumeInputs:
     density_scale: float
     error: str = ""          # why the volume cannot be read, "" when it can
     ramp: RampInputs | None = None     # shaded mode
-    material: tuple | None = None      # shaded mode: (use_shading, ambient, diffuse, specular, shininess, anisotropy)
+    material: tuple | None = None      # shaded mode: see material()
     mu_water_per_cm: float | None = None  # X-ray of a CT in Hounsfield units: water's attenuation; None: densities
     clipping: Clipping = Clipping()  # what of it is kept (crop box, clip planes)
     # Shaded mode with volume.pcvr.source 'MATERIAL': the part of the material this grid renders (None: the
@@ -161,11 +161,12 @@ def gradient_opacity_inputs(settings):
 
 
 def material(settings):
-    """A volume's material: (use_shading, ambient, diffuse, specular, shininess, anisotropy), anisotropy None for
-    Blinn-Phong (a number: single scattering)."""
+    """A volume's material: (use_shading, ambient, diffuse, specular, shininess, anisotropy, ambient_occlusion),
+    anisotropy None for Blinn-Phong (a number: single scattering)."""
     anisotropy = float(settings.anisotropy) if settings.shading_model == 'SCATTER' else None
     return (settings.use_shading, *(as_typed(getattr(settings, name))
-                                    for name in ("ambient", "diffuse", "specular", "shininess")), anisotropy)
+                                    for name in ("ambient", "diffuse", "specular", "shininess")), anisotropy,
+            bool(settings.ambient_occlusion))
 
 
 def material_volume_inputs(source, mode, export_grid):

@@ -306,6 +306,7 @@ class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
         settings = context.volume.pcvr
         layout.active = settings.use_shading
         layout.prop(settings, "shading_model")
+        layout.prop(settings, "ambient_occlusion")
         col = layout.column(align=True)
         if settings.shading_model == 'SCATTER':
             col.prop(settings, "anisotropy")

@@ -179,6 +179,23 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
     assert np.abs(image - reference(blob_object)).max() > 0.05 * expected.max()
 
 
+def test_ambient_occlusion_reaches_render_shaded(blob_object):
+    scene = lit_blob_scene(blob_object)
+    blob_object.data.pcvr.ambient_occlusion = True
+    image = ls.combined(bs.render(scene))
+    lights = [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
+              pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+    expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
+                                lights=lights, ambient=WORLD, method="regular",
+                                shading=pn.Shading(ambient=0.25, diffuse=0.75, specular=0.375, shininess=20.0,
+                                                   ambient_occlusion=True))
+    np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
+    # Only the world's light is taken away, and some of it is.
+    plain = reference(blob_object)
+    assert np.all(image[..., :3] <= plain[..., :3] + TOLERANCE * plain.max())
+    assert image[..., :3].sum() < 0.99 * plain[..., :3].sum()
+
+
 def test_each_volume_has_its_own_material(tmp_path, rng):
     """Two blobs side by side, one unshaded and one shiny: together they look as each does alone."""
     path = bs.write_vdb(tmp_path / "blob.vdb", bs.blob(rng))
