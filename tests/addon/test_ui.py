@@ -175,9 +175,10 @@ def test_panels_of_each_mode(tmp_path, mode):
     assert "color_ramp" in draw(ui.PCVR_DATA_PT_transfer_function, context)
     if mode == 'SHADED':
         assert draw(ui.PCVR_DATA_PT_shading, context, "draw_header") == ["use_shading"]
-        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient", "diffuse", "specular", "shininess"]
+        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "ambient", "diffuse",
+                                                          "specular", "shininess"]
         obj.data.pcvr.shading_model = 'SCATTER'
-        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "anisotropy"]
+        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "anisotropy"]
         assert draw(ui.PCVR_DATA_PT_gradient_opacity, context, "draw_header") == ["use_gradient_opacity"]
         gradient = draw(ui.PCVR_DATA_PT_gradient_opacity, context)
         assert gradient[:2] == ["gradient_opacity", "pcvr.gradient_opacity_new"]
