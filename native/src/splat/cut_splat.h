@@ -63,9 +63,7 @@ private:
     static float8 lerp8(const float* table, float8 x) {
         x = clamp8(x, 0.0f, float(kEntries));
         const int8x i = __builtin_convertvector(x, int8x);
-        const float8 f = x - __builtin_convertvector(i, float8);
-        const float8 a = gather8(table, i), b = gather8(table + 1, i);
-        return a + f * (b - a);
+        return lerp_pairs8(table, i, x - __builtin_convertvector(i, float8));
     }
     static constexpr int kEntries = 4096;
     static double lerp(const std::vector<double>& table, double x) {

@@ -80,9 +80,7 @@ public:
     float8 operator()(float8 t) const {
         const float8 u = (clamp8(t, -float(kRange), float(kRange)) + float(kRange)) * float(kScale);
         const int8x i = __builtin_convertvector(u, int8x);
-        const float8 f = u - __builtin_convertvector(i, float8);
-        const float8 lo = gather8(values_.data(), i), hi = gather8(values_.data() + 1, i);
-        return lo + f * (hi - lo);
+        return lerp_pairs8(values_.data(), i, u - __builtin_convertvector(i, float8));
     }
 
 private:
