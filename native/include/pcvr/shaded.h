@@ -28,6 +28,8 @@
 /// a sheet did not touch, and tiles that became opaque.
 #pragma once
 
+#include <algorithm>
+
 #include <array>
 #include <cstdint>
 #include <string>
@@ -101,6 +103,12 @@ struct ShadedVolume {
         return out;
     }
 };
+
+/// Whether any volume's material asks for ambient occlusion: the renderer then builds its occluders.
+inline bool any_ambient_occlusion(const std::vector<ShadedVolume>& volumes, const Lighting& lighting) {
+    return std::any_of(volumes.begin(), volumes.end(),
+                       [&](const ShadedVolume& v) { return (v.material ? *v.material : lighting.material).ambient_occlusion; });
+}
 
 struct ShadedStats {
     uint64_t blocks_total = 0;

@@ -113,8 +113,8 @@ public:
     /// `transmittance`: empty, or one per light of `lighting` (null: that light casts no shadow); the
     /// caller keeps them alive as long as the shader. `albedo` (optional, kept alive likewise) multiplies
     /// every sample's colour before it is lit.
-    /// `occluders`: empty, or the transmittances of ambient_occlusion_suns (the material's ambient
-    /// occlusion), kept alive likewise.
+    /// `occluders`: empty, or the transmittances of ambient_occlusion_suns, kept alive likewise; read
+    /// where the material asks for ambient occlusion.
     explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {},
                     const AlbedoModulation* albedo = nullptr, std::vector<const LightTransmittance*> occluders = {});
 

@@ -213,15 +213,15 @@ LightVolumes::LightVolumes(const std::vector<ShadedVolume>& volumes, const Light
     const bool shadows = std::any_of(lights.begin(), lights.end(), [&](const Light& l) { return l.casts_shadow(render_shadows); });
     if (!shadows && !ambient_occlusion) return;
     const ExtinctionField field(volumes, kernel, origin);
-    for (const Light& light : lights) {
-        if (!shadows) break;
-        if (field.empty() || !light.casts_shadow(render_shadows)) {
-            per_light_.push_back(nullptr);
-            continue;
+    if (shadows)  // else per_light_ stays empty: no light casts a shadow
+        for (const Light& light : lights) {
+            if (field.empty() || !light.casts_shadow(render_shadows)) {
+                per_light_.push_back(nullptr);
+                continue;
+            }
+            volumes_.push_back(std::make_unique<LightVolume>(light, field, origin, field.smallest_spacing(), control));
+            per_light_.push_back(volumes_.back().get());
         }
-        volumes_.push_back(std::make_unique<LightVolume>(light, field, origin, field.smallest_spacing(), control));
-        per_light_.push_back(volumes_.back().get());
-    }
     if (!ambient_occlusion || field.empty()) return;
     for (const Light& sun : ambient_occlusion_suns()) {
         volumes_.push_back(std::make_unique<LightVolume>(sun, field, origin, 2.0 * field.smallest_spacing(), control));

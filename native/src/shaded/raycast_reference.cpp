@@ -230,10 +230,7 @@ struct Marcher {
         if (std::all_of(shadowed.begin(), shadowed.end(), [](const LightTransmittance* t) { return t == nullptr; })) shadowed.clear();
         // Ambient occlusion: shadow rays towards its six directions.
         std::vector<const LightTransmittance*> occluders;
-        const bool occlusion = lighting && std::any_of(volumes.begin(), volumes.end(), [&](const ShadedVolume& v) {
-                                   return v.lit_by(*lighting).material.ambient_occlusion;
-                               });
-        if (occlusion && std::isfinite(finest))
+        if (lighting && any_ambient_occlusion(volumes, *lighting) && std::isfinite(finest))
             for (const Light& sun : ambient_occlusion_suns()) {
                 shadow_rays.push_back(std::make_unique<ShadowRays>(sun, grids, kernel, geometry.origin0, finest * params.sheet_spacing));
                 occluders.push_back(shadow_rays.back().get());
@@ -254,9 +251,7 @@ struct Marcher {
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
                 albedos.push_back(AlbedoField::of(v, geometry.origin0));
-                const Lighting lit = v.lit_by(*lighting);
-                shaders.emplace_back(lit, geometry.origin0, shadowed, albedos.back().get(),
-                                     lit.material.ambient_occlusion ? occluders : std::vector<const LightTransmittance*>{});
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed, albedos.back().get(), occluders);
                 shader = &shaders.back();
             }
             std::optional<SampleClip> clip;

@@ -224,18 +224,13 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     // From one sheet in front of the near plane (samples between sheets cover the ray from there on,
     // each counting for its share between the clip planes) to the far plane; along the rays through
     // the image's corners for spheres.
-    double nearest = INFINITY, farthest = -INFINITY;
+    double nearest, farthest;
     if (sheets.spherical) {
         nearest = near_depth * geometry.least_metric_ray;
         farthest = far_depth * geometry.longest_metric_ray;
     } else {  // planes: u is affine over the view's box, whose corners bound it
-        for (double px : {0.0, double(camera.width() - 1)})
-            for (double py : {0.0, double(camera.height() - 1)})
-                for (double depth : {near_depth, far_depth}) {
-                    const double u = geometry.plane_u0 + geometry.plane_ux * px + geometry.plane_uy * py + depth / geometry.plane_k;
-                    nearest = std::min(nearest, u);
-                    farthest = std::max(farthest, u);
-                }
+        nearest = geometry.plane_u0_least + near_depth / geometry.plane_k;
+        farthest = geometry.plane_u0_most + far_depth / geometry.plane_k;
     }
     sheets.first_depth = nearest - sheets.spacing;
     sheets.count = -sheet_floor(-(farthest - sheets.first_depth) / sheets.spacing);  // the ceiling
@@ -271,9 +266,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::optional<LightVolumes> shadows;
     if (!mip) {
         const auto shadows_start = Clock::now();
-        const bool occlusion = std::any_of(volumes.begin(), volumes.end(),
-                                           [&](const ShadedVolume& v) { return v.lit_by(*lighting).material.ambient_occlusion; });
-        shadows.emplace(volumes, *lighting, params.shadows, occlusion, kernel, geometry.origin0, control);
+        shadows.emplace(volumes, *lighting, params.shadows, any_ambient_occlusion(volumes, *lighting), kernel, geometry.origin0,
+                        control);
         stats.shadow_texels = shadows->texels();
         stats.seconds_shadows = std::chrono::duration<double>(Clock::now() - shadows_start).count();
     }
@@ -297,10 +291,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             classifications.push_back(std::make_unique<ClassificationTable>(tf, tf.unit_distance));
             classification = classifications.back().get();
             albedos.push_back(AlbedoField::of(volume, geometry.origin0));
-            const Lighting lit = volume.lit_by(*lighting);
-            shaders.push_back(std::make_unique<Shader>(lit, geometry.origin0, shadows->per_light(), albedos.back().get(),
-                                                       lit.material.ambient_occlusion ? shadows->occluders()
-                                                                                      : std::vector<const LightTransmittance*>{}));
+            shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light(),
+                                                       albedos.back().get(), shadows->occluders()));
             shader = shaders.back().get();
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);
@@ -342,9 +334,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             std::vector<uint32_t> listed;
             for (const PlannedBlock& pb : list) {
                 const VoxelBlock& block = blocks[pb.index];
-                // Depth is affine: its extremes over the block are at the origin plus the negative
-                // (or positive) parts of the gradient.
-                const double nearest = view.origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+                // Depth is affine: its extremes over the block are the nearest voxel's and that plus the
+                // gradient's extent over the block.
+                const double nearest = view.nearest_depth(block);
                 if (nearest + depth_extent + reach < near_depth || nearest - reach > far_depth) {
                     ++stats.blocks_outside;
                     continue;

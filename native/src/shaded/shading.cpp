@@ -60,12 +60,13 @@ std::vector<Light> ambient_occlusion_suns() {
 
 Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance,
                const AlbedoModulation* albedo, std::vector<const LightTransmittance*> occluders)
-    : occluders_(std::move(occluders)), albedo_(albedo) {
+    : albedo_(albedo) {
     lighting.validate();
     if (!transmittance.empty() && transmittance.size() != lighting.lights.size())
         throw InvalidArgument("Shader: one transmittance per light, or none");
-    if (!occluders_.empty() && occluders_.size() != ambient_occlusion_suns().size())
+    if (!occluders.empty() && occluders.size() != ambient_occlusion_suns().size())
         throw InvalidArgument("Shader: one occluder per ambient occlusion direction, or none");
+    if (lighting.material.ambient_occlusion) occluders_ = std::move(occluders);
     const Shading& m = lighting.material;
     lit_ = m.lit;
     scatter_ = m.model == Shading::Model::Scatter;

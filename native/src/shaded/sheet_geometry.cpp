@@ -121,6 +121,12 @@ void SheetGeometry::use_metric(const Mat4& metric, const Camera& camera) {
         plane_ux = dot(planes.gradient, origin_dx);
         plane_uy = dot(planes.gradient, origin_dy);
         plane_k = 1.0 / dot(planes.gradient, dir0);
+        plane_u0_least = INFINITY, plane_u0_most = -INFINITY;
+        for (double px : {0.0, double(width - 1)})
+            for (double py : {0.0, double(height - 1)}) {
+                const double at_zero = plane_u0 + plane_ux * px + plane_uy * py;
+                plane_u0_least = std::min(plane_u0_least, at_zero), plane_u0_most = std::max(plane_u0_most, at_zero);
+            }
     }
 }
 

@@ -28,6 +28,8 @@ struct SheetGeometry {
     /// plane_u0 + plane_ux px + plane_uy py, and it grows by 1 / plane_k per unit of depth (0, 0, 0
     /// and 1 for planes of constant depth).
     double plane_u0 = 0, plane_ux = 0, plane_uy = 0, plane_k = 1;
+    /// Its least and most over the image's corners (an affine function of the pixel: its extremes).
+    double plane_u0_least = 0, plane_u0_most = 0;
 
     explicit SheetGeometry(const Camera& camera);
     /// Sheets in this metric (the linear part of `metric`): spheres around a perspective eye, or

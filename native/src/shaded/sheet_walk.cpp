@@ -368,17 +368,9 @@ inline Box tile_box(const Box& slot_box, int halo, const PixelRect& rect) {
 }  // namespace
 
 bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
-    if (!sheets.spherical) {
-        // depth = (u - u at depth 0) k, the latter affine in the pixel: extremes at the image's corners.
+    if (!sheets.spherical) {  // depth = (u - u at depth 0) k, between the latter's extremes over the image
         const SheetGeometry& g = *geometry;
-        double lo = INFINITY, hi = -INFINITY;
-        for (double px : {0.0, double(width - 1)})
-            for (double py : {0.0, double(height - 1)}) {
-                const double at_zero = g.plane_u0 + g.plane_ux * px + g.plane_uy * py;
-                lo = std::min(lo, (u - half - at_zero) * g.plane_k);
-                hi = std::max(hi, (u + half - at_zero) * g.plane_k);
-            }
-        return lo >= near_depth && hi <= far_depth;
+        return (u - half - g.plane_u0_most) * g.plane_k >= near_depth && (u + half - g.plane_u0_least) * g.plane_k <= far_depth;
     }
     // depth = u / |M direction|, between the bounds of |M direction| over the image.
     return (u - half) / geometry->longest_metric_ray >= near_depth && (u + half) / geometry->least_metric_ray <= far_depth;

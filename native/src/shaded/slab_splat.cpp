@@ -89,10 +89,13 @@ struct SlabBatch {
     float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
 };
 
+double SheetLattice::round_scale(const Mat4& index_to_world) const {
+    const double round = pcvr::round_scale(metric, index_to_world);
+    return spherical || !is_identity(metric) ? round : 0.0;
+}
+
 double depth_per_voxel(const ViewProjection& projection, const Grid& grid, const SheetLattice& sheets) {
-    // Where the grid's voxels are cubes in the metric, every ray crosses sheets at right angles there.
-    const double round = round_scale(sheets.metric, grid.index_to_world());
-    if (round > 0 && (sheets.spherical || !is_identity(sheets.metric))) return round;
+    if (const double round = sheets.round_scale(grid.index_to_world()); round > 0) return round;
     Footprint centre;
     const auto [i0, j0, k0, i1, j1, k1] = grid.index_bbox();
     const Vec3 middle{0.5 * (i0 + i1), 0.5 * (j0 + j1), 0.5 * (k0 + k1)};
@@ -116,11 +119,10 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
         order_offset_ = dot(w.column(3), a) + sheets.planes.offset;
         const Vec3 ray = projection_.index_ray(0, 0).direction;
         plane_kappa_ = dot(order_gradient_, ray) / length(ray);
-        tilted_ = round_scale(sheets.metric, w) > 0 && !is_identity(sheets.metric);
     }
+    round_scale_ = sheets.round_scale(w);
     const Vec3& n = order_gradient_;
     if (sheets.spherical) {
-        round_scale_ = round_scale(sheets.metric, grid.index_to_world());
         if (round_scale_ > 0) {
             // Index space, where the spheres are round too: -z along the depth gradient, the eye at 0.
             const Vec3 axis = n * (1.0 / length(n));
@@ -141,7 +143,7 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     // A kernel's reach in the sheet parameter: along the depth gradient for planes; for spheres the
     // longest metric length of an index-space radius (the largest singular value of the linear part).
     depth_reach_ = params.kernel->radius() *
-                   (sheets.spherical ? (round_scale_ > 0 ? round_scale_ : largest_singular_value(sheets.metric * grid.index_to_world()))
+                   (sheets.spherical ? (round_scale_ > 0 ? round_scale_ : largest_singular_value(sheets.metric * w))
                                      : length(n));
     slabs_per_voxel_ = int(std::ceil(2.0 * depth_reach_ / sheets.spacing - 1e-9)) + 1;
     if (!(slabs_per_voxel_ <= kMostSlabs)) {
@@ -206,14 +208,11 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
 void SlabView::linearise(const std::vector<uint32_t>& blocks) {
     if (projection_.orthographic() || round_scale_ <= 0 || params_.mode != SlabMode::Footprint || blocks.empty()) return;
     const std::vector<VoxelBlock>& all = grid_->blocks();
-    const Vec3& n = projection_.depth_gradient();
-    const double span = VoxelBlock::kDim - 1;
     std::vector<std::optional<BlockLinearisation>> made(blocks.size());
     tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
         const VoxelBlock& block = all[blocks[b]];
         // Every kernel of the block in front of the eye, as a footprint needs (deposit's condition).
-        const double nearest = origin_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
-        if (nearest > depth_reach_) made[b] = linearise_block(block, projection_, params_.stride, 0.0, 0.0, false, 0.0);
+        if (nearest_depth(block) > depth_reach_) made[b] = linearise_block(block, projection_, params_.stride, 0.0, 0.0, false, 0.0);
     });
     linear_slot_.assign(all.size(), -1);
     for (size_t b = 0; b < blocks.size(); ++b)
@@ -221,7 +220,6 @@ void SlabView::linearise(const std::vector<uint32_t>& blocks) {
             linear_slot_[blocks[b]] = int32_t(linearised_.size());
             linearised_.push_back(*made[b]);
         }
-    linearised_count_ = linearised_.size();
 }
 
 const BlockLinearisation* SlabView::linearised(const VoxelBlock& block) const {
@@ -256,16 +254,26 @@ double SlabView::limit_scale(const VoxelBlock& block) const {
     return deepest / std::hypot(deepest, off_axis) / order_scale_;
 }
 
-double SlabView::front(const VoxelBlock& block) const {
-    const Vec3& n = order_gradient_;
+namespace {
+
+/// The least of an affine function over a block's voxel centres, given its gradient and its value at
+/// the origin: the origin plus the gradient's negative parts.
+double least_in_block(const Vec3& gradient, double at_origin) {
     const double span = VoxelBlock::kDim - 1;
-    const double nearest = order_depth(block) + span * (std::min(n.x, 0.0) + std::min(n.y, 0.0) + std::min(n.z, 0.0));
+    return at_origin + span * (std::min(gradient.x, 0.0) + std::min(gradient.y, 0.0) + std::min(gradient.z, 0.0));
+}
+
+}  // namespace
+
+double SlabView::front(const VoxelBlock& block) const {
+    const double nearest = least_in_block(order_gradient_, order_depth(block));
     // Spheres: a voxel's distance is its planar depth over its cosine to the axis, at least this.
     return (sheets_.spherical ? std::max(0.0, nearest) / limit_scale(block) : nearest) - depth_reach_;
 }
 
-double SlabView::origin_depth(const VoxelBlock& block) const {
-    return projection_.depth(Vec3{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])});
+double SlabView::nearest_depth(const VoxelBlock& block) const {
+    const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
+    return least_in_block(projection_.depth_gradient(), projection_.depth(origin));
 }
 
 double SlabView::order_depth(const VoxelBlock& block) const {
@@ -464,8 +472,13 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
     const double stride = params_.stride, inv_stride = 1.0 / stride;
     const double spacing = sheets_.spacing, inv_spacing = 1.0 / spacing;
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
-    // Depths relative to the slab holding the block's origin keep the per-voxel arithmetic in small floats.
-    const double origin_slabs = (order_depth(block) - sheets_.first_depth) * inv_spacing;
+    // Perspective blocks with a model (linearise): their voxels' metric distances from the eye are taken
+    // relative to the origin's, o its offset from the eye in index units.
+    const BlockLinearisation* lin = projection_.orthographic() ? nullptr : linearised(block);
+    const Vec3 o = origin - projection_.eye();
+    // Sheet parameters relative to the slab holding the block origin's (planes: its depth; modelled
+    // blocks: its distance) keep the per-voxel arithmetic in small floats.
+    const double origin_slabs = ((lin ? round_scale_ * length(o) : order_depth(block)) - sheets_.first_depth) * inv_spacing;
     const int64_t base_sheet = sheet_floor(origin_slabs);
     const float base_fraction = float(origin_slabs - double(base_sheet));
     const float reach_slabs = float(depth_reach_ * inv_spacing);
@@ -511,14 +524,14 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
                 b.ext_y[l] = ext_y;
                 b.amp[l] = v[l] * amp_per_value;
                 // Tilted planes cross every ray of a round kernel at the centre's place along it.
-                b.s_dx[l] = tilted_ ? 0.0f : float(-shape_.depth_dx / shape_.depth_per_index);
-                b.s_dy[l] = tilted_ ? 0.0f : float(-shape_.depth_dy / shape_.depth_per_index);
+                b.s_dx[l] = round_scale_ > 0 ? 0.0f : float(-shape_.depth_dx / shape_.depth_per_index);
+                b.s_dy[l] = round_scale_ > 0 ? 0.0f : float(-shape_.depth_dy / shape_.depth_per_index);
                 b.s_step[l] = float(spacing / kappa);
             }
-        } else if (const BlockLinearisation* lin = linearised(block)) {
+        } else if (lin) {
             // Round kernels in a linearised block: centres exact as ratios of affine functions, forms
             // from the block's model, the metric distance from the eye relative to the origin's (in
-            // float: |o + d| - |o| = (2 o.d + d.d) / (|o + d| + |o|), o the origin's offset from the eye).
+            // float: |o + d| - |o| = (2 o.d + d.d) / (|o + d| + |o|)).
             const float8 i = load8(order_.i.data() + batch), j = load8(order_.j.data() + batch), k = load8(order_.k.data() + batch);
             auto at = [&](const AffineInBlock& f) { return f.at + f.di * i + f.dj * j + f.dk * k; };
             const float8 w = at(lin->w);
@@ -532,17 +545,14 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
             store8(b.ext_x, sqrt8(qyy / det) * radius);
             store8(b.ext_y, sqrt8(qxx / det) * radius);
             store8(b.amp, v * float(density_scale * round_scale_));
-            const Vec3 o = origin - projection_.eye();
-            const double eye_slabs = (round_scale_ * length(o) - sheets_.first_depth) * inv_spacing;
-            const int64_t base = sheet_floor(eye_slabs);
             const float ox = float(o.x), oy = float(o.y), oz = float(o.z), o_length = float(length(o));
             const float8 px = i + ox, py = j + oy, pz = k + oz;
             const float8 further = (2.0f * (ox * i + oy * j + oz * k) + i * i + j * j + k * k) / (sqrt8(px * px + py * py + pz * pz) + o_length);
-            const float8 centre = float(eye_slabs - double(base)) + further * float(round_scale_ * inv_spacing);
+            const float8 centre = base_fraction + further * float(round_scale_ * inv_spacing);
             const float step_index = float(spacing / round_scale_);
             for (int l = 0; l < kBatch; ++l) {
                 const float front = std::floor(centre[l] - reach_slabs);
-                b.first_sheet[l] = base + int64_t(front);
+                b.first_sheet[l] = base_sheet + int64_t(front);
                 b.s0[l] = (front - centre[l]) * step_index;
                 b.s_dx[l] = b.s_dy[l] = 0.0f;
                 b.s_step[l] = step_index;

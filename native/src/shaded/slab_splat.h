@@ -66,6 +66,10 @@ struct SheetLattice {
     double boundary(int64_t s) const { return first_depth + double(s) * spacing; }
     /// The slab holding depth z (may lie outside [0, count)).
     int64_t slab_of(double z) const { return sheet_floor((z - first_depth) / spacing); }
+    /// Where a grid's kernels are round in the metric and the sheets cross its rays at right angles
+    /// there (spheres in any metric, planes tilted into the voxels'), the metric length of an index
+    /// unit, the same along every ray; else 0.
+    double round_scale(const Mat4& index_to_world) const;
 };
 
 enum class SlabMode { Footprint, BilinearSpread };
@@ -132,8 +136,8 @@ public:
         std::vector<uint8_t> brick;  ///< the 4^3 brick of the voxel (TileBlock::bricks' bit)
     };
     const DepthOrder& depth_order() const { return order_; }
-    /// Camera depth of the block's origin (for the clip planes).
-    double origin_depth(const VoxelBlock& block) const;
+    /// Camera depth of the block's nearest voxel centre (for the clip planes).
+    double nearest_depth(const VoxelBlock& block) const;
     /// The block origin's place in the order of DepthOrder::depth: camera depth for spheres, the
     /// sheet parameter for planes.
     double order_depth(const VoxelBlock& block) const;
@@ -158,7 +162,7 @@ public:
     /// (near the eye) keep the exact projection. Call before rendering; uses every thread.
     void linearise(const std::vector<uint32_t>& blocks);
     /// Blocks linearised (for stats).
-    size_t blocks_linearised() const { return linearised_count_; }
+    size_t blocks_linearised() const { return linearised_.size(); }
 
 private:
     const BlockLinearisation* linearised(const VoxelBlock& block) const;
@@ -176,22 +180,21 @@ private:
     Vec3 node_gx_, node_gy_;        // subgrid nodes per index step
     double node_x0_ = 0, node_y0_ = 0;  // subgrid node of index (0, 0, 0)
     Footprint shape_;               // in node units (q scaled by stride^2, depth slopes per node)
-    // Spheres: the metric length of an index unit where the grid's voxels are cubes in the sheet metric
-    // (0: world spheres, each tap its own share); the frame whose -z is the depth axis, eye at its
-    // origin, in which limit_scale measures cosines, and the sheet parameter per unit of z there.
+    // SheetLattice::round_scale: the sheets cross every ray of a kernel at right angles, and every tap
+    // shares its slabs (0: they slant, each tap its own share).
     double round_scale_ = 0;
+    // Spheres: the frame whose -z is the depth axis, eye at its origin, in which limit_scale measures
+    // cosines, and the sheet parameter per unit of z there.
     Mat4 order_frame_;
     double order_scale_ = 1;
-    // The order's gradient and offset in index space (DepthOrder, order_depth); planes: u per index
-    // length along the rays, and whether they are tilted (metric planes: every tap shares its slabs).
+    // The order's gradient and offset in index space (DepthOrder, order_depth); planes: the sheet
+    // parameter per index length along the rays.
     Vec3 order_gradient_;
     double order_offset_ = 0;
+    double plane_kappa_ = 1;
     // linearise(): each listed block's slot in linearised_ (-1: exact projection).
     std::vector<int32_t> linear_slot_;
     std::vector<BlockLinearisation> linearised_;
-    size_t linearised_count_ = 0;
-    double plane_kappa_ = 1;
-    bool tilted_ = false;
     std::unique_ptr<PhaseFootprintTable> window_;  // orthographic footprints of a smooth kernel: whole windows
 };
 
