@@ -72,6 +72,22 @@ float8 keep_bricks(float8 v, const SlabView::DepthOrder& order, int first, uint8
 
 uint32_t non_zero_lanes(float8 v) { return lane_mask(v != 0.0f); }
 
+/// floor of eight floats within int's range (truncation, less one where it rounded up).
+int8x floor_to_int8(float8 x) {
+    const int8x t = __builtin_convertvector(x, int8x);
+    return t + (__builtin_convertvector(t, float8) > x);  // a true comparison is -1
+}
+int8x ceil_to_int8(float8 x) { return -floor_to_int8(-x); }
+int8x max8i(int8x a, int8x b) { return a > b ? a : b; }
+int8x min8i(int8x a, int8x b) { return a < b ? a : b; }
+void store8i(int32_t* p, int8x v) { std::memcpy(p, &v, sizeof v); }
+int8x load8i(const int32_t* p) {
+    int8x v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+int8x lane_bits8(uint32_t mask) { return (int8x{1, 2, 4, 8, 16, 32, 64, 128} & int(mask)) != 0; }
+
 }  // namespace
 
 /// Eight voxels projected onto a ring: everything the deposit needs, per lane, in ring node units.
@@ -87,6 +103,11 @@ struct SlabBatch {
     uint32_t live = 0;                           // lanes holding a voxel to splat
     uint32_t aligned = 0;                        // lanes whose slab shares hold at every tap
     float share[kMostSlabs][kBatch];             // each slab's share of the footprint, at the centre
+    // Set by place(): each lane's window of ring nodes (corner first), the part of it on the ring, and
+    // the slabs [first_slab, end_slab) it deposits (tails merged).
+    int32_t x0[kBatch], y0[kBatch], x1[kBatch], y1[kBatch];
+    int32_t on_x0[kBatch], on_y0[kBatch], on_x1[kBatch], on_y1[kBatch];
+    int32_t first_slab[kBatch], end_slab[kBatch];
 };
 
 double SheetLattice::round_scale(const Mat4& index_to_world) const {
@@ -393,73 +414,90 @@ void deposit_spread(const SlabBatch& b, int l, const LaneSlabs& slabs, int col, 
 
 }  // namespace
 
-/// The slab footprints of one projected voxel (lane l of `b`) added into `ring`, clipped to it.
-/// Returns false when its window misses the ring or lies on occluded nodes (then `occluded` is set).
-bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                            const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2],
-                            uint64_t& taps) const {
-    const float cx = b.cx[l], cy = b.cy[l];
-    const bool spread = params_.mode == SlabMode::BilinearSpread;
-    // The window: for spreading the 2 x 2 nodes around the centre, else the ellipse's bounding box,
-    // or the phase table's window.
-    Box window;
-    if (spread) {
-        window.x0 = clamp_to_int(std::floor(cx), -2, ring.columns());
-        window.y0 = clamp_to_int(std::floor(cy), -2, ring.rows());
-        window.x1 = window.x0 + 1, window.y1 = window.y0 + 1;
-    } else if (window_) {
-        const int h = window_->half_width();
-        window.x0 = clamp_to_int(std::floor(cx), -kMostWindow, ring.columns() + kMostWindow) - h + 1;
-        window.y0 = clamp_to_int(std::floor(cy), -kMostWindow, ring.rows() + kMostWindow) - h + 1;
-        window.x1 = window.x0 + window_->window() - 1, window.y1 = window.y0 + window_->window() - 1;
-    } else {
-        window.x0 = clamp_to_int(std::ceil(cx - b.ext_x[l]), -1, ring.columns());
-        window.x1 = clamp_to_int(std::floor(cx + b.ext_x[l]), -1, ring.columns());
-        window.y0 = clamp_to_int(std::ceil(cy - b.ext_y[l]), -1, ring.rows());
-        window.y1 = clamp_to_int(std::floor(cy + b.ext_y[l]), -1, ring.rows());
+/// Each lane's window, the part of it on the ring and its slabs, eight lanes at once (what a voxel's
+/// deposit did lane by lane had cost about a quarter of the splat at 1-2 pixels per voxel). Returns
+/// the live lanes whose window meets the ring where the walk needs it.
+uint32_t SlabView::place(SlabBatch& b, const SheetRing& ring, const Box& needed, int64_t first_open_sheet) const {
+    const float8 cx = load8(b.cx), cy = load8(b.cy);
+    const float columns = float(ring.columns()), rows = float(ring.rows());
+    int8x x0, y0, x1, y1;
+    if (params_.mode == SlabMode::BilinearSpread) {  // the 2 x 2 nodes around the centre
+        x0 = floor_to_int8(clamp8(cx, -2.0f, columns)), y0 = floor_to_int8(clamp8(cy, -2.0f, rows));
+        x1 = x0 + 1, y1 = y0 + 1;
+    } else if (window_) {  // the phase table's window
+        const float far = float(kMostWindow);
+        const int h = window_->half_width(), w = window_->window();
+        x0 = floor_to_int8(clamp8(cx, -far, columns + far)) - h + 1, y0 = floor_to_int8(clamp8(cy, -far, rows + far)) - h + 1;
+        x1 = x0 + (w - 1), y1 = y0 + (w - 1);
+    } else {  // the ellipse's bounding box
+        const float8 ex = load8(b.ext_x), ey = load8(b.ext_y);
+        x0 = ceil_to_int8(clamp8(cx - ex, -1.0f, columns)), x1 = floor_to_int8(clamp8(cx + ex, -1.0f, columns));
+        y0 = ceil_to_int8(clamp8(cy - ey, -1.0f, rows)), y1 = floor_to_int8(clamp8(cy + ey, -1.0f, rows));
     }
-    const Box clipped = window.clipped({0, 0, ring.columns() - 1, ring.rows() - 1});
-    if (clipped.empty() || window.clipped(needed).empty()) return false;
-    if (occlusion && occlusion->covered(clipped.x0, clipped.y0, clipped.x1, clipped.y1)) {
+    const int8x on_x0 = max8i(x0, int8x{} + 0), on_x1 = min8i(x1, int8x{} + (ring.columns() - 1));
+    const int8x on_y0 = max8i(y0, int8x{} + 0), on_y1 = min8i(y1, int8x{} + (ring.rows() - 1));
+    const int8x meets = (on_x0 <= on_x1) & (on_y0 <= on_y1) & (max8i(x0, int8x{} + needed.x0) <= min8i(x1, int8x{} + needed.x1)) &
+                        (max8i(y0, int8x{} + needed.y0) <= min8i(y1, int8x{} + needed.y1));
+    store8i(b.x0, x0), store8i(b.y0, y0), store8i(b.x1, x1), store8i(b.y1, y1);
+    store8i(b.on_x0, on_x0), store8i(b.on_y0, on_y0), store8i(b.on_x1, on_x1), store8i(b.on_y1, on_y1);
+
+    // The slabs still open; a kernel's outermost slabs often hold only its tail: a share below kTail
+    // goes into the slab beside it (a sheet deeper or shallower; the slabs still sum to the footprint)
+    // and costs no taps. A quarter of the taps on the CT head, at the same PSNR against the ray caster.
+    const int n = slabs_per_voxel_;
+    for (int l = 0; l < kBatch; ++l)  // (dead lanes' sheets may be unset)
+        b.first_slab[l] = (b.live >> l) & 1 ? int32_t(std::clamp<int64_t>(first_open_sheet - b.first_sheet[l], 0, n)) : n;
+    int8x first = load8i(b.first_slab), end = int8x{} + n;
+    const int8x aligned = lane_bits8(b.aligned);
+    for (int k = 0; k + 1 < n; ++k) {
+        const float8 share = load8(b.share[k]);
+        const int8x merge = aligned & (first == k) & (end - first > 1) & (abs8(share) < kTail);
+        if (!any8(merge)) continue;
+        store8(b.share[k + 1], load8(b.share[k + 1]) + select8(merge, share, broadcast8(0.0f)));
+        first -= merge;  // a true comparison is -1
+    }
+    for (int k = n - 1; k > 0; --k) {
+        const float8 share = load8(b.share[k]);
+        const int8x merge = aligned & (end - 1 == k) & (end - first > 1) & (abs8(share) < kTail);
+        if (!any8(merge)) continue;
+        store8(b.share[k - 1], load8(b.share[k - 1]) + select8(merge, share, broadcast8(0.0f)));
+        end += merge;
+    }
+    store8i(b.first_slab, first), store8i(b.end_slab, end);
+    return b.live & lane_mask(meets);
+}
+
+/// The slab footprints of one placed voxel (lane l of `b`) added into `ring`. Returns false when its
+/// window lies on occluded nodes (then `occluded` is set) or its slabs are closed.
+bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const OcclusionMap* occlusion, bool& occluded, Box& reached,
+                            int64_t sheets_reached[2], uint64_t& taps) const {
+    const Box on_ring{b.on_x0[l], b.on_y0[l], b.on_x1[l], b.on_y1[l]};
+    if (occlusion && occlusion->covered(on_ring)) {
         occluded = true;
         return false;
     }
-
     LaneSlabs slabs;
-    const int64_t first_sheet = b.first_sheet[l];
-    slabs.first = int(std::clamp<int64_t>(first_open_sheet - first_sheet, 0, slabs_per_voxel_));
-    slabs.count = slabs_per_voxel_;
+    slabs.first = b.first_slab[l], slabs.count = b.end_slab[l];
     if (slabs.first >= slabs.count) return false;
+    const int64_t first_sheet = b.first_sheet[l];
     for (int k = slabs.first; k < slabs.count; ++k) {
         slabs.sheets[k] = ring.sheet(first_sheet + k);
         slabs.share[k] = b.share[k][l];
     }
     slabs.aligned = (b.aligned >> l) & 1;
-    if (slabs.aligned) {
-        // A kernel's outermost slabs often hold only its tail: a share below kTail goes into the slab
-        // beside it (a sheet deeper or shallower; the slabs still sum to the footprint) and costs no
-        // taps. A quarter of the taps on the CT head, at the same PSNR against the ray caster.
-        while (slabs.count - slabs.first > 1 && std::abs(slabs.share[slabs.first]) < kTail) {
-            slabs.share[slabs.first + 1] += slabs.share[slabs.first];
-            ++slabs.first;
-        }
-        while (slabs.count - slabs.first > 1 && std::abs(slabs.share[slabs.count - 1]) < kTail) {
-            slabs.share[slabs.count - 2] += slabs.share[slabs.count - 1];
-            --slabs.count;
-        }
-    }
-    reached.include(clipped);
+    reached.include(on_ring);
     sheets_reached[0] = std::min(sheets_reached[0], first_sheet + slabs.first);
     sheets_reached[1] = std::max(sheets_reached[1], first_sheet + slabs.count - 1);
 
-    taps += uint64_t(clipped.x1 - clipped.x0 + 1) * uint64_t(clipped.y1 - clipped.y0 + 1) * uint64_t(slabs.count - slabs.first);
+    taps += uint64_t(on_ring.x1 - on_ring.x0 + 1) * uint64_t(on_ring.y1 - on_ring.y0 + 1) * uint64_t(slabs.count - slabs.first);
     const size_t pitch = ring.pitch();
-    if (spread)
-        deposit_spread(b, l, slabs, window.x0, window.y0, clipped, pitch);
-    else if (window_ && clipped.x0 == window.x0 && clipped.y0 == window.y0 && clipped.x1 == window.x1 && clipped.y1 == window.y1)
+    const Box window{b.x0[l], b.y0[l], b.x1[l], b.y1[l]};
+    if (params_.mode == SlabMode::BilinearSpread)
+        deposit_spread(b, l, slabs, window.x0, window.y0, on_ring, pitch);
+    else if (window_ && on_ring.x0 == window.x0 && on_ring.y0 == window.y0 && on_ring.x1 == window.x1 && on_ring.y1 == window.y1)
         deposit_window(b, l, *window_, *params_.profile, slabs, window.x0, window.y0, pitch);
     else
-        deposit_footprint(b, l, *params_.table, *params_.profile, slabs, clipped, pitch);
+        deposit_footprint(b, l, *params_.table, *params_.profile, slabs, on_ring, pitch);
     return true;
 }
 
@@ -637,10 +675,10 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
 
         Box reached;
         int64_t sheets_reached[2] = {INT64_MAX, INT64_MIN};
-        for (uint32_t todo = b.live; todo; todo &= todo - 1) {
+        for (uint32_t todo = place(b, ring, placement.needed, first_open_sheet); todo; todo &= todo - 1) {
             const int l = __builtin_ctz(todo);
             bool occluded = false;
-            if (deposit_lane(b, l, ring, placement.needed, first_open_sheet, occlusion, occluded, reached, sheets_reached, counts.taps))
+            if (deposit_lane(b, l, ring, occlusion, occluded, reached, sheets_reached, counts.taps))
                 ++counts.splatted;
             else if (occluded)
                 ++counts.occluded;

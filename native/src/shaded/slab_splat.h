@@ -166,8 +166,9 @@ public:
 
 private:
     const BlockLinearisation* linearised(const VoxelBlock& block) const;
-    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Box& needed, int64_t first_open_sheet,
-                      const OcclusionMap* occlusion, bool& occluded, Box& reached, int64_t sheets_reached[2], uint64_t& taps) const;
+    uint32_t place(SlabBatch& b, const SheetRing& ring, const Box& needed, int64_t first_open_sheet) const;
+    bool deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const OcclusionMap* occlusion, bool& occluded, Box& reached,
+                      int64_t sheets_reached[2], uint64_t& taps) const;
 
     const Grid* grid_;
     ViewProjection projection_;
