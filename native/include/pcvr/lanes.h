@@ -56,11 +56,9 @@ inline float8 gather8(const float* table, int8x index) {
 inline float8 lerp_pairs8(const float* table, int8x i, float8 f) {
 #if defined(__AVX2__) && defined(__FMA__)
     auto pair = [&](int l) { return _mm_load_sd(reinterpret_cast<const double*>(table + i[l])); };
-    auto lanes = [&](int a, int b, int c, int d) {  // [t a, t b, t c, t d] and [t a + 1, ...] as pairs, lanes a to d
-        return std::pair<__m128, __m128>{_mm_castpd_ps(_mm_unpacklo_pd(pair(a), pair(b))), _mm_castpd_ps(_mm_unpacklo_pd(pair(c), pair(d)))};
-    };
-    const auto [p01, p23] = lanes(0, 1, 2, 3);
-    const auto [p45, p67] = lanes(4, 5, 6, 7);
+    // Lanes a and b's pairs side by side: [t a, t a + 1, t b, t b + 1].
+    auto pairs = [&](int a, int b) { return _mm_castpd_ps(_mm_unpacklo_pd(pair(a), pair(b))); };
+    const __m128 p01 = pairs(0, 1), p23 = pairs(2, 3), p45 = pairs(4, 5), p67 = pairs(6, 7);
     const __m256 first = _mm256_set_m128(p45, p01), second = _mm256_set_m128(p67, p23);
     const float8 lo = float8(_mm256_shuffle_ps(first, second, 0x88)), hi = float8(_mm256_shuffle_ps(first, second, 0xDD));
 #else

@@ -121,6 +121,8 @@ public:
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
     /// `position` (world, relative to the shader's origin).
+    /// Inline: the renderers' sample loops call it per eight samples, where a call and its arguments
+    /// through memory had cost more than the lighting itself.
     Vec3x8 shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const;
     /// The same for one sample.
     Vec3f shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const;
@@ -133,10 +135,22 @@ private:
         const LightTransmittance* transmittance;  // null: no shadow
     };
     static constexpr int kPowerSteps = 1024;
+    /// Lighting's float stages stay below this: every operand finite, a product may overflow to infinity
+    /// but never meets a zero as one (infinity times zero, NaN), and each sum is capped again before it
+    /// is multiplied. A point light at a sample (irradiance 1e30 times its energy) or energies, materials
+    /// and colours up to double's range then give bright but finite colours.
+    static constexpr float kMostRadiance = 1e30f;
+    static Vec3x8 bounded(const Vec3x8& v) {
+        const float8 most = broadcast8(kMostRadiance);
+        return {min8(v.x, most), min8(v.y, most), min8(v.z, most)};  // min8 also maps NaN to the bound
+    }
+    static Vec3x8 lanes(const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; }
     struct Arriving {
         Vec3x8 towards;  // unit, from the samples towards the light
         Vec3x8 energy;   // what reaches them: colour * strength, over the squared distance, times the transmittance
     };
+    /// shade() where an albedo, shadows or ambient occlusion modulate the samples, or nothing is lit.
+    Vec3x8 shade_modulated(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const;
     /// The light at eight samples; `*transmittance` is read only where the light has one.
     static Arriving arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance);
     /// shade() with each shadowed light's transmittance at the samples (lights_' order, unshadowed ones unread).
@@ -151,10 +165,63 @@ private:
     std::vector<const LightTransmittance*> occluders_;
     const AlbedoModulation* albedo_;
     bool lit_, scatter_;
+    bool modulated_;  // an albedo, a shadowed light or ambient occlusion
     Vec3f ambient_;  // ka * ambient colour (Scatter: the ambient colour)
     float diffuse_, specular_;
     float anisotropy_;
     std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
 };
+
+inline Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+    if (!lit_ || modulated_) return shade_modulated(colour, gradient, to_eye, position);
+    return shade_lit(colour, gradient, to_eye, position, nullptr, broadcast8(1.0f));
+}
+
+inline Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance) {
+    Vec3x8 l = lanes(light.vector), energy = lanes(light.energy);
+    if (light.point) {
+        l = l - position;
+        const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
+        l = l * (1.0f / sqrt8(d2));
+        energy = bounded(energy * (1.0f / d2));
+    }
+    if (light.transmittance) energy = energy * *transmittance;
+    return {l, energy};
+}
+
+inline Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
+                                const float8* transmittance, float8 ambient_share) const {
+    if (scatter_) return scatter(colour, to_eye, position, transmittance, ambient_share);
+    Vec3x8 diffuse = lanes(ambient_) * ambient_share, specular = lanes({0, 0, 0});
+    // Divided by its largest component before it is squared: the gradients of densities near 1e30
+    // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
+    const float8 largest = max8(max8(abs8(gradient.x), abs8(gradient.y)), abs8(gradient.z));
+    const int8x has_normal = (largest > 0) & (largest < INFINITY);
+    const Vec3x8 g = gradient * select8(has_normal, 1.0f / largest, broadcast8(0.0f));
+    if (any8(has_normal) && !lights_.empty()) {
+        // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
+        const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
+        const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
+        for (size_t li = 0; li < lights_.size(); ++li) {
+            const auto [l, energy] = arriving(lights_[li], position, lights_[li].transmittance ? transmittance + li : nullptr);
+            const float8 n_dot_l = dot(n, l);
+            const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
+            diffuse = diffuse + energy * (diffuse_ * lit);
+            if (specular_ > 0) {
+                const Vec3x8 h = l + to_eye;
+                const float8 h2 = max8(dot(h, h), broadcast8(1e-30f));
+                const float8 n_dot_h = clamp8(dot(n, h) / sqrt8(h2), 0.0f, 1.0f);
+                const float8 x = n_dot_h * float(kPowerSteps);
+                const int8x k = __builtin_convertvector(x, int8x);
+                const float8 power = lerp_pairs8(power_.data(), k, x - __builtin_convertvector(k, float8));
+                specular = specular + energy * select8(n_dot_l > 0, specular_ * power, broadcast8(0.0f));
+            }
+        }
+    }
+    diffuse = bounded(diffuse);
+    specular = bounded(specular);
+    const Vec3x8 c = bounded(colour);
+    return bounded(Vec3x8{c.x * diffuse.x + specular.x, c.y * diffuse.y + specular.y, c.z * diffuse.z + specular.z});
+}
 
 }  // namespace pcvr

@@ -9,19 +9,11 @@ namespace pcvr {
 
 namespace {
 
-/// Lighting's float stages stay below this: every operand finite, a product may overflow to infinity
-/// but never meets a zero as one (infinity times zero, NaN), and each sum is capped again before it is
-/// multiplied. A point light at a sample (irradiance 1e30 times its energy) or energies, materials and
-/// colours up to double's range then give bright but finite colours.
-constexpr float kMostRadiance = 1e30f;
+constexpr float kMostRadiance = 1e30f;  // Shader::kMostRadiance, for the double stages of preparing
 
-float bounded(double v) { return float(std::min(v, double(kMostRadiance))); }
+float capped(double v) { return float(std::min(v, double(kMostRadiance))); }
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
-Vec3f bounded(const Vec3& v) { return {bounded(v.x), bounded(v.y), bounded(v.z)}; }
-Vec3x8 bounded(const Vec3x8& v) {
-    const float8 most = broadcast8(kMostRadiance);
-    return {min8(v.x, most), min8(v.y, most), min8(v.z, most)};  // min8 also maps NaN to the bound
-}
+Vec3f capped(const Vec3& v) { return {capped(v.x), capped(v.y), capped(v.z)}; }
 
 bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 bool non_negative(const Vec3& v) { return v.x >= 0 && v.y >= 0 && v.z >= 0; }
@@ -69,11 +61,12 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const L
     if (lighting.material.ambient_occlusion) occluders_ = std::move(occluders);
     const Shading& m = lighting.material;
     lit_ = m.lit;
+    modulated_ = albedo_ != nullptr || !occluders_.empty();
     scatter_ = m.model == Shading::Model::Scatter;
     anisotropy_ = float(m.anisotropy);
-    ambient_ = bounded(scatter_ ? lighting.ambient : lighting.ambient * m.ambient);
-    diffuse_ = bounded(m.diffuse);
-    specular_ = bounded(m.specular);
+    ambient_ = capped(scatter_ ? lighting.ambient : lighting.ambient * m.ambient);
+    diffuse_ = capped(m.diffuse);
+    specular_ = capped(m.specular);
     // Specular highlights through a table (linear interpolation: 1e-5 off at shininess 10).
     power_.resize(kPowerSteps + 2);
     for (int k = 0; k <= kPowerSteps; ++k) power_[k] = float(std::pow(double(k) / kPowerSteps, m.shininess));
@@ -83,18 +76,19 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const L
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
         const Vec3 vector = point ? l.vector - origin : -l.vector / length(l.vector);
-        lights_.push_back({point, to_float(vector), bounded(l.color * l.strength), transmittance.empty() ? nullptr : transmittance[i]});
+        lights_.push_back({point, to_float(vector), capped(l.color * l.strength), transmittance.empty() ? nullptr : transmittance[i]});
+        modulated_ = modulated_ || lights_.back().transmittance != nullptr;
     }
 }
 
 namespace {
-Vec3x8 splat(const Vec3f& v) { return Vec3x8{broadcast8(v.x), broadcast8(v.y), broadcast8(v.z)}; }
 Vec3x8 times(const Vec3x8& a, const Vec3x8& b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
 /// Room for the transmittances of this many lights on the stack; more take the heap.
 constexpr size_t kStackLights = 8;
 }  // namespace
 
-Vec3x8 Shader::shade(const Vec3x8& transfer_colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+Vec3x8 Shader::shade_modulated(const Vec3x8& transfer_colour, const Vec3x8& gradient, const Vec3x8& to_eye,
+                                const Vec3x8& position) const {
     const Vec3x8 colour = albedo_ ? times(transfer_colour, albedo_->at(position)) : transfer_colour;
     if (!lit_) return bounded(colour);
     float8 on_stack[kStackLights];  // unshadowed lights' entries stay unset: arriving() reads none of them
@@ -112,21 +106,9 @@ float8 Shader::ambient_share(const Vec3x8& position) const {
     return sum * (1.0f / float(occluders_.size()));
 }
 
-Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance) {
-    Vec3x8 l = splat(light.vector), energy = splat(light.energy);
-    if (light.point) {
-        l = l - position;
-        const float8 d2 = max8(dot(l, l), broadcast8(1e-30f));
-        l = l * (1.0f / sqrt8(d2));
-        energy = bounded(energy * (1.0f / d2));
-    }
-    if (light.transmittance) energy = energy * *transmittance;
-    return {l, energy};
-}
-
 Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance,
                        float8 ambient_share) const {
-    Vec3x8 radiance = splat(ambient_) * ambient_share;
+    Vec3x8 radiance = lanes(ambient_) * ambient_share;
     const float g = anisotropy_;
     const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
     for (size_t i = 0; i < lights_.size(); ++i) {
@@ -141,41 +123,6 @@ Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8&
     return bounded(Vec3x8{c.x * radiance.x, c.y * radiance.y, c.z * radiance.z});
 }
 
-Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
-                         const float8* transmittance, float8 ambient_share) const {
-    if (scatter_) return scatter(colour, to_eye, position, transmittance, ambient_share);
-    Vec3x8 diffuse = splat(ambient_) * ambient_share, specular = splat({0, 0, 0});
-    // Divided by its largest component before it is squared: the gradients of densities near 1e30
-    // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
-    const float8 largest = max8(max8(abs8(gradient.x), abs8(gradient.y)), abs8(gradient.z));
-    const int8x has_normal = (largest > 0) & (largest < INFINITY);
-    const Vec3x8 g = gradient * select8(has_normal, 1.0f / largest, broadcast8(0.0f));
-    if (any8(has_normal) && !lights_.empty()) {
-        // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
-        const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
-        const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
-        for (size_t li = 0; li < lights_.size(); ++li) {
-            const auto [l, energy] = arriving(lights_[li], position, transmittance + li);
-            const float8 n_dot_l = dot(n, l);
-            const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
-            diffuse = diffuse + energy * (diffuse_ * lit);
-            if (specular_ > 0) {
-                const Vec3x8 h = l + to_eye;
-                const float8 h2 = max8(dot(h, h), broadcast8(1e-30f));
-                const float8 n_dot_h = clamp8(dot(n, h) / sqrt8(h2), 0.0f, 1.0f);
-                const float8 x = n_dot_h * float(kPowerSteps);
-                const int8x k = __builtin_convertvector(x, int8x);
-                const float8 power = lerp_pairs8(power_.data(), k, x - __builtin_convertvector(k, float8));
-                specular = specular + energy * select8(n_dot_l > 0, specular_ * power, broadcast8(0.0f));
-            }
-        }
-    }
-    diffuse = bounded(diffuse);
-    specular = bounded(specular);
-    const Vec3x8 c = bounded(colour);
-    return bounded(Vec3x8{c.x * diffuse.x + specular.x, c.y * diffuse.y + specular.y, c.z * diffuse.z + specular.z});
-}
-
 Vec3f Shader::shade(const Vec3f& transfer_colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {
     Vec3f colour = transfer_colour;
     if (albedo_) {
@@ -183,15 +130,15 @@ Vec3f Shader::shade(const Vec3f& transfer_colour, const Vec3f& gradient, const V
         colour = {colour.x * a.x, colour.y * a.y, colour.z * a.z};
     }
     if (!lit_) {
-        const Vec3x8 c = bounded(splat(colour));
+        const Vec3x8 c = bounded(lanes(colour));
         return {c.x[0], c.y[0], c.z[0]};
     }
     // One sample: each shadowed light's transmittance read once, at the one point.
     std::vector<float8> transmittance(lights_.size());
     for (size_t i = 0; i < lights_.size(); ++i)
         if (lights_[i].transmittance) transmittance[i] = broadcast8(lights_[i].transmittance->at(position));
-    const Vec3x8 lit = shade_lit(splat(colour), splat(gradient), splat(to_eye), splat(position), transmittance.data(),
-                                 ambient_share(splat(position)));
+    const Vec3x8 lit = shade_lit(lanes(colour), lanes(gradient), lanes(to_eye), lanes(position), transmittance.data(),
+                                 ambient_share(lanes(position)));
     return {lit.x[0], lit.y[0], lit.z[0]};
 }
 

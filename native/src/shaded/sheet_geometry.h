@@ -77,7 +77,7 @@ inline Vec3x8 lanes3(const Vec3& v) { return {broadcast8(float(v.x)), broadcast8
 /// The frames of pixels (px, py) on the sheet at parameter u: planes of depth u, or spheres of
 /// radius u around the eye in the sheet metric. Inline: the walk asks for them for every eight pixels
 /// of every sheet.
-inline SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
+__attribute__((always_inline)) inline SampleFrames sample_frames(const SheetGeometry& geo, bool spherical, float8 px, float py, double u) {
     const Vec3x8 dir = lanes3(geo.dir0 + geo.dir_dy * double(py)) + lanes3(geo.dir_dx) * px;
     // Relative to origin0 (the eye in perspective): float resolves positions near the camera.
     const Vec3x8 origin = lanes3(geo.origin_dy * double(py)) + lanes3(geo.origin_dx) * px;
