@@ -120,6 +120,7 @@ def _mode_rows(mode, stats):
         ("Voxels splatted", f"{stats['voxels']:,}"),
         ("Behind opaque", _share(stats["voxels_occluded"], stats["voxels"] + stats["voxels_occluded"])),
         ("Sheets", f"{stats['sheets']:,}" + (" (in the voxels' metric)" if stats.get("sheet_metric") == "voxels" else "")),
+        ("Tiles", f"{stats['tiles']:,} of {stats['tile_size']} px" if stats.get("tile_size") else f"{stats['tiles']:,}"),
         ("Tiles finished early", _share(stats["tiles_terminated"], stats["tiles"])),
         ("Empty tile sheets", _share(stats["tile_sheets_skipped"],
                                      stats["tile_sheets_skipped"] + stats["tile_sheets_composited"])),

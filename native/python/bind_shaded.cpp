@@ -194,6 +194,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["samples_shaded"] = s.samples_shaded;
     stats["sheets"] = s.sheets;
     stats["tiles"] = s.tiles;
+    stats["tile_size"] = s.tile_size;
     stats["tiles_terminated"] = s.tiles_terminated;
     stats["tile_sheets_composited"] = s.tile_sheets_composited;
     stats["tile_sheets_skipped"] = s.tile_sheets_skipped;

@@ -99,6 +99,25 @@ def test_tile_size_does_not_change_the_image():
         assert np.abs(image - images[0]).max() <= 1 / 255
 
 
+def test_automatic_tiles_follow_the_image_not_the_threads():
+    """128 to 256 pixels: at least 64 subgrid nodes, else some 32 tiles to the image; never from the threads
+    (tiles decide what the occlusion map culls, and the image must not change with the threads)."""
+    grid = ct_volume(40)
+    # 128 (the least), the image's share (regular's stride 1 at 1000 x 1000: 176), 64 nodes, 256 (the most).
+    for method, magnification in (("pcvr", 2.0), ("regular", 16.0), ("pcvr", 8.0), ("pcvr", 24.0)):
+        cam = camera(grid, "persp", magnification)
+        stats = [{}, {}]
+        images = [pn.render_shaded(grid, cam, bone_tf(), lights=[SUN], method=method, threads=t, stats=s)
+                  for t, s in zip((1, 2), stats)]
+        nodes = 64 * min(stats[0]["strides"])
+        expected = min(max(nodes, int(np.sqrt(cam.width * cam.height / 32))), 256)
+        assert stats[0]["tile_size"] == stats[1]["tile_size"] == max(128, expected), (method, magnification)
+        np.testing.assert_array_equal(images[0], images[1])
+    stats = {}
+    pn.render_shaded(grid, cam, bone_tf(), lights=[SUN], tile_size=100, stats=stats)
+    assert stats["tile_size"] == 100 and stats["tiles"] == -(-cam.width // 100) * -(-cam.height // 100)
+
+
 def test_a_transparent_transfer_function_costs_almost_nothing(big_ct):
     cam = camera(big_ct, "ortho", 1.0)
     clear = pn.TransferFunction(density=[0.0, 1.0], rgba=[[1, 1, 1, 0], [1, 1, 1, 0]])

@@ -128,6 +128,7 @@ struct ShadedStats {
     uint64_t samples_shaded = 0;      ///< of those, with extinction: gradient, lighting and compositing
     uint64_t sheets = 0;              ///< sheets between the first and last reached by any voxel
     uint64_t tiles = 0;
+    int tile_size = 0;                ///< pixels a tile's side (ShadedParams::tile_size, or the automatic choice)
     uint64_t tiles_terminated = 0;    ///< tiles that became opaque before their last sheet
     uint64_t tile_sheets_composited = 0;
     uint64_t tile_sheets_skipped = 0; ///< (tile, sheet) pairs between a tile's first and last sheet that no splat touched

@@ -45,12 +45,14 @@ constexpr double kRippleMargin = 0.01;
 /// Tiles are squares of 128 to 256 pixels: several times a block's footprint, so that few voxels are
 /// splatted by more than one tile (a voxel near a tile's edge is splatted by each tile it reaches), and
 /// enough of them that threads share the work. At least 64 subgrid nodes (PCVR at magnification 4: 256
-/// pixels), and as large as leaves some 16 tiles to each thread: the CT head at 1024^2 on two threads
-/// deposits 5.67M voxels in tiles of 128 pixels, 4.97M in tiles of 256 (bone: 3.16M and 2.80M), while
-/// 512^2 in 4 tiles of 256 left a thread idle (tiles are taken busiest first, render_sheets).
+/// pixels), and as large as leaves some 32 tiles to an image: the CT head at 1024^2 on two threads
+/// deposits 5.67M voxels in tiles of 128 pixels, 5.18M in tiles of 181 (bone: 3.16M and 2.92M), while
+/// 512^2 in 4 tiles of 256 left a thread idle (tiles are taken busiest first, render_sheets). Not from
+/// the thread count: tiles decide which voxels the occlusion map culls, and an image should not change
+/// with the threads that rendered it.
 int automatic_tile_size(int smallest_stride, const Camera& camera) {
-    const double per_thread = double(camera.width()) * camera.height() / (16.0 * tbb::this_task_arena::max_concurrency());
-    return std::clamp(std::max(64 * smallest_stride, int(std::sqrt(per_thread))), 128, 256);
+    const double area = double(camera.width()) * camera.height();
+    return std::clamp(std::max(64 * smallest_stride, int(std::sqrt(area / 32.0))), 128, 256);
 }
 
 /// The tiles in the order of the blocks they list, most first.
@@ -382,6 +384,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     }
     tiles.sort();
     stats.tiles = tiles.size();
+    stats.tile_size = tiles.tile_size();
     setup.tiles = &tiles;
     setup.sheets = sheets;
     setup.geometry = &geometry;
