@@ -122,6 +122,8 @@ public:
     /// Lanes whose density may be visible: inside the span between the first and the last density
     /// with opacity or emission (a test that saves the lookups where most samples are transparent).
     int8x maybe_opaque(float8 density) const { return (density > opaque_from_) & (density < opaque_to_); }
+    /// Lanes where some density in [lo, hi] may be visible.
+    int8x maybe_opaque_within(float8 lo, float8 hi) const { return (hi > opaque_from_) & (lo < opaque_to_); }
 
 private:
     static constexpr int kGradientEntries = 1024;
