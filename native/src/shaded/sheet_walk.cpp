@@ -446,21 +446,27 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         float background;
         const float *before, *here, *after, *beyond;  // sheets s - 1 to s + 2
     };
+    // Sheet s alone at t = 0 with one sample per sheet; the cubic reaches s - 1 to s + 2 in between.
+    // With several samples, every one of them lies between sheets s and s + 1's values (AlongRay clamps
+    // it there): the first (t = 0) marks the vectors where some source may be visible in that range,
+    // and the others visit only those, over the same sources and box.
+    const bool between = samples > 1, marking = between && t == 0, marked = between && t > 0;
     Source sources[64];
     int source_count = 0;
     Box box;
     for (size_t gi = 0; gi < grids_.size() && source_count < 64; ++gi) {
         if (!grids_[gi] || !grids_[gi]->used) continue;
         const GridState& g = *grids_[gi];
-        // Sheet s alone at t = 0; the cubic reaches s - 1 to s + 2 in between.
-        if (!g.has(s) && !(t > 0 && (g.has(s - 1) || g.has(s + 1) || g.has(s + 2)))) continue;
+        if (!g.has(s) && !(between && (g.has(s - 1) || g.has(s + 1) || g.has(s + 2)))) continue;
         const WalkGrid& wg = setup.grids[gi];
         sources[source_count++] = {&g,           wg.classification, wg.shader,       wg.clip,        wg.background,
                                    g.sheet(s - 1), g.sheet(s),        g.sheet(s + 1), g.sheet(s + 2)};
         box.include(tile_box(g.box(s), g.halo, rect));
-        if (t > 0)
+        if (between)
             for (int64_t k : {s - 1, s + 1, s + 2}) box.include(tile_box(g.box(k), g.halo, rect));
     }
+    const size_t vectors_per_row = box.empty() ? 0 : size_t(box.x1 - box.x0) / 8 + 1;
+    if (marking) may_show_.assign(box.empty() ? 0 : vectors_per_row * size_t(box.y1 - box.y0 + 1), 0);
 
     // Sheets hold density times the slab's length in the sheet parameter, the same on every ray; its
     // world length (the opacity's) is the frame's. Samples away from the clip planes count in full:
@@ -473,15 +479,17 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
         for (int x = box.x0; x <= box.x1; x += 8) {
+            const size_t vector = size_t(y - box.y0) * vectors_per_row + size_t(x - box.x0) / 8;
+            if (marked && !may_show_[vector]) continue;
             const size_t p = size_t(y) * row_pitch_ + x;
             const float8 alpha = load8(alpha_.data() + p);
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
             int8x open = lanes.inside & (alpha < cutoff);
             if (!any8(open)) continue;
             // Each source's sheets and its sample, read once: most samples end here, where no source has
-            // a density that may be visible. The sample lies between sheets s and s + 1's values
-            // (AlongRay clamps it there), so those two decide most vectors before the cubic's other two
-            // sheets are read (an opaque bone function leaves 97% of the vectors at 2048^2 here).
+            // a density that may be visible. Sheets s and s + 1 bound the sample, so they decide most
+            // vectors before the cubic's other two sheets are read (an opaque bone function leaves 97% of
+            // the vectors at 2048^2 here).
             float8 sheet_values[64][4], raws[64];
             bool any = false;
             for (int k = 0; k < source_count; ++k) {
@@ -493,6 +501,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                     raws[k] = broadcast8(0.0f);  // nothing visible: zero, as where no voxel reaches
                     continue;
                 }
+                if (marking) may_show_[vector] = 1;
                 sheet_values[k][0] = load8(src.before + i), sheet_values[k][1] = here, sheet_values[k][2] = after;
                 sheet_values[k][3] = load8(src.beyond + i);
                 raws[k] = along.value_at(sheet_values[k]);

@@ -113,6 +113,7 @@ private:
     size_t row_pitch_ = 0;
     std::vector<float> red_, green_, blue_, alpha_, depth_;
     std::vector<float> maximum_;
+    std::vector<uint8_t> may_show_;  // composite_sample: per vector of the sheet's box, whether a sample there may be visible
     std::vector<float> scratch_;
     uint64_t samples_classified_ = 0, samples_shaded_ = 0;  // this tile's, for WalkStats
 };
