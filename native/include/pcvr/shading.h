@@ -127,6 +127,12 @@ public:
     /// The same for one sample.
     Vec3f shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const;
 
+    /// Lighting's float stages stay below this: every operand finite, a product may overflow to infinity
+    /// but never meets a zero as one (infinity times zero, NaN), and each sum is capped again before it
+    /// is multiplied. A point light at a sample (irradiance 1e30 times its energy) or energies, materials
+    /// and colours up to double's range then give bright but finite colours.
+    static constexpr float kMostRadiance = 1e30f;
+
 private:
     struct PreparedLight {
         bool point;
@@ -135,11 +141,6 @@ private:
         const LightTransmittance* transmittance;  // null: no shadow
     };
     static constexpr int kPowerSteps = 1024;
-    /// Lighting's float stages stay below this: every operand finite, a product may overflow to infinity
-    /// but never meets a zero as one (infinity times zero, NaN), and each sum is capped again before it
-    /// is multiplied. A point light at a sample (irradiance 1e30 times its energy) or energies, materials
-    /// and colours up to double's range then give bright but finite colours.
-    static constexpr float kMostRadiance = 1e30f;
     static Vec3x8 bounded(const Vec3x8& v) {
         const float8 most = broadcast8(kMostRadiance);
         return {min8(v.x, most), min8(v.y, most), min8(v.z, most)};  // min8 also maps NaN to the bound

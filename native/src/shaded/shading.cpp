@@ -9,9 +9,8 @@ namespace pcvr {
 
 namespace {
 
-constexpr float kMostRadiance = 1e30f;  // Shader::kMostRadiance, for the double stages of preparing
-
-float capped(double v) { return float(std::min(v, double(kMostRadiance))); }
+/// Shader::kMostRadiance for what the constructor prepares in double.
+float capped(double v) { return float(std::min(v, double(Shader::kMostRadiance))); }
 Vec3f to_float(const Vec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
 Vec3f capped(const Vec3& v) { return {capped(v.x), capped(v.y), capped(v.z)}; }
 

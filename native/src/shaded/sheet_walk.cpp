@@ -66,6 +66,9 @@ struct SheetWalker::GridState {
     const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
     const Box& box(int64_t s) const { return boxes[slot(s)]; }
     bool has(int64_t s) const { return !box(s).empty(); }
+    /// Whether a sample from sheet s on can read anything: sheet s, and with samples between sheets
+    /// (`between`) the cubic's s - 1 to s + 2.
+    bool reaches(int64_t s, bool between) const { return has(s) || (between && (has(s - 1) || has(s + 1) || has(s + 2))); }
 
     /// Zeroes slot k where it may hold values.
     void clear_slot(int k) {
@@ -252,7 +255,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         // 3. Classify, shade and composite from sheet s towards s + 1 (MIP: take the maximum at s).
         bool any = false;
         const bool between = !mip && setup.samples_per_sheet > 1;
-        for (const auto& g : grids_) any |= g && g->used && (g->has(s) || (between && (g->has(s - 1) || g->has(s + 1) || g->has(s + 2))));
+        for (const auto& g : grids_) any |= g && g->used && g->reaches(s, between);
         if (any) {
             ++stats.tile_sheets_composited;
             stats.first_sheet = std::min(stats.first_sheet, s);
@@ -457,7 +460,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     for (size_t gi = 0; gi < grids_.size() && source_count < 64; ++gi) {
         if (!grids_[gi] || !grids_[gi]->used) continue;
         const GridState& g = *grids_[gi];
-        if (!g.has(s) && !(between && (g.has(s - 1) || g.has(s + 1) || g.has(s + 2)))) continue;
+        if (!g.reaches(s, between)) continue;
         const WalkGrid& wg = setup.grids[gi];
         sources[source_count++] = {&g,           wg.classification, wg.shader,       wg.clip,        wg.background,
                                    g.sheet(s - 1), g.sheet(s),        g.sheet(s + 1), g.sheet(s + 2)};
