@@ -184,6 +184,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["blocks_clipped"] = s.blocks_clipped;
     stats["blocks_transparent"] = s.blocks_transparent;
     stats["bricks_transparent"] = s.bricks_transparent;
+    stats["voxels_transparent"] = s.voxels_transparent;
     stats["blocks_listed"] = s.blocks_listed;
     stats["blocks_linearised"] = s.blocks_linearised;
     stats["sheet_metric"] = s.sheets_in_voxel_metric ? "voxels" : "world";

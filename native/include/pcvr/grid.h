@@ -19,6 +19,9 @@
 
 namespace pcvr {
 
+/// One bit per voxel of a VoxelBlock: bit (offset & 63) of word (offset >> 6).
+using VoxelMask = std::array<uint64_t, 8>;
+
 /// An 8^3 block of voxels in OpenVDB leaf order: offset = (x << 6) | (y << 3) | z, for x, y, z in [0, 8).
 struct VoxelBlock {
     static constexpr int kDim = 8;
@@ -27,7 +30,7 @@ struct VoxelBlock {
     std::array<int32_t, 3> origin{};    ///< index coordinates of offset 0
     const float* values = nullptr;      ///< kSize values, or nullptr for a constant block
     float constant = 0.0f;              ///< value of every voxel when values == nullptr
-    std::array<uint64_t, 8> mask{};     ///< active voxels, bit (offset & 63) of word (offset >> 6)
+    VoxelMask mask{};                   ///< active voxels, bit (offset & 63) of word (offset >> 6)
 
     float value(int offset) const { return values ? values[offset] : constant; }
     bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
@@ -52,6 +55,23 @@ struct BlockValueRange {
         std::array<float, 8> lo, hi;
     };
     Bricks brick_reach, brick_mid, brick_wide;
+};
+
+/// Each voxel's value range over the voxels within `radius` index units of it (a box of side 2 radius + 1),
+/// inactive voxels and voxels outside the blocks counting as the background: BlockValueRange's argument
+/// at one voxel, for culling single voxels whose every sample is transparent. One byte per end: level q
+/// stands for lowest + q step, low ends rounded down and high ends up, so that a voxel's level range
+/// holds its true one.
+struct VoxelValueRanges {
+    /// Larger grids get none: a byte pair per voxel for each radius asked for (128 MiB at this many blocks).
+    static constexpr size_t kMostBlocks = size_t(1) << 17;
+    static constexpr int kMostRadius = 16;
+
+    int radius = 0;
+    double lowest = 0, step = 1;
+    std::vector<uint8_t> lo, hi;  ///< block b's voxel at `offset` is [b * VoxelBlock::kSize + offset]
+
+    double value(int level) const { return lowest + level * step; }
 };
 
 /// How Grid::level combines 2^3 voxels into one, each kind kept for the renderer that sees the volume so.
@@ -108,6 +128,10 @@ public:
     const std::vector<VoxelBlock>& blocks() const;
     /// One range per block of blocks(); built on first use, then cached (thread-safe).
     const std::vector<BlockValueRange>& block_value_ranges() const;
+    /// Every voxel's VoxelValueRanges at `radius` (1 to VoxelValueRanges::kMostRadius); built on first use
+    /// of each radius, then cached (thread-safe). Null for grids of more than VoxelValueRanges::kMostBlocks
+    /// blocks.
+    const VoxelValueRanges* voxel_value_ranges(int radius) const;
     /// Level of detail `k` (0: this grid): voxel I of level k + 1 combines the 2^3 voxels 2I .. 2I + 1
     /// of level k as `reduction` says: their mean with inactive ones counting as nothing (as the X-ray
     /// sees them, so each level holds the same line integrals' mass) or as the background (as shaded

@@ -116,6 +116,7 @@ struct ShadedStats {
     uint64_t blocks_clipped = 0;      ///< wholly outside their grid's clip region
     uint64_t blocks_transparent = 0;  ///< values (with their neighbours') transparent under the transfer function
     uint64_t bricks_transparent = 0;  ///< 4^3 bricks of the listed blocks left out the same way
+    uint64_t voxels_transparent = 0;  ///< active voxels of the listed bricks left out one by one the same way
     uint64_t blocks_listed = 0;       ///< (block, tile) pairs to splat
     uint64_t blocks_linearised = 0;   ///< perspective: blocks whose footprints come from a model per block
     /// The sheets follow the grids' voxel metric (their voxels are cubes in it: tilted planes, spheres

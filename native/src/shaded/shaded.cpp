@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <cmath>
 #include <memory>
 #include <numeric>
@@ -21,6 +22,7 @@
 #include "shaded/shaded_levels.h"
 #include "shaded/sheet_walk.h"
 #include "shaded/slab_splat.h"
+#include "shaded/transparency_culling.h"
 #include "splat/post_convolution.h"
 #include "splat/slab_footprint.h"
 #include "view/block_plan.h"
@@ -40,8 +42,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// Kernels sum to one up to a ripple of about 0.5% (gauss1.4): value ranges are widened by twice that.
-constexpr double kRippleMargin = 0.01;
 /// Tiles are squares of 128 to 256 pixels: several times a block's footprint, so that few voxels are
 /// splatted by more than one tile (a voxel near a tile's edge is splatted by each tile it reaches), and
 /// enough of them that threads share the work. At least 64 subgrid nodes (PCVR at magnification 4: 256
@@ -139,70 +139,6 @@ std::pair<double, double> clip_depths(const Camera& camera) {
     return {depth_of(r.origin), depth_of(r.origin + r.direction)};
 }
 
-/// How wide a neighbourhood of blocks decides whether a block can be culled as transparent, and how
-/// far the post-filter can push a sample beyond its nodes' range.
-///
-/// Culling block b removes its voxels' contributions from the sheets, from nodes within the kernel
-/// radius R of its voxels, and so changes the value or the gradient of samples near it. Every such
-/// sample must stay transparent with and without b, so every voxel its value is made of must be in
-/// the range the transfer function is tested on: voxels within R + (what the sample's gradient
-/// reads) + R + (what its value reads) of b. Across the rays a value reads pixels up to f subgrid
-/// nodes away (f = 1 for the bilinear post filter, 2 for the four-tap ones; a node is at most a voxel
-/// wide), its gradient one node more: 2 f + 1. Along them, in sheet spacings: a sample on sheet s
-/// reads half a spacing, its gradient the sheets either side (1.5); a sample t of the way to s + 1
-/// reads sheets s and s + 1 (the clamped cubic stays in their range: max(0.5 + t, 1.5 - t)) and its
-/// gradient s - 1 to s + 2 (max(1.5 + t, 2.5 - t)), together 4 - 2 / samples_per_sheet at most. BlockValueRange holds
-/// the ranges within 8, 12 and 16 voxels. The post filter's negative lobes let a sample leave the
-/// range of its nodes.
-struct CullingReach {
-    int voxels = 0;         // which of BlockValueRange's ranges: within 8, 12 or 16 voxels; 0: cannot cull
-    double overshoot = 0;   // of the post filter
-};
-
-CullingReach culling_reach(const Kernel& kernel, const PostFilter& filter, bool post_convolved, double spacing_voxels,
-                           int samples_per_sheet) {
-    const double f = post_convolved ? filter.reach_nodes() : 0.0;
-    const double along = (samples_per_sheet > 1 ? 4.0 - 2.0 / samples_per_sheet : 2.0) * spacing_voxels;
-    const double reach = 2.0 * kernel.radius() + std::max(2.0 * f + 1.0, along);
-    CullingReach out;
-    for (int within : {8, 12, 16})
-        if (out.voxels == 0 && reach <= within) out.voxels = within;
-    out.overshoot = post_convolved ? filter.overshoot() : 0.0;
-    return out;
-}
-
-/// A block whose samples can only take densities the transfer function makes transparent. A sample
-/// is the background plus a weighted sum of values less the background, weights adding up to at most
-/// one: between the background and the values around the block.
-bool transparent(float lowest, float highest, double background, double density_scale, const CullingReach& reach,
-                 const ClassificationTable& table) {
-    if (!(lowest <= highest)) lowest = highest = float(background);  // no active voxel: the background alone
-    const double lo = std::min(0.0, (double(lowest) - background) * density_scale);
-    const double hi = std::max(0.0, (double(highest) - background) * density_scale);
-    const double margin = kRippleMargin * std::max(-lo, hi) + reach.overshoot * (hi - lo);
-    const double offset = background * density_scale;
-    return table.transparent(offset + lo - margin, offset + hi + margin);
-}
-
-bool transparent(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
-                 const ClassificationTable& table) {
-    const auto [lowest, highest] = reach.voxels == 8    ? std::pair{r.reach_min, r.reach_max}
-                                   : reach.voxels == 12 ? std::pair{r.mid_min, r.mid_max}
-                                                        : std::pair{r.wide_min, r.wide_max};
-    return transparent(lowest, highest, background, density_scale, reach, table);
-}
-
-/// The bricks of a block that is not transparent whose own neighbourhoods are (the same argument at
-/// 4^3 voxels): bit h set for each brick to splat (BlockValueRange::Bricks' order).
-uint8_t bricks_to_splat(const BlockValueRange& r, double background, double density_scale, const CullingReach& reach,
-                        const ClassificationTable& table) {
-    const BlockValueRange::Bricks& b = reach.voxels == 8 ? r.brick_reach : reach.voxels == 12 ? r.brick_mid : r.brick_wide;
-    uint8_t keep = 0;
-    for (int h = 0; h < 8; ++h)
-        if (!transparent(b.lo[h], b.hi[h], background, density_scale, reach, table)) keep |= uint8_t(1u << h);
-    return keep;
-}
-
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
 void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
                    const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
@@ -296,6 +232,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::vector<std::unique_ptr<Shader>> shaders;
     std::vector<std::unique_ptr<AlbedoField>> albedos;
     std::vector<std::unique_ptr<SampleClip>> sample_clips;
+    std::deque<VoxelMask> splat_masks;  // the listed blocks' voxels to splat, where culling left some out
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
         const Grid& grid = *volume.grid;
@@ -322,7 +259,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
         stats.blocks_clipped += plan.blocks_clipped;
-        const std::vector<BlockValueRange>* ranges = mip || !params.cull_transparent ? nullptr : &grid.block_value_ranges();
+        const bool cull_transparent = !mip && params.cull_transparent;
 
         // One layer per stride; its blocks in depth and under the transfer function, each listed in the
         // tiles it reaches.
@@ -348,6 +285,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
             // rounding, the post filter's reach and the gradient's stencil.
             const double pixel_reach = regular ? 2.0 : double((filter.reach_nodes() + 1) * stride + finest);
+            std::optional<TransparencyCulling> transparency;
+            if (cull_transparent) transparency.emplace(grid, volume.density_scale, culling, *classification);
             std::vector<uint32_t> listed;
             for (const PlannedBlock& pb : list) {
                 const VoxelBlock& block = blocks[pb.index];
@@ -358,22 +297,18 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_outside;
                     continue;
                 }
-                uint8_t bricks = 0xff;
-                if (ranges && culling.voxels > 0) {
-                    const BlockValueRange& r = (*ranges)[pb.index];
-                    if (transparent(r, grid.background(), volume.density_scale, culling, *classification)) {
+                BlockCulling culled;
+                if (transparency) {
+                    culled = transparency->cull(pb.index, splat_masks);
+                    if (culled.transparent) {
                         ++stats.blocks_transparent;
                         continue;
                     }
-                    bricks = bricks_to_splat(r, grid.background(), volume.density_scale, culling, *classification);
-                    if (bricks == 0) {  // each brick's neighbourhood is transparent, the block's is not
-                        ++stats.blocks_transparent;
-                        continue;
-                    }
-                    stats.bricks_transparent += 8 - __builtin_popcount(bricks);
+                    stats.bricks_transparent += uint64_t(culled.bricks_culled);
+                    stats.voxels_transparent += uint64_t(culled.voxels_culled);
                 }
                 tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
-                          float(view.limit_scale(block)), bricks);
+                          float(view.limit_scale(block)), culled.splat);
                 listed.push_back(pb.index);
                 ++stats.blocks_listed;
             }

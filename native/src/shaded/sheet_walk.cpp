@@ -218,7 +218,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             const bool occlusion = occlusion_culling && l.occlusion.active();
             if (occlusion && l.occlusion.covered(l.ring_box(tb))) {
                 // Whatever is left of the block lands on opaque pixels only.
-                stats.voxels_occluded += view.voxels_left(block, active[a].next_rank, tb.bricks);
+                stats.voxels_occluded += view.voxels_left(block, active[a].next_rank, tb.splat);
                 continue;
             }
             // The voxels whose kernels reach sheet s + 2 come first in depth order (planar depth; for
@@ -228,7 +228,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             int last = active[a].next_rank;
             while (last < VoxelBlock::kSize && depth[last] < limit) ++last;
             const DepositCounts n = view.deposit(block, active[a].next_rank, last, l.ring, l.placement, open_sheet,
-                                                 occlusion ? &l.occlusion : nullptr, tb.bricks);
+                                                 occlusion ? &l.occlusion : nullptr, tb.splat);
             stats.voxels_splatted += n.splatted;
             stats.voxels_occluded += n.occluded;
             stats.taps += n.taps;

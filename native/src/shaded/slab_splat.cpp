@@ -43,9 +43,10 @@ constexpr float kTail = 0.01f;
 constexpr int kMostWindow = 16;
 
 
-/// The values of ranks [first, first + 8) (0 for ranks at or past `last`, inactive or non-finite voxels).
-/// Voxel values less the background, 0 for ranks beyond `last` and inactive voxels.
-float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full, float background) {
+/// Voxel values of ranks [first, first + 8) less the background: 0 for ranks at or past `last`, for
+/// voxels not in `mask` (unless `full`: every voxel is in it) and non-finite ones.
+float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, int first, int last, bool full, const VoxelMask& mask,
+                    float background) {
     float8 v;
     if (full && last - first >= kBatch) {
         // Every rank a voxel: gather them (the order's offsets are valid past the block's end too).
@@ -56,18 +57,10 @@ float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, 
         for (int l = 0; l < kBatch; ++l) {
             const int rank = first + l;
             const int offset = order.offset[rank];
-            v[l] = rank < last && (full || block.active(offset)) ? block.value(offset) - background : 0.0f;
+            v[l] = rank < last && (full || (mask[offset >> 6] >> (offset & 63)) & 1) ? block.value(offset) - background : 0.0f;
         }
     }
     return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
-}
-
-/// Zeroes the lanes of ranks [first, first + 8) whose brick is not in `bricks`.
-float8 keep_bricks(float8 v, const SlabView::DepthOrder& order, int first, uint8_t bricks) {
-    if (bricks == 0xff) return v;
-    for (int l = 0; l < kBatch; ++l)
-        if (!((bricks >> order.brick[first + l]) & 1)) v[l] = 0.0f;
-    return v;
 }
 
 uint32_t non_zero_lanes(float8 v) { return lane_mask(v != 0.0f); }
@@ -186,7 +179,6 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
     order_.j.assign(padded, 0.0f);
     order_.k.assign(padded, 0.0f);
     order_.depth.assign(padded, INFINITY);
-    order_.brick.assign(padded, 0);
     for (int r = 0; r < VoxelBlock::kSize; ++r) {
         const int32_t o = offsets[r];
         order_.offset[r] = o;
@@ -194,7 +186,6 @@ SlabView::SlabView(const Grid& grid, const Camera& camera, const SheetLattice& s
         order_.j[r] = float((o >> 3) & 7);
         order_.k[r] = float(o & 7);
         order_.depth[r] = float(depth_of(o));
-        order_.brick[r] = uint8_t(((o >> 8) & 1) << 2 | ((o >> 5) & 1) << 1 | ((o >> 2) & 1));
     }
 
     if (projection_.orthographic()) {
@@ -249,11 +240,14 @@ const BlockLinearisation* SlabView::linearised(const VoxelBlock& block) const {
     return slot < 0 ? nullptr : &linearised_[size_t(slot)];
 }
 
-uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, uint8_t bricks) const {
-    if (all_active(block) && bricks == 0xff) return uint64_t(VoxelBlock::kSize - first);
+uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, const VoxelMask* splat) const {
+    if (!splat && all_active(block)) return uint64_t(VoxelBlock::kSize - first);
+    const VoxelMask& mask = splat ? *splat : block.mask;
     uint64_t n = 0;
-    for (int rank = first; rank < VoxelBlock::kSize; ++rank)
-        n += block.active(order_.offset[rank]) && ((bricks >> order_.brick[rank]) & 1);
+    for (int rank = first; rank < VoxelBlock::kSize; ++rank) {
+        const int offset = order_.offset[rank];
+        n += (mask[offset >> 6] >> (offset & 63)) & 1;
+    }
     return n;
 }
 
@@ -503,10 +497,11 @@ bool SlabView::deposit_lane(const SlabBatch& b, int l, SheetRing& ring, const Oc
 
 
 DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
-                                int64_t first_open_sheet, const OcclusionMap* occlusion, uint8_t bricks) const {
+                                int64_t first_open_sheet, const OcclusionMap* occlusion, const VoxelMask* splat) const {
     DepositCounts counts;
     if (first >= last) return counts;
-    const bool full = all_active(block);
+    const bool full = !splat && all_active(block);
+    const VoxelMask& mask = splat ? *splat : block.mask;
     const double stride = params_.stride, inv_stride = 1.0 / stride;
     const double spacing = sheets_.spacing, inv_spacing = 1.0 / spacing;
     const Vec3 origin{double(block.origin[0]), double(block.origin[1]), double(block.origin[2])};
@@ -529,7 +524,7 @@ DepositCounts SlabView::deposit(const VoxelBlock& block, int first, int last, Sh
 
     SlabBatch b;
     for (int batch = first; batch < last; batch += kBatch) {
-        const float8 v = keep_bricks(batch_values(block, order_, batch, last, full, params_.background), order_, batch, bricks);
+        const float8 v = batch_values(block, order_, batch, last, full, mask, params_.background);
         b.live = non_zero_lanes(v);
         if (!b.live) continue;
         if (projection_.orthographic()) {

@@ -133,7 +133,6 @@ public:
         std::vector<int32_t> offset;
         std::vector<float> i, j, k;  ///< index offsets within the block
         std::vector<float> depth;    ///< depth relative to the block origin's, increasing
-        std::vector<uint8_t> brick;  ///< the 4^3 brick of the voxel (TileBlock::bricks' bit)
     };
     const DepthOrder& depth_order() const { return order_; }
     /// Camera depth of the block's nearest voxel centre (for the clip planes).
@@ -141,8 +140,9 @@ public:
     /// The block origin's place in the order of DepthOrder::depth: camera depth for spheres, the
     /// sheet parameter for planes.
     double order_depth(const VoxelBlock& block) const;
-    /// Active voxels of the block's `bricks` from rank `first` on (what skipping the rest of it leaves out).
-    uint64_t voxels_left(const VoxelBlock& block, int first, uint8_t bricks = 0xff) const;
+    /// Voxels to splat (`splat`, or the active ones when null) from rank `first` on (what skipping the
+    /// rest of the block leaves out).
+    uint64_t voxels_left(const VoxelBlock& block, int first, const VoxelMask* splat = nullptr) const;
     /// Nodes a voxel's window can reach beyond the node its centre falls in, on the far side: rings
     /// this much wider than the nodes a tile reads hold whole windows, which take the fast path.
     int window_margin() const { return window_ ? window_->window() - 1 : 0; }
@@ -152,9 +152,9 @@ public:
     /// occluded nodes are skipped and counted. Voxels whose kernel reaches the eye plane are skipped
     /// (a perspective footprint does not exist there).
     /// Slabs before `first_open_sheet` (sheets the walk has already composited) are left out, and so
-    /// are the voxels of bricks not in `bricks` (TileBlock::bricks).
+    /// are the voxels not in `splat` when it is given (TileBlock::splat).
     DepositCounts deposit(const VoxelBlock& block, int first, int last, SheetRing& ring, const RingPlacement& placement,
-                          int64_t first_open_sheet, const OcclusionMap* occlusion, uint8_t bricks = 0xff) const;
+                          int64_t first_open_sheet, const OcclusionMap* occlusion, const VoxelMask* splat = nullptr) const;
 
     /// Perspective views of kernels round in the sheet metric: models the footprints of these blocks
     /// (indices into the grid's blocks) as affine functions of the voxel (block_linearisation.h), so

@@ -18,8 +18,8 @@ PixelRect TileSet::rect(size_t tile) const {
 }
 
 void TileSet::add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y,
-                  double reach, float limit_scale, uint8_t bricks) {
-    const TileBlock entry{layer, block, front, float(min_x), float(min_y), float(max_x), float(max_y), limit_scale, bricks};
+                  double reach, float limit_scale, const VoxelMask* splat) {
+    const TileBlock entry{layer, block, front, float(min_x), float(min_y), float(max_x), float(max_y), limit_scale, splat};
     min_x -= reach, min_y -= reach, max_x += reach, max_y += reach;
     // Pixel centres sit at integer coordinates: the bounds touch pixels ceil(min) .. floor(max).
     auto tile_of = [&](double p, int count) { return int(std::clamp(std::floor(p / tile_size_), -1.0, double(count))); };

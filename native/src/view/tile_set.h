@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "pcvr/grid.h"
+
 namespace pcvr {
 
 /// Pixels [x0, x1) x [y0, y1).
@@ -27,7 +29,7 @@ struct TileBlock {
     double front;    ///< sheet parameter where the block's kernels begin (SlabView::front)
     float min_x, min_y, max_x, max_y;  ///< pixels its footprints can reach
     float limit_scale = 1;  ///< SlabView::limit_scale of the block
-    uint8_t bricks = 0xff;  ///< its 4^3 bricks to splat (bit (i >> 2) << 2 | (j >> 2) << 1 | k >> 2)
+    const VoxelMask* splat = nullptr;  ///< the voxels to splat (transparency culling); null: every active one
 };
 
 class TileSet {
@@ -41,7 +43,7 @@ public:
     /// Lists a block in every tile that the pixel bounds [min_x, max_x] x [min_y, max_y], widened by
     /// `reach` pixels, overlap.
     void add(uint32_t layer, uint32_t block, double front, double min_x, double min_y, double max_x, double max_y, double reach,
-             float limit_scale = 1.0f, uint8_t bricks = 0xff);
+             float limit_scale = 1.0f, const VoxelMask* splat = nullptr);
     /// Orders each tile's blocks nearest first (ties by layer, then block: deterministic).
     void sort();
     const std::vector<TileBlock>& blocks(size_t tile) const { return lists_[tile]; }

@@ -2,7 +2,9 @@
 /// @brief pcvr::Grid: construction from dense arrays, statistics, transforms and the block view the
 /// renderer walks. File I/O lives in vdb_io.cpp.
 #include "pcvr/dense_grid_builder.h"
+#include "volume/block_lookup.h"
 #include "volume/grid_data.h"
+#include "volume/voxel_value_ranges.h"
 
 #include <openvdb/tools/Count.h>
 #include <openvdb/tools/Dense.h>
@@ -289,54 +291,6 @@ struct Range {
     void include(const Range& r) { lo = std::min(lo, r.lo), hi = std::max(hi, r.hi); }
 };
 
-struct OriginHash {
-    size_t operator()(const std::array<int32_t, 3>& o) const {
-        return std::hash<uint64_t>()((uint64_t(uint32_t(o[0])) * 0x9E3779B1u) ^ (uint64_t(uint32_t(o[1])) << 21) ^
-                                     (uint64_t(uint32_t(o[2])) << 42));
-    }
-};
-using BlockIndex = std::unordered_map<std::array<int32_t, 3>, size_t, OriginHash>;
-
-/// Block neighbours by origin: a dense array over the blocks' bounding box where that is small (a
-/// lookup per neighbour, 125 per block, was most of the brick ranges' cost through the hash map).
-class BlockLookup {
-public:
-    BlockLookup(const std::vector<VoxelBlock>& blocks, const BlockIndex& index) : index_(index) {
-        if (blocks.empty()) return;
-        for (int a = 0; a < 3; ++a) lo_[a] = hi_[a] = blocks[0].origin[a] / VoxelBlock::kDim;
-        for (const VoxelBlock& b : blocks)
-            for (int a = 0; a < 3; ++a) {
-                lo_[a] = std::min(lo_[a], int64_t(b.origin[a] / VoxelBlock::kDim));
-                hi_[a] = std::max(hi_[a], int64_t(b.origin[a] / VoxelBlock::kDim));
-            }
-        for (int a = 0; a < 3; ++a) size_[a] = hi_[a] - lo_[a] + 1;
-        if (size_[0] * size_[1] * size_[2] > (int64_t(1) << 24)) return;
-        dense_.assign(size_t(size_[0] * size_[1] * size_[2]), -1);
-        for (size_t b = 0; b < blocks.size(); ++b) dense_[cell(blocks[b].origin)] = int64_t(b);
-    }
-    /// The block at `origin` (a multiple of 8), or -1.
-    int64_t find(const std::array<int32_t, 3>& origin) const {
-        if (dense_.empty()) {
-            const auto it = index_.find(origin);
-            return it == index_.end() ? -1 : int64_t(it->second);
-        }
-        for (int a = 0; a < 3; ++a) {
-            const int64_t c = origin[a] / VoxelBlock::kDim;
-            if (c < lo_[a] || c > hi_[a]) return -1;
-        }
-        return dense_[cell(origin)];
-    }
-
-private:
-    size_t cell(const std::array<int32_t, 3>& o) const {
-        return size_t(((o[0] / VoxelBlock::kDim - lo_[0]) * size_[1] + (o[1] / VoxelBlock::kDim - lo_[1])) * size_[2] +
-                      (o[2] / VoxelBlock::kDim - lo_[2]));
-    }
-    const BlockIndex& index_;
-    int64_t lo_[3] = {0, 0, 0}, hi_[3] = {0, 0, 0}, size_[3] = {0, 0, 0};
-    std::vector<int64_t> dense_;
-};
-
 /// BlockValueRange's brick ranges: each block's neighbourhood of 5^3 blocks as 10^3 bricks (the
 /// ranges of their 4^3 halves), then for each of its own eight bricks the union over the bricks within
 /// 2, 3 and 4 bricks (8, 12 and 16 index units: bricks lie on a grid of 4), one axis at a time.
@@ -468,6 +422,15 @@ const std::vector<BlockValueRange>& Grid::block_value_ranges() const {
         }
     }
     return data_->ranges;
+}
+
+const VoxelValueRanges* Grid::voxel_value_ranges(int radius) const {
+    const std::vector<VoxelBlock>& all = blocks();
+    if (all.size() > VoxelValueRanges::kMostBlocks) return nullptr;
+    std::lock_guard<std::mutex> lock(data_->voxel_ranges_mutex);
+    std::unique_ptr<VoxelValueRanges>& ranges = data_->voxel_ranges[radius];
+    if (!ranges) ranges = std::make_unique<VoxelValueRanges>(build_voxel_value_ranges(all, background(), radius));
+    return ranges.get();
 }
 
 namespace {

@@ -9,6 +9,8 @@
 
 #include <array>
 #include <atomic>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -38,6 +40,9 @@ struct Grid::Data {
     std::mutex ranges_mutex;
     std::atomic<bool> ranges_ready{false};
     std::vector<BlockValueRange> ranges;
+    std::mutex voxel_ranges_mutex;
+    /// Grid::voxel_value_ranges by radius (built under the mutex; entries never move once made).
+    std::map<int, std::unique_ptr<VoxelValueRanges>> voxel_ranges;
     std::mutex coarser_mutex;
     /// The next level of detail, built by the first Grid::level(k > 0) of each LevelReduction (indexed by it).
     std::array<std::shared_ptr<Data>, 3> coarser;
