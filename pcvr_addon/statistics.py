@@ -117,6 +117,9 @@ def _mode_rows(mode, stats):
         ("Blocks", f"{stats['blocks']:,}"),
         ("Outside view", _share(stats["blocks_outside"], stats["blocks"])),
         ("Transparent", _share(stats["blocks_transparent"], stats["blocks"])),
+        # Of the listed blocks' voxels, those left out one by one (their neighbourhood is transparent).
+        ("Transparent voxels", _share(stats.get("voxels_transparent", 0),
+                                      stats["voxels"] + stats["voxels_occluded"] + stats.get("voxels_transparent", 0))),
         ("Voxels splatted", f"{stats['voxels']:,}"),
         ("Behind opaque", _share(stats["voxels_occluded"], stats["voxels"] + stats["voxels_occluded"])),
         ("Sheets", f"{stats['sheets']:,}" + (" (in the voxels' metric)" if stats.get("sheet_metric") == "voxels" else "")),

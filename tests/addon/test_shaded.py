@@ -225,6 +225,7 @@ def test_status_and_statistics_of_the_last_render(blob_object):
     rows = dict(statistics.statistics_rows(mode, stats))
     assert rows["Voxels splatted"] == f"{stats['voxels']:,}" and "Transparent" in rows
     assert rows["Tiles"] == f"{stats['tiles']:,} of {stats['tile_size']} px"
+    assert rows["Transparent voxels"].startswith(f"{stats['voxels_transparent']:,} (")
     assert "Culled blocks" in statistics.format_sheet_stats(stats)
     # The blob's voxels are cubes: world sheets. Anisotropic voxels' sheets follow their metric, and say so.
     assert stats["sheet_metric"] == "world" and "metric" not in statistics.format_sheet_stats(stats)
