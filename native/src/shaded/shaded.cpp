@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <deque>
 #include <cmath>
+#include <deque>
 #include <memory>
 #include <numeric>
 #include <optional>

@@ -26,10 +26,11 @@ namespace pcvr {
 /// reads half a spacing, its gradient the sheets either side (1.5); a sample t of the way to s + 1
 /// reads sheets s and s + 1 (the clamped cubic stays in their range: max(0.5 + t, 1.5 - t)) and its
 /// gradient s - 1 to s + 2 (max(1.5 + t, 2.5 - t)), together 4 - 2 / samples_per_sheet at most. BlockValueRange holds
-/// the ranges within 8, 12 and 16 voxels. The post filter's negative lobes let a sample leave the
-/// range of its nodes.
+/// the ranges within 8, 12 and 16 voxels; a single voxel takes a box of the reach itself
+/// (Grid::voxel_value_ranges). The post filter's negative lobes let a sample leave the range of its
+/// nodes.
 struct CullingReach {
-    double index_units = 0;  // how far, in index units
+    double index_units = 0;  // how far, in index units: 2 R + max(2 f + 1, along)
     int voxels = 0;          // which of BlockValueRange's ranges: within 8, 12 or 16 voxels; 0: cannot cull
     double overshoot = 0;    // of the post filter
 };
