@@ -61,6 +61,14 @@ struct SheetWalker::GridState {
     std::vector<float> slots[kSlots];           // post-convolved sheet s in slot s mod 4, zero outside its box
     Box boxes[kSlots];                          // the pixels (slot coordinates) that may be non-zero
 
+    /// Per cell of kCell x kCell slot pixels (cell (x / kCell, y / kCell)), the least and largest value of
+    /// each slot (0 included: most of a cell may hold none), made once per sheet (summarise): the first
+    /// sample between two sheets skips the cells where no value in their range may be visible without
+    /// reading their pixels (an opaque bone function at 2048^2 leaves almost all of a sheet's box so).
+    static constexpr int kCell = 8;
+    int cell_columns = 0, cell_rows = 0;
+    std::vector<float> cell_lo[kSlots], cell_hi[kSlots];
+
     size_t pitch() const { return size_t(width); }
     static int slot(int64_t s) { return int(s & (kSlots - 1)); }
     const float* sheet(int64_t s) const { return slots[slot(s)].data(); }
@@ -70,11 +78,34 @@ struct SheetWalker::GridState {
     /// (`between`) the cubic's s - 1 to s + 2.
     bool reaches(int64_t s, bool between) const { return has(s) || (between && (has(s - 1) || has(s + 1) || has(s + 2))); }
 
+    /// The cell ranges of slot k, from its box (the cells outside hold only zeros).
+    void summarise(int k) {
+        std::fill(cell_lo[k].begin(), cell_lo[k].end(), 0.0f);
+        std::fill(cell_hi[k].begin(), cell_hi[k].end(), 0.0f);
+        const Box& b = boxes[k];
+        if (b.empty()) return;
+        // Whole cells' columns, eight pixels a vector (slot rows are padded past their end).
+        for (int cy = b.y0 / kCell; cy <= b.y1 / kCell; ++cy)
+            for (int cx = b.x0 / kCell; cx <= b.x1 / kCell; ++cx) {
+                float8 lo = broadcast8(0.0f), hi = broadcast8(0.0f);
+                for (int y = std::max(cy * kCell, b.y0); y <= std::min(cy * kCell + kCell - 1, b.y1); ++y) {
+                    const float8 v = load8(slots[k].data() + size_t(y) * pitch() + size_t(cx) * kCell);
+                    lo = min8(lo, v), hi = max8(hi, v);
+                }
+                float least = lo[0], most = hi[0];
+                for (int l = 1; l < 8; ++l) least = std::min(least, lo[l]), most = std::max(most, hi[l]);
+                cell_lo[k][size_t(cy) * cell_columns + cx] = least;
+                cell_hi[k][size_t(cy) * cell_columns + cx] = most;
+            }
+    }
+
     /// Zeroes slot k where it may hold values.
     void clear_slot(int k) {
         const Box& b = boxes[k];
         for (int r = b.y0; r <= b.y1; ++r) std::fill_n(slots[k].data() + size_t(r) * pitch() + b.x0, b.x1 - b.x0 + 1, 0.0f);
         boxes[k] = Box{};
+        std::fill(cell_lo[k].begin(), cell_lo[k].end(), 0.0f);
+        std::fill(cell_hi[k].begin(), cell_hi[k].end(), 0.0f);
     }
 
     /// Adds layer sheet t, post-convolved where splats reached it, into slot t mod 4, and releases it.
@@ -146,9 +177,15 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             g.width = tw + 2 * g.halo;
             g.height = th + 2 * g.halo;
             // Zero, padded: the tile's last vector of eight pixels may read past its row.
+            g.cell_columns = (g.width + GridState::kCell - 1) / GridState::kCell;
+            g.cell_rows = (g.height + GridState::kCell - 1) / GridState::kCell;
             for (int k = 0; k < GridState::kSlots; ++k) {
-                g.slots[k].assign(size_t(g.width) * g.height + 8, 0.0f);
+                // A cell's last vector may start past the row's end: padded by a cell.
+                g.slots[k].assign(size_t(g.width) * g.height + GridState::kCell, 0.0f);
                 g.boxes[k] = Box{};
+                // Padded to whole vectors of eight cells (composite_sample tests eight at a time).
+                g.cell_lo[k].assign(size_t(g.cell_columns) * g.cell_rows + 8, 0.0f);
+                g.cell_hi[k].assign(size_t(g.cell_columns) * g.cell_rows + 8, 0.0f);
             }
         }
         LayerState& l = *layer_state;
@@ -247,6 +284,9 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             for (size_t li = 0; li < layers_.size(); ++li)
                 if (layers_[li] && layers_[li]->used)
                     grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
+            if (!mip)
+                for (auto& g : grids_)
+                    if (g && g->used) g->summarise(GridState::slot(t));
         }
         open_sheet = s + 3;
         auto t2 = Clock::now();
@@ -454,6 +494,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     // it there): the first (t = 0) marks the vectors where some source may be visible in that range,
     // and the others visit only those, over the same sources and box.
     const bool between = samples > 1, marking = between && t == 0, marked = between && t > 0;
+    const float per_spacing = 1.0f / spacing;
     Source sources[64];
     int source_count = 0;
     Box box;
@@ -470,20 +511,63 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     }
     const size_t vectors_per_row = box.empty() ? 0 : size_t(box.x1 - box.x0) / 8 + 1;
     if (marking) may_show_.assign(box.empty() ? 0 : vectors_per_row * size_t(box.y1 - box.y0 + 1), 0);
+    // The first sample: per source, the cells where some value between sheets s and s + 1 may be
+    // visible (GridState::summarise); a vector whose cells hold none for every source is skipped
+    // unread, as the test below would (its ranges lie within the cells').
+    if (marking)
+        for (int k = 0; k < source_count; ++k) {
+            const GridState& g = *sources[k].grid;
+            const size_t cells = size_t(g.cell_columns) * g.cell_rows;
+            std::vector<uint8_t>& shows = cell_shows_[size_t(k)];
+            shows.resize(cells + 8);
+            const float *lo_s = g.cell_lo[GridState::slot(s)].data(), *lo_t = g.cell_lo[GridState::slot(s + 1)].data();
+            const float *hi_s = g.cell_hi[GridState::slot(s)].data(), *hi_t = g.cell_hi[GridState::slot(s + 1)].data();
+            for (size_t c = 0; c < cells; c += 8) {
+                const float8 lo = min8(load8(lo_s + c), load8(lo_t + c)) * per_spacing + sources[k].background;
+                const float8 hi = max8(load8(hi_s + c), load8(hi_t + c)) * per_spacing + sources[k].background;
+                const uint32_t bits = lane_mask(sources[k].classification->maybe_opaque_within(lo, hi));
+                for (int l = 0; l < 8; ++l) shows[c + size_t(l)] = uint8_t((bits >> l) & 1);
+            }
+        }
+    // Per row of the box, which of its vectors meet a cell that may show: made from the cells once
+    // per row of cells (kCell pixel rows), so that a skipped vector costs a byte's test.
+    int cached_cell_rows[64];
+    std::fill_n(cached_cell_rows, source_count, INT32_MIN);
+    auto update_row = [&](int y) {
+        bool same = true;
+        for (int k = 0; k < source_count; ++k) same &= floor_div(y + sources[k].grid->halo, GridState::kCell) == cached_cell_rows[k];
+        if (same) return;
+        row_may_show_.assign(vectors_per_row, 0);
+        for (int k = 0; k < source_count; ++k) {
+            const GridState& g = *sources[k].grid;
+            const int cell_row = cached_cell_rows[k] = floor_div(y + g.halo, GridState::kCell);
+            const uint8_t* shows = cell_shows_[size_t(k)].data() + size_t(cell_row) * g.cell_columns;
+            const int first = std::max(0, floor_div(box.x0 + g.halo, GridState::kCell));
+            const int last = std::min(g.cell_columns - 1, floor_div(box.x1 + g.halo, GridState::kCell));
+            for (int c = first; c <= last; ++c) {
+                if (!shows[c]) continue;
+                // Cell c covers box columns from .. from + kCell - 1; vector v covers 8 v .. 8 v + 7.
+                const int from = c * GridState::kCell - g.halo - box.x0;
+                const int v0 = std::max(0, floor_div(from, 8)), v1 = std::min(int(vectors_per_row) - 1, floor_div(from + GridState::kCell - 1, 8));
+                for (int v = v0; v <= v1; ++v) row_may_show_[size_t(v)] = 1;
+            }
+        }
+    };
 
     // Sheets hold density times the slab's length in the sheet parameter, the same on every ray; its
     // world length (the opacity's) is the frame's. Samples away from the clip planes count in full:
     // the frames are only needed where something is classified.
-    const float per_spacing = 1.0f / spacing;
     const double half_extent = 0.5 * setup.sheets.spacing / samples;
     const bool whole = setup.within_clip_everywhere(u, half_extent);
     const AlongRay along(t);
 
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
+        if (marking) update_row(y);
         for (int x = box.x0; x <= box.x1; x += 8) {
             const size_t vector = size_t(y - box.y0) * vectors_per_row + size_t(x - box.x0) / 8;
             if (marked && !may_show_[vector]) continue;
+            if (marking && !row_may_show_[size_t(x - box.x0) / 8]) continue;
             const size_t p = size_t(y) * row_pitch_ + x;
             const float8 alpha = load8(alpha_.data() + p);
             const PixelLanes lanes = pixel_lanes(rect, x, y, box.x1 + 1);
