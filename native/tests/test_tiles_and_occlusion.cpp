@@ -43,8 +43,10 @@ TEST(occlusion_map_matches_a_brute_force_test) {
     const int w = 37, h = 29, stride = 3, columns = 18, rows = 15, reach = 4, ox = 5, oy = 4;
     std::vector<uint8_t> opaque(w * h);
     for (auto& o : opaque) o = rng() % 10 < 8;
+    OpenPixels open;
+    open.count(w, h, [&](int x, int y) { return opaque[y * w + x] != 0; });
     OcclusionMap map;
-    map.rebuild(w, h, [&](int x, int y) { return opaque[y * w + x] != 0; }, stride, ox, oy, columns, rows, reach);
+    map.rebuild(open, stride, ox, oy, columns, rows, reach);
     auto node_occluded = [&](int c, int r) {
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x)

@@ -19,20 +19,45 @@
 
 namespace pcvr {
 
+/// A tile's pixels not yet opaque, summed over rectangles (a summed-area table): counted once each
+/// time more pixels turn opaque, for every layer's occlusion map.
+class OpenPixels {
+public:
+    /// `opaque(x, y)` says whether tile pixel (x, y) (relative to the tile) is opaque.
+    template <class Opaque>
+    void count(int tile_width, int tile_height, Opaque opaque) {
+        width_ = tile_width, height_ = tile_height;
+        const size_t pitch = size_t(width_) + 1;
+        sums_.assign(pitch * (height_ + 1), 0);  // sums_[(y + 1) * pitch + x + 1]: open pixels in [0, x] x [0, y]
+        for (int y = 0; y < height_; ++y) {
+            int32_t row = 0;
+            for (int x = 0; x < width_; ++x) {
+                row += opaque(x, y) ? 0 : 1;
+                sums_[size_t(y + 1) * pitch + x + 1] = sums_[size_t(y) * pitch + x + 1] + row;
+            }
+        }
+    }
+    int width() const { return width_; }
+    int height() const { return height_; }
+    /// Open pixels in [x0, x1] x [y0, y1] (inclusive, within the tile).
+    int32_t in(int x0, int y0, int x1, int y1) const { return sum(sums_, width_ + 1, x0, y0, x1, y1); }
+
+    static int32_t sum(const std::vector<int32_t>& table, int pitch, int x0, int y0, int x1, int y1) {
+        return table[size_t(y1 + 1) * pitch + x1 + 1] - table[size_t(y0) * pitch + x1 + 1] - table[size_t(y1 + 1) * pitch + x0] +
+               table[size_t(y0) * pitch + x0];
+    }
+
+private:
+    int width_ = 0, height_ = 0;
+    std::vector<int32_t> sums_;
+};
+
 class OcclusionMap {
 public:
-    /// `opaque(x, y)` says whether tile pixel (x, y) (relative to the tile) is opaque. Ring node (c, r)
-    /// sits on tile pixel (stride * c - origin_x, stride * r - origin_y).
-    template <class Opaque>
-    void rebuild(int tile_width, int tile_height, Opaque opaque, int stride, int origin_x, int origin_y, int columns,
-                 int rows, int reach) {
-        // Open pixels, summed: open_[(y + 1) * (w + 1) + x + 1] = open pixels in [0, x] x [0, y].
-        const int w = tile_width, h = tile_height;
-        open_pixels_.assign(size_t(w + 1) * (h + 1), 0);
-        for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x)
-                open_pixels_[size_t(y + 1) * (w + 1) + x + 1] = (opaque(x, y) ? 0 : 1) + open_pixels_[size_t(y) * (w + 1) + x + 1] +
-                                                                open_pixels_[size_t(y + 1) * (w + 1) + x] - open_pixels_[size_t(y) * (w + 1) + x];
+    /// From the tile's open pixels: ring node (c, r) sits on tile pixel (stride * c - origin_x,
+    /// stride * r - origin_y), and is occluded when no pixel within `reach` of it is open.
+    void rebuild(const OpenPixels& open, int stride, int origin_x, int origin_y, int columns, int rows, int reach) {
+        const int w = open.width(), h = open.height();
         columns_ = columns;
         open_nodes_.assign(size_t(columns + 1) * (rows + 1), 0);
         for (int r = 0; r < rows; ++r)
@@ -40,8 +65,8 @@ public:
                 const int px = stride * c - origin_x, py = stride * r - origin_y;
                 const int x0 = std::max(0, px - reach), x1 = std::min(w - 1, px + reach);
                 const int y0 = std::max(0, py - reach), y1 = std::min(h - 1, py + reach);
-                const bool open = x0 <= x1 && y0 <= y1 && sum(open_pixels_, w + 1, x0, y0, x1, y1) > 0;
-                open_nodes_[size_t(r + 1) * (columns + 1) + c + 1] = (open ? 1 : 0) + open_nodes_[size_t(r) * (columns + 1) + c + 1] +
+                const bool is_open = x0 <= x1 && y0 <= y1 && open.in(x0, y0, x1, y1) > 0;
+                open_nodes_[size_t(r + 1) * (columns + 1) + c + 1] = (is_open ? 1 : 0) + open_nodes_[size_t(r) * (columns + 1) + c + 1] +
                                                                      open_nodes_[size_t(r + 1) * (columns + 1) + c] - open_nodes_[size_t(r) * (columns + 1) + c];
             }
         active_ = true;
@@ -51,19 +76,14 @@ public:
     bool active() const { return active_; }
     /// Every node of [c0, c1] x [r0, r1] (inclusive, within the ring) is occluded.
     bool covered(int c0, int r0, int c1, int r1) const {
-        return active_ && c0 <= c1 && r0 <= r1 && sum(open_nodes_, columns_ + 1, c0, r0, c1, r1) == 0;
+        return active_ && c0 <= c1 && r0 <= r1 && OpenPixels::sum(open_nodes_, columns_ + 1, c0, r0, c1, r1) == 0;
     }
     bool covered(const Box& nodes) const { return covered(nodes.x0, nodes.y0, nodes.x1, nodes.y1); }
 
 private:
-    static int32_t sum(const std::vector<int32_t>& table, int pitch, int x0, int y0, int x1, int y1) {
-        return table[size_t(y1 + 1) * pitch + x1 + 1] - table[size_t(y0) * pitch + x1 + 1] - table[size_t(y1 + 1) * pitch + x0] +
-               table[size_t(y0) * pitch + x0];
-    }
-
     bool active_ = false;
     int columns_ = 0;
-    std::vector<int32_t> open_pixels_, open_nodes_;
+    std::vector<int32_t> open_nodes_;
 };
 
 }  // namespace pcvr

@@ -319,15 +319,15 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         }
         if (occlusion_culling && opaque >= opaque_at_rebuild + rebuild_step) {
             opaque_at_rebuild = opaque;
-            auto is_opaque = [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; };
+            open_pixels_.count(tw, th, [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; });
             for (size_t li = 0; li < layers_.size(); ++li) {
                 if (!layers_[li] || !layers_[li]->used) continue;
                 LayerState& l = *layers_[li];
                 const int L = l.stride;
                 // A node's value spreads through the post filter, then the in-sheet gradient's stencil.
                 const int reach = l.reach + setup.grids[setup.layers[li].grid].gradient_step;
-                l.occlusion.rebuild(tw, th, is_opaque, L, rect.x0 - L * l.placement.node_x0, rect.y0 - L * l.placement.node_y0,
-                                    l.ring.columns(), l.ring.rows(), reach);
+                l.occlusion.rebuild(open_pixels_, L, rect.x0 - L * l.placement.node_x0, rect.y0 - L * l.placement.node_y0, l.ring.columns(),
+                                    l.ring.rows(), reach);
             }
         }
 

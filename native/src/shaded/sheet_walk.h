@@ -114,6 +114,7 @@ private:
     std::vector<float> red_, green_, blue_, alpha_, depth_;
     std::vector<float> maximum_;
     std::vector<uint8_t> cell_shows_[64];  // composite_sample: per source, per cell of its grid, whether a value there may be visible
+    OpenPixels open_pixels_;  // the tile's pixels not yet opaque, for every layer's occlusion map
     std::vector<uint8_t> row_may_show_;  // composite_sample: per vector of a row of the box, whether a cell it meets may show
     std::vector<uint8_t> may_show_;  // composite_sample: per vector of the sheet's box, whether a sample there may be visible
     std::vector<float> scratch_;
