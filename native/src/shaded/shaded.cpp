@@ -271,12 +271,16 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             views.push_back(std::make_unique<SlabView>(grid, camera, sheets, splat));
             const SlabView& view = *views.back();
             const PostFilter filter(post_shape, stride);
+            // Footprints splatted at stride 1 are already the pixels (the post filter would be the
+            // identity): such layers skip the post-convolution and its margins, as `regular` does. Only
+            // bilinear spreading needs the filter to rebuild its one-node tents there.
+            const bool post_convolved = !regular && (stride > 1 || spread);
             const uint32_t layer = uint32_t(setup.layers.size());
-            setup.layers.push_back({&view, uint32_t(g), filter, !regular});
+            setup.layers.push_back({&view, uint32_t(g), filter, post_convolved});
             if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);
 
             const CullingReach culling =
-                culling_reach(kernel, filter, !regular, sheets.spacing / depth_per_voxel(projections[g], grid, sheets),
+                culling_reach(kernel, filter, post_convolved, sheets.spacing / depth_per_voxel(projections[g], grid, sheets),
                               mip ? 1 : params.samples_per_sheet);
             const Vec3& n = view.projection().depth_gradient();
             const double reach = kernel.radius() * length(n);  // in depth, for the clip planes
@@ -284,7 +288,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             const double depth_extent = span * (std::abs(n.x) + std::abs(n.y) + std::abs(n.z));
             // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
             // rounding, the post filter's reach and the gradient's stencil.
-            const double pixel_reach = regular ? 2.0 : double((filter.reach_nodes() + 1) * stride + finest);
+            const double pixel_reach = post_convolved ? double((filter.reach_nodes() + 1) * stride + finest) : 2.0;
             std::optional<TransparencyCulling> transparency;
             if (cull_transparent) transparency.emplace(grid, volume.density_scale, culling, *classification);
             std::vector<uint32_t> listed;
