@@ -232,7 +232,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::vector<std::unique_ptr<Shader>> shaders;
     std::vector<std::unique_ptr<AlbedoField>> albedos;
     std::vector<std::unique_ptr<SampleClip>> sample_clips;
-    std::deque<VoxelMask> splat_masks;  // the listed blocks' voxels to splat, where culling left some out
+    std::deque<std::vector<VoxelMask>> splat_masks;  // per layer, its blocks' voxels to splat where culling left some out
     for (size_t g = 0; g < volumes.size(); ++g) {
         const ShadedVolume& volume = volumes[g];
         const Grid& grid = *volume.grid;
@@ -289,10 +289,16 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             // Pixels beyond a footprint's ellipse that its splat reaches: a node of a whole window's
             // rounding, the post filter's reach and the gradient's stencil.
             const double pixel_reach = post_convolved ? double((filter.reach_nodes() + 1) * stride + finest) : 2.0;
-            std::optional<TransparencyCulling> transparency;
-            if (cull_transparent) transparency.emplace(grid, volume.density_scale, culling, *classification);
+            // Culled in parallel (a block's voxels are tested one by one), listed in order.
+            std::vector<BlockCulling> culled(cull_transparent ? list.size() : 0);
+            if (cull_transparent) {
+                const TransparencyCulling transparency(grid, volume.density_scale, culling, *classification);
+                std::vector<VoxelMask>& masks = splat_masks.emplace_back(list.size());
+                tbb::parallel_for(size_t(0), list.size(), [&](size_t i) { culled[i] = transparency.cull(list[i].index, masks[i]); });
+            }
             std::vector<uint32_t> listed;
-            for (const PlannedBlock& pb : list) {
+            for (size_t i = 0; i < list.size(); ++i) {
+                const PlannedBlock& pb = list[i];
                 const VoxelBlock& block = blocks[pb.index];
                 // Depth is affine: its extremes over the block are the nearest voxel's and that plus the
                 // gradient's extent over the block.
@@ -301,18 +307,18 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                     ++stats.blocks_outside;
                     continue;
                 }
-                BlockCulling culled;
-                if (transparency) {
-                    culled = transparency->cull(pb.index, splat_masks);
-                    if (culled.transparent) {
+                const VoxelMask* splat_voxels = nullptr;
+                if (cull_transparent) {
+                    if (culled[i].transparent) {
                         ++stats.blocks_transparent;
                         continue;
                     }
-                    stats.bricks_transparent += uint64_t(culled.bricks_culled);
-                    stats.voxels_transparent += uint64_t(culled.voxels_culled);
+                    stats.bricks_transparent += uint64_t(culled[i].bricks_culled);
+                    stats.voxels_transparent += uint64_t(culled[i].voxels_culled);
+                    splat_voxels = culled[i].splat;
                 }
                 tiles.add(layer, pb.index, view.front(block), pb.min_x, pb.min_y, pb.max_x, pb.max_y, pixel_reach,
-                          float(view.limit_scale(block)), culled.splat);
+                          float(view.limit_scale(block)), splat_voxels);
                 listed.push_back(pb.index);
                 ++stats.blocks_listed;
             }

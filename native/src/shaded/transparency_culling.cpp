@@ -95,7 +95,7 @@ bool TransparencyCulling::transparent(double lowest, double highest) const {
     return pcvr::transparent(lowest, highest, grid_.background(), density_scale_, reach_, table_);
 }
 
-BlockCulling TransparencyCulling::cull(size_t index, std::deque<VoxelMask>& masks) const {
+BlockCulling TransparencyCulling::cull(size_t index, VoxelMask& mask) const {
     BlockCulling out;
     if (reach_.voxels == 0) return out;
     const BlockValueRange& r = ranges_[index];
@@ -134,8 +134,8 @@ BlockCulling TransparencyCulling::cull(size_t index, std::deque<VoxelMask>& mask
         return out;
     }
     if (keep != block.mask) {
-        masks.push_back(keep);
-        out.splat = &masks.back();
+        mask = keep;
+        out.splat = &mask;
     }
     return out;
 }

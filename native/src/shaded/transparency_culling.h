@@ -4,7 +4,6 @@
 #pragma once
 
 #include <cstdint>
-#include <deque>
 
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
@@ -52,8 +51,9 @@ class TransparencyCulling {
 public:
     TransparencyCulling(const Grid& grid, double density_scale, const CullingReach& reach, const ClassificationTable& table);
 
-    /// Block `index` of the grid's blocks(). A partial mask is kept in `masks` (its address stays put).
-    BlockCulling cull(size_t index, std::deque<VoxelMask>& masks) const;
+    /// Block `index` of the grid's blocks(). A partial mask is written to `mask`, which `splat` then
+    /// points to. Safe to call from several threads.
+    BlockCulling cull(size_t index, VoxelMask& mask) const;
     /// Whether single voxels are tested (the grid has voxel ranges at this reach).
     bool per_voxel() const { return voxels_ != nullptr; }
 
