@@ -22,6 +22,8 @@ namespace pcvr {
 /// One bit per voxel of a VoxelBlock: bit (offset & 63) of word (offset >> 6).
 using VoxelMask = std::array<uint64_t, 8>;
 
+inline bool contains(const VoxelMask& mask, int offset) { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
+
 /// An 8^3 block of voxels in OpenVDB leaf order: offset = (x << 6) | (y << 3) | z, for x, y, z in [0, 8).
 struct VoxelBlock {
     static constexpr int kDim = 8;
@@ -33,7 +35,7 @@ struct VoxelBlock {
     VoxelMask mask{};                   ///< active voxels, bit (offset & 63) of word (offset >> 6)
 
     float value(int offset) const { return values ? values[offset] : constant; }
-    bool active(int offset) const { return (mask[offset >> 6] >> (offset & 63)) & 1u; }
+    bool active(int offset) const { return contains(mask, offset); }
 };
 
 /// The range of a block's active values, and the ranges over the voxels around it: the 3^3 blocks

@@ -57,7 +57,7 @@ float8 batch_values(const VoxelBlock& block, const SlabView::DepthOrder& order, 
         for (int l = 0; l < kBatch; ++l) {
             const int rank = first + l;
             const int offset = order.offset[rank];
-            v[l] = rank < last && (full || (mask[offset >> 6] >> (offset & 63)) & 1) ? block.value(offset) - background : 0.0f;
+            v[l] = rank < last && (full || contains(mask, offset)) ? block.value(offset) - background : 0.0f;
         }
     }
     return select8(abs8(v) < INFINITY, v, broadcast8(0.0f));  // NaN and infinity: skipped, not splatted
@@ -244,10 +244,7 @@ uint64_t SlabView::voxels_left(const VoxelBlock& block, int first, const VoxelMa
     if (!splat && all_active(block)) return uint64_t(VoxelBlock::kSize - first);
     const VoxelMask& mask = splat ? *splat : block.mask;
     uint64_t n = 0;
-    for (int rank = first; rank < VoxelBlock::kSize; ++rank) {
-        const int offset = order_.offset[rank];
-        n += (mask[offset >> 6] >> (offset & 63)) & 1;
-    }
+    for (int rank = first; rank < VoxelBlock::kSize; ++rank) n += contains(mask, order_.offset[rank]);
     return n;
 }
 

@@ -55,7 +55,6 @@ uint8_t bricks_to_splat(const BlockValueRange& r, double background, double dens
     return keep;
 }
 
-
 /// The voxels of the bricks in `bricks` (bit (i >> 2) << 2 | (j >> 2) << 1 | k >> 2).
 VoxelMask brick_voxels(uint8_t bricks) {
     VoxelMask mask{};
