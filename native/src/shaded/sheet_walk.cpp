@@ -284,7 +284,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             for (size_t li = 0; li < layers_.size(); ++li)
                 if (layers_[li] && layers_[li]->used)
                     grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
-            if (!mip)
+            if (!mip && setup.samples_per_sheet > 1)  // only the first of several samples reads the cells
                 for (auto& g : grids_)
                     if (g && g->used) g->summarise(GridState::slot(t));
         }
