@@ -76,6 +76,43 @@ struct VoxelValueRanges {
     double value(int level) const { return lowest + level * step; }
 };
 
+/// The grid on a dense lattice for sampling rather than splatting (sheets filled by sampling): every
+/// voxel's value less the background (0 where inactive or not finite) over the active bounding box and
+/// a margin of kMargin, blurred along each axis by the three taps (w, 1 - 2w, w). Trilinear interpolation
+/// of it reconstructs the volume as a kernel of per-axis variance 1/6 + 2w would (the tent's and the
+/// taps'): with w from a Gaussian kernel's variance it stands in for that kernel's sum over the voxels.
+/// Element (i, j, k) is index origin + (i, j, k), k fastest.
+struct PrefilteredLattice {
+    /// Larger grids get none (4 bytes an element: 256 MiB).
+    static constexpr size_t kMostElements = size_t(1) << 26;
+    static constexpr int kMargin = 2;  ///< elements beyond the active box: the taps' and the tent's reach
+
+    /// Value ranges per brick of kBrick^3 elements, over every element within kRangeReach elements
+    /// (per axis) of the brick: whatever is interpolated within that distance of a point in it lies
+    /// in its brick's range.
+    static constexpr int kBrick = 2;
+    static constexpr int kRangeReach = 6;
+
+    std::array<int32_t, 3> origin{};
+    std::array<int32_t, 3> shape{};
+    std::vector<float> values;
+    float blur = 0;  ///< w
+    std::array<int32_t, 3> bricks{};  ///< ceil(shape / kBrick)
+    /// Per brick (bi, bj, bk), bk fastest, and one more: its range as two 8-bit levels (low end in the
+    /// low byte), level q standing for range_lowest + q range_step, low ends rounded down and high ends up.
+    std::vector<uint16_t> ranges;
+    float range_lowest = 0, range_step = 1;
+
+    size_t stride_i() const { return size_t(shape[1]) * size_t(shape[2]); }
+    size_t stride_j() const { return size_t(shape[2]); }
+    /// The elements of the lattice over an active index box ({min i, j, k, max i, j, k}).
+    static size_t elements(const std::array<int32_t, 6>& box) {
+        size_t n = 1;
+        for (int a = 0; a < 3; ++a) n *= size_t(int64_t(box[a + 3]) - box[a] + 1 + 2 * kMargin);
+        return n;
+    }
+};
+
 /// How Grid::level combines 2^3 voxels into one, each kind kept for the renderer that sees the volume so.
 enum class LevelReduction {
     MeanOverZero,        ///< the mean, inactive voxels counting as 0: the X-ray's levels, which keep line integrals
@@ -134,6 +171,10 @@ public:
     /// of each radius, then cached (thread-safe). Null for grids of more than VoxelValueRanges::kMostBlocks
     /// blocks.
     const VoxelValueRanges* voxel_value_ranges(int radius) const;
+    /// The PrefilteredLattice of this grid with blur weight `blur` (0 to 0.25); built on first use of each
+    /// weight, then cached (thread-safe). Null for grids whose lattice would exceed
+    /// PrefilteredLattice::kMostElements, and for empty grids.
+    const PrefilteredLattice* prefiltered_lattice(float blur) const;
     /// Level of detail `k` (0: this grid): voxel I of level k + 1 combines the 2^3 voxels 2I .. 2I + 1
     /// of level k as `reduction` says: their mean with inactive ones counting as nothing (as the X-ray
     /// sees them, so each level holds the same line integrals' mass) or as the background (as shaded

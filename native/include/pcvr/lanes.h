@@ -51,6 +51,18 @@ inline float8 gather8(const float* table, int8x index) {
 #endif
 }
 
+/// table[index] per lane, widened; indices must be valid, and so must index + 1 (AVX2 reads 32 bits).
+inline int8x gather16(const uint16_t* table, int8x index) {
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256i pairs = _mm256_i32gather_epi32(reinterpret_cast<const int*>(table), __m256i(index), 2);
+    return int8x(_mm256_and_si256(pairs, _mm256_set1_epi32(0xffff)));
+#else
+    int8x out;
+    for (int l = 0; l < 8; ++l) out[l] = table[index[l]];
+    return out;
+#endif
+}
+
 /// table[i] + f (table[i + 1] - table[i]) per lane (i + 1 valid too): each lane's two entries in one
 /// 64-bit load, where a pair of gathers took several times as long on the AMD cores we measure on.
 inline float8 lerp_pairs8(const float* table, int8x i, float8 f) {

@@ -4,6 +4,7 @@
 #include "pcvr/dense_grid_builder.h"
 #include "volume/block_lookup.h"
 #include "volume/grid_data.h"
+#include "volume/prefiltered_lattice.h"
 #include "volume/voxel_value_ranges.h"
 
 #include <openvdb/tools/Count.h>
@@ -431,6 +432,17 @@ const VoxelValueRanges* Grid::voxel_value_ranges(int radius) const {
     std::unique_ptr<VoxelValueRanges>& ranges = data_->voxel_ranges[radius];
     if (!ranges) ranges = std::make_unique<VoxelValueRanges>(build_voxel_value_ranges(all, background(), radius));
     return ranges.get();
+}
+
+const PrefilteredLattice* Grid::prefiltered_lattice(float blur) const {
+    if (active_voxel_count() == 0) return nullptr;
+    const std::array<int32_t, 6> box = index_bbox();
+    if (PrefilteredLattice::elements(box) > PrefilteredLattice::kMostElements) return nullptr;
+    const std::vector<VoxelBlock>& all = blocks();
+    std::lock_guard<std::mutex> lock(data_->lattices_mutex);
+    std::unique_ptr<PrefilteredLattice>& lattice = data_->lattices[blur];
+    if (!lattice) lattice = std::make_unique<PrefilteredLattice>(build_prefiltered_lattice(all, box, background(), blur));
+    return lattice.get();
 }
 
 namespace {

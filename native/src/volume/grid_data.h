@@ -43,6 +43,9 @@ struct Grid::Data {
     std::mutex voxel_ranges_mutex;
     /// Grid::voxel_value_ranges by radius (built under the mutex; entries never move once made).
     std::map<int, std::unique_ptr<VoxelValueRanges>> voxel_ranges;
+    std::mutex lattices_mutex;
+    /// Grid::prefiltered_lattice by blur weight (built under the mutex; entries never move once made).
+    std::map<float, std::unique_ptr<PrefilteredLattice>> lattices;
     std::mutex coarser_mutex;
     /// The next level of detail, built by the first Grid::level(k > 0) of each LevelReduction (indexed by it).
     std::array<std::shared_ptr<Data>, 3> coarser;
