@@ -199,12 +199,16 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["tiles_terminated"] = s.tiles_terminated;
     stats["tile_sheets_composited"] = s.tile_sheets_composited;
     stats["tile_sheets_skipped"] = s.tile_sheets_skipped;
+    stats["grids_sampled"] = s.grids_sampled;
+    stats["sheet_samples"] = s.sheet_samples;
+    stats["sheet_samples_skipped"] = s.sheet_samples_skipped;
     stats["strides"] = strides;
     stats["level"] = s.level;
     stats["seconds"] = s.seconds;
     stats["seconds_plan"] = s.seconds_plan;
     stats["seconds_splat"] = s.seconds_splat;
     stats["seconds_post_convolution"] = s.seconds_post_convolution;
+    stats["seconds_sampling"] = s.seconds_sampling;
     stats["seconds_shading"] = s.seconds_shading;
     stats["shadow_texels"] = s.shadow_texels;
     stats["seconds_shadows"] = s.seconds_shadows;
@@ -226,7 +230,8 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             double sheet_spacing, double opacity_cutoff, int threads, nb::handle progress,
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
-                            nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids) {
+                            nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids,
+                            const std::string& sheet_fill) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -266,6 +271,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     ShadedStats s;
     parts.params.depth = return_depth;
     parts.params.shadows = *flag_from_python(shadows, "render_shaded: shadows", false);
+    parts.params.sheet_fill = sheet_fill_from_name(sheet_fill);
     run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
     fill_stats(stats, s);
     if (!return_depth) return image_to_numpy(std::move(image), 4);
@@ -401,6 +407,7 @@ void bind_shaded(nb::module_& m) {
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
+          "sheet_fill"_a = "auto",
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -416,7 +423,10 @@ void bind_shaded(nb::module_& m) {
           "built once per render (stats['shadow_texels'], stats['seconds_shadows']).\n"
           "albedo_grids: a colour per voxel that multiplies the transfer function's (Blender's Color Attribute):\n"
           "(red, green, blue) Grids on the grid's own voxels (the same index_to_world), or one such triple or None\n"
-          "per grid. Each sample's factor is the colour of the voxels around it weighted by their density.");
+          "per grid. Each sample's factor is the colour of the voxels around it weighted by their density.\n"
+          "sheet_fill: 'auto' samples a grid's sheets instead of splatting them where method 'pcvr' splats all of it\n"
+          "at stride 1 (stats['grids_sampled'], stats['sheet_samples'], stats['seconds_sampling']); 'splat' never\n"
+          "does; 'sample' does for every grid that fits, at stride 1 (method 'pcvr' only).");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

@@ -50,6 +50,19 @@ enum class ShadedMethod { Regular, Pcvr, BilinearSpread, Raycast };
 /// Parses "regular", "pcvr", "bilinear_spread" or "raycast"; throws InvalidArgument listing the names.
 ShadedMethod shaded_method_from_name(const std::string& name);
 
+/// How the sheet renderer fills a grid's sheets (src/shaded/sheet_sampling.h).
+enum class SheetFill {
+    /// `pcvr`'s shaded renders sample a grid's sheets where every block of it is splatted at stride 1
+    /// (no post-convolution: the footprints are a few pixels) and its lattice fits
+    /// (PrefilteredLattice::kMostElements); they splat elsewhere, and other methods and MIP always do.
+    Automatic,
+    Splat,   ///< always splat
+    Sample,  ///< `pcvr`'s shaded renders sample every grid whose lattice fits, at stride 1
+};
+
+/// Parses "auto", "splat" or "sample"; throws InvalidArgument listing the names.
+SheetFill sheet_fill_from_name(const std::string& name);
+
 struct ShadedParams {
     ShadedMethod method = ShadedMethod::Pcvr;
     std::string splat_kernel = "gauss1.4";
@@ -78,6 +91,8 @@ struct ShadedParams {
     /// The sheet renderers read it from a transmittance volume per light built once per render
     /// (src/shaded/light_volume.h); the ray caster marches a shadow ray per sample.
     bool shadows = false;
+    /// Splat the sheets, or sample them where that costs less (SheetFill; ShadedStats::grids_sampled).
+    SheetFill sheet_fill = SheetFill::Automatic;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -133,12 +148,19 @@ struct ShadedStats {
     uint64_t tiles_terminated = 0;    ///< tiles that became opaque before their last sheet
     uint64_t tile_sheets_composited = 0;
     uint64_t tile_sheets_skipped = 0; ///< (tile, sheet) pairs between a tile's first and last sheet that no splat touched
+    /// Grids whose sheets were sampled rather than splatted (SheetFill): an automatic choice, shown in
+    /// the add-on's last-render line; the pixel values so interpolated, (tile, sheet, pixel) triples, and
+    /// those left at 0 because no sample that may be visible reads them.
+    uint64_t grids_sampled = 0;
+    uint64_t sheet_samples = 0;
+    uint64_t sheet_samples_skipped = 0;
     std::vector<int> strides;         ///< per grid
     int level = 0;                    ///< the coarsest level of detail a grid was rendered from
     double seconds = 0;
     double seconds_plan = 0;          ///< thread seconds per stage
     double seconds_splat = 0;
     double seconds_post_convolution = 0;
+    double seconds_sampling = 0;      ///< sampled sheets' values
     double seconds_shading = 0;       ///< classification, shading and compositing
     uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
     double seconds_shadows = 0;       ///< building them (wall seconds)

@@ -27,6 +27,9 @@ void WalkStats::add(const WalkStats& o) {
     tiles_terminated += o.tiles_terminated;
     tile_sheets_composited += o.tile_sheets_composited;
     tile_sheets_skipped += o.tile_sheets_skipped;
+    sheet_samples += o.sheet_samples;
+    sheet_samples_skipped += o.sheet_samples_skipped;
+    seconds_sampling += o.seconds_sampling;
     seconds_splat += o.seconds_splat;
     seconds_post_convolution += o.seconds_post_convolution;
     seconds_shading += o.seconds_shading;
@@ -207,7 +210,10 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         // s + 2 reaches, s + 3 + 2 reach / spacing; two more for rounding.
         const int depth = int(std::ceil(2.0 * wl.view->depth_reach() / sheets.spacing)) + 7;
         ring_depth = std::max(ring_depth, depth);
-        l.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
+        if (wl.sampler)
+            l.ring.reset(1, 1, 1);  // nothing is splatted
+        else
+            l.ring.reset(nx1 - nx0 + 1, ny1 - ny0 + 1, depth);
         l.stride = L;
         l.post_convolve = wl.post_convolve;
         l.reach = wl.post_convolve ? L * wl.filter.reach_nodes() - 1 : 0;
@@ -224,10 +230,6 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     // The occlusion map is rebuilt (its cost: the tile's pixels) each time this many more became opaque.
     const size_t rebuild_step = std::max<size_t>(256, tile_pixels / 64);
 
-    struct Active {
-        size_t entry;  // into blocks
-        int next_rank;
-    };
     std::vector<Active> active;
     size_t next_entry = 0;
     // Blocks are sorted by the depth where their kernels begin: the first one starts the walk two
@@ -249,6 +251,11 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
         size_t kept = 0;
         for (size_t a = 0; a < active.size(); ++a) {
             const TileBlock& tb = blocks[active[a].entry];
+            if (const SheetSampler* sampler = setup.layers[tb.layer].sampler) {
+                // Sampled: the block stays until no sheet still to fill is within its kernels' reach.
+                if (tb.front + sampler->block_span > sheets.boundary(open_sheet)) active[kept++] = active[a];
+                continue;
+            }
             LayerState& l = *layers_[tb.layer];
             const SlabView& view = *setup.layers[tb.layer].view;
             const VoxelBlock& block = view.grid().blocks()[tb.block];
@@ -278,19 +285,25 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
 
         // 2. Post-convolve sheet s + 2 of every layer into its grid's pixel sheet (after a start or a
         // jump, s and s + 1 too).
+        const double sampling_before = stats.seconds_sampling;
         for (int64_t t = open_sheet; t <= s + 2; ++t) {
             for (auto& g : grids_)
                 if (g && g->used) g->clear_slot(GridState::slot(t));
-            for (size_t li = 0; li < layers_.size(); ++li)
-                if (layers_[li] && layers_[li]->used)
+            for (size_t li = 0; li < layers_.size(); ++li) {
+                if (!layers_[li] || !layers_[li]->used) continue;
+                if (setup.layers[li].sampler)
+                    sample_sheet(setup, uint32_t(li), t, blocks, active, rect, opaque > 0, stats);
+                else
                     grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
+            }
             if (!mip && setup.samples_per_sheet > 1)  // only the first of several samples reads the cells
                 for (auto& g : grids_)
                     if (g && g->used) g->summarise(GridState::slot(t));
         }
         open_sheet = s + 3;
         auto t2 = Clock::now();
-        stats.seconds_post_convolution += std::chrono::duration<double>(t2 - t1).count();
+        // (sampled layers' sheets, filled here, count apart)
+        stats.seconds_post_convolution += std::chrono::duration<double>(t2 - t1).count() - (stats.seconds_sampling - sampling_before);
 
         // 3. Classify, shade and composite from sheet s towards s + 1 (MIP: take the maximum at s).
         bool any = false;
@@ -321,7 +334,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
             opaque_at_rebuild = opaque;
             open_pixels_.count(tw, th, [&](int x, int y) { return alpha_[size_t(y) * row_pitch_ + x] >= cutoff; });
             for (size_t li = 0; li < layers_.size(); ++li) {
-                if (!layers_[li] || !layers_[li]->used) continue;
+                if (!layers_[li] || !layers_[li]->used || setup.layers[li].sampler) continue;
                 LayerState& l = *layers_[li];
                 const int L = l.stride;
                 // A node's value spreads through the post filter, then the in-sheet gradient's stencil.
@@ -417,6 +430,73 @@ bool SheetWalkSetup::within_clip_everywhere(double u, double half) const {
     }
     // depth = u / |M direction|, between the bounds of |M direction| over the image.
     return (u - half) / geometry->longest_metric_ray >= near_depth && (u + half) / geometry->least_metric_ray <= far_depth;
+}
+
+void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int64_t t, const std::vector<TileBlock>& blocks,
+                               const std::vector<Active>& active, const PixelRect& rect, bool some_opaque, WalkStats& stats) {
+    const auto start = Clock::now();
+    const SheetSampler& sampler = *setup.layers[layer].sampler;
+    GridState& g = *grids_[setup.layers[layer].grid];
+    constexpr int C = GridState::kCell;
+    const double front = setup.sheets.boundary(t), back = setup.sheets.boundary(t + 1);
+    // The cells the layer's blocks reach on sheet t (their pixel bounds and a pixel of rounding).
+    sample_cells_.assign(size_t(g.cell_columns) * g.cell_rows, 0);
+    bool any = false;
+    for (const Active& a : active) {
+        const TileBlock& tb = blocks[a.entry];
+        if (tb.layer != layer || tb.front >= back || tb.front + sampler.block_span <= front) continue;
+        const Box pixels = Box{int(std::floor(tb.min_x)) - 1 - g.x0, int(std::floor(tb.min_y)) - 1 - g.y0, int(std::ceil(tb.max_x)) + 1 - g.x0,
+                               int(std::ceil(tb.max_y)) + 1 - g.y0}
+                               .clipped({0, 0, g.width - 1, g.height - 1});
+        if (pixels.empty()) continue;
+        for (int cy = pixels.y0 / C; cy <= pixels.y1 / C; ++cy)
+            std::fill_n(sample_cells_.data() + size_t(cy) * g.cell_columns + pixels.x0 / C, pixels.x1 / C - pixels.x0 / C + 1, uint8_t(1));
+        any = true;
+    }
+    if (!any) return;
+    const float spacing = float(setup.sheets.spacing);
+    const double middle = front + 0.5 * setup.sheets.spacing;
+    // Whether a vector of eight slot pixels from (x, y) on is read by a pixel not yet opaque: itself or
+    // its gradient's stencil (slot pixels are tile pixels shifted by the halo).
+    const int h = g.halo, tw = rect.width(), th = rect.height();
+    const float8 cutoff = broadcast8(setup.opacity_cutoff);
+    auto read = [&](int x, int y) {
+        if (!some_opaque) return true;
+        // Tile pixels x - 2h .. x + 7 in rows y - 2h .. y: whole vectors, which may take in pixels past
+        // the tile's edges (those only make it sample more; the planes are padded by a vector).
+        const int x0 = std::max(0, x - 2 * h), x1 = std::min(tw - 1, x + GridState::kCell - 1);
+        const int y0 = std::max(0, y - 2 * h), y1 = std::min(th - 1, y);
+        if (x0 > x1 || y0 > y1) return false;
+        for (int ty = y0; ty <= y1; ++ty)
+            for (int tx = x0; tx <= x1; tx += 8)
+                if (any8(load8(alpha_.data() + size_t(ty) * row_pitch_ + tx) < cutoff)) return true;
+        return false;
+    };
+    float* slot = g.slots[GridState::slot(t)].data();
+    Box& box = g.boxes[GridState::slot(t)];
+    for (int y = 0; y < g.height; ++y) {
+        const uint8_t* cells = sample_cells_.data() + size_t(y / C) * g.cell_columns;
+        for (int cx = 0; cx < g.cell_columns;) {
+            if (!cells[cx] || !read(C * cx, y)) {
+                ++cx;
+                continue;
+            }
+            int end = cx + 1;
+            while (end < g.cell_columns && cells[end] && read(C * end, y)) ++end;
+            // Vectors [cx, end), their pixels past the slot's width dropped.
+            const int x0 = C * cx, x1 = std::min(C * end, g.width) - 1;
+            scratch_.resize(size_t(C) * (end - cx));
+            const int interpolated =
+                sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y, end - cx, scratch_.data());
+            float* row = slot + size_t(y) * g.pitch();
+            for (int x = x0; x <= x1; ++x) row[x] += scratch_[size_t(x - x0)];
+            stats.sheet_samples += uint64_t(C) * uint64_t(interpolated);
+            stats.sheet_samples_skipped += uint64_t(C) * uint64_t(end - cx - interpolated);
+            box.include(Box{x0, y, x1, y});
+            cx = end;
+        }
+    }
+    stats.seconds_sampling += seconds_since(start);
 }
 
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {

@@ -28,6 +28,7 @@
 #include "shaded/sample_clip.h"
 #include "shaded/sheet_geometry.h"
 #include "shaded/sheet_buffer.h"
+#include "shaded/sheet_sampling.h"
 #include "shaded/slab_splat.h"
 #include "splat/post_convolution.h"
 #include "view/tile_set.h"
@@ -52,6 +53,9 @@ struct WalkLayer {
     uint32_t grid;     ///< into SheetWalkSetup::grids
     PostFilter filter; ///< at the view's stride
     bool post_convolve;  ///< false (regular): the ring's nodes are the pixels
+    /// Non-null: the layer's sheets are sampled (sheet_sampling.h), not splatted; its blocks only say
+    /// where. Stride 1, the grid's only layer.
+    const SheetSampler* sampler = nullptr;
 };
 
 struct SheetWalkSetup {
@@ -83,6 +87,8 @@ struct WalkStats {
     uint64_t voxels_splatted = 0, voxels_occluded = 0, taps = 0;
     uint64_t samples_classified = 0, samples_shaded = 0;  ///< pixel-samples: classified, and with extinction (lit, composited)
     uint64_t tiles_terminated = 0, tile_sheets_composited = 0, tile_sheets_skipped = 0;
+    uint64_t sheet_samples = 0, sheet_samples_skipped = 0;  ///< sampled layers' pixel values interpolated, and left 0 (8 a vector)
+    double seconds_sampling = 0;
     double seconds_splat = 0, seconds_post_convolution = 0, seconds_shading = 0;
     int64_t first_sheet = INT64_MAX, last_sheet = INT64_MIN;
 
@@ -105,6 +111,15 @@ private:
     /// returns how many pixels became opaque.
     size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
+    struct Active {
+        size_t entry;  // into the tile's blocks
+        int next_rank;
+    };
+    /// Fills sampled layer `layer`'s share of sheet t into its grid's slot: the cells the active blocks
+    /// of the layer reach on the sheet, less the vectors of eight pixels that only opaque pixels read
+    /// (`some_opaque`: whether the tile has any).
+    void sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int64_t t, const std::vector<TileBlock>& blocks,
+                      const std::vector<Active>& active, const PixelRect& rect, bool some_opaque, WalkStats& stats);
 
     std::vector<std::unique_ptr<GridState>> grids_;
     std::vector<std::unique_ptr<LayerState>> layers_;
@@ -115,6 +130,7 @@ private:
     std::vector<float> maximum_;
     std::vector<uint8_t> cell_shows_[64];  // composite_sample: per source, per cell of its grid, whether a value there may be visible
     OpenPixels open_pixels_;  // the tile's pixels not yet opaque, for every layer's occlusion map
+    std::vector<uint8_t> sample_cells_;  // sample_sheet: per cell of the grid's slot, whether to sample it
     std::vector<uint8_t> row_may_show_;  // composite_sample: per vector of a row of the box, whether a cell it meets may show
     std::vector<uint8_t> may_show_;  // composite_sample: per vector of the sheet's box, whether a sample there may be visible
     std::vector<float> scratch_;

@@ -74,10 +74,10 @@ int count(const VoxelMask& mask) {
 }  // namespace
 
 TransparencyCulling::TransparencyCulling(const Grid& grid, double density_scale, const CullingReach& reach,
-                                         const ClassificationTable& table)
+                                         const ClassificationTable& table, bool single_voxels)
     : grid_(grid), density_scale_(density_scale), reach_(reach), table_(table), ranges_(grid.block_value_ranges()) {
     const int radius = int(std::ceil(reach.index_units));
-    if (reach.voxels == 0 || radius > VoxelValueRanges::kMostRadius) return;
+    if (!single_voxels || reach.voxels == 0 || radius > VoxelValueRanges::kMostRadius) return;
     voxels_ = grid.voxel_value_ranges(std::max(radius, 1));
     if (!voxels_) return;
     // Ranges only widen with the high end, so each low level's transparent high levels run from it up.

@@ -49,7 +49,9 @@ struct BlockCulling {
 /// then its bricks', then each voxel's (Grid::voxel_value_ranges, where the grid has them).
 class TransparencyCulling {
 public:
-    TransparencyCulling(const Grid& grid, double density_scale, const CullingReach& reach, const ClassificationTable& table);
+    /// `single_voxels` false: blocks and bricks only (sampled sheets, sheet_sampling.h, take no voxels).
+    TransparencyCulling(const Grid& grid, double density_scale, const CullingReach& reach, const ClassificationTable& table,
+                        bool single_voxels = true);
 
     /// Block `index` of the grid's blocks(). A partial mask is written to `mask`, which `splat` then
     /// points to. Safe to call from several threads.

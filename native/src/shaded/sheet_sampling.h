@@ -1,0 +1,60 @@
+/// @file sheet_sampling.h
+/// @brief Sheets filled by sampling the volume instead of splatting it, where that costs less.
+///
+/// A splat costs its footprint's taps on every sheet its kernel reaches, whether or not the pixels it
+/// lands on will ever be seen; at low magnification (a footprint of a few pixels, no post-convolution)
+/// the walk's sheets can be filled the other way round: each pixel that may be seen takes its value from
+/// the volume, as a ray caster would, and only there. The value is the kernel's reconstruction, as the
+/// splats' sum would give it: trilinear interpolation of the grid's PrefilteredLattice, whose blur makes
+/// up the kernel's variance less the tent's (1/6 per axis), integrated over the slab along the ray
+/// (sheets hold slab integrals in the sheet parameter). Which pixels: the tile's blocks left after
+/// culling whose kernels reach the sheet mark the 8 x 8 cells they reach; of those, vectors of eight
+/// pixels that only opaque pixels read are left out, and so are those where nothing within the
+/// reach of the samples that read them may be visible (the lattice's brick ranges): they keep 0, as
+/// where no block reaches.
+#pragma once
+
+#include "pcvr/grid.h"
+#include "pcvr/kernel.h"
+#include "pcvr/lanes.h"
+#include "pcvr/math.h"
+#include "pcvr/transfer_function.h"
+#include "shaded/sheet_geometry.h"
+
+namespace pcvr {
+
+/// The blur weight w (PrefilteredLattice) under which trilinear interpolation has `kernel`'s per-axis
+/// variance, or a negative number for kernels that are not smooth enough to stand in for (the box,
+/// the linear kernel: narrower than the tent itself).
+float lattice_blur(const Kernel& kernel);
+
+struct SheetSampler {
+    const PrefilteredLattice* lattice = nullptr;
+    Vec3 origin;        ///< lattice coordinates of SheetGeometry::origin0
+    float to_lattice[3][3] = {};  ///< world displacement to lattice (index) displacement
+    Mat4 to_index;                ///< the same in double (its linear part)
+    float density_scale = 1;
+    double block_span = 0;  ///< sheet parameter from a block's front (SlabView::front) past which its kernels end
+    /// What decides which values may be visible (null: every one is sampled), and the density the
+    /// sheets' values are added to (WalkGrid::background); the in-sheet gradient's step in pixels.
+    const ClassificationTable* classification = nullptr;
+    float background = 0;
+    int gradient_step = 1;
+
+    SheetSampler() = default;
+    SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const Vec3& origin0, float density_scale,
+                 double block_span, const ClassificationTable* classification, float background, int gradient_step);
+
+    /// Slab integrals of the volume on the sheet of parameter u (its middle) and thickness `spacing`
+    /// at pixels x0 .. x0 + 8 n - 1 of row y, into out[0 .. 8 n); 0 for vectors that nothing visible reads.
+    /// Returns how many vectors were interpolated.
+    int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n, float* out) const;
+
+private:
+    /// Lanes (all ones or zero) whose lattice bricks' ranges, 0 included, may be visible.
+    int8x brick_may_show(int8x brick) const;
+    /// Whether what a value at these pixels reaches lies within PrefilteredLattice::kRangeReach.
+    bool within_ranges(const SheetGeometry& geometry, bool spherical, double u, float spacing, float8 px, float py) const;
+};
+
+}  // namespace pcvr
