@@ -71,6 +71,9 @@ def make_parser():
     render.add_argument("--sheet-spacing", type=float, help="shaded and mip: voxels between sheets")
     render.add_argument("--samples-per-sheet", type=int, help="shaded: classified samples from sheet to sheet")
     render.add_argument("--opacity-cutoff", type=float, help="shaded: opacity at which a pixel is done")
+    render.add_argument("--sheet-fill", choices=("auto", "splat", "sample"),
+                        help="shaded, pcvr: splat the volume into the sheets or sample it (default auto: sampled "
+                             "where footprints cover a few pixels)")
     render.add_argument("--shadows", action=argparse.BooleanOptionalAction,
                         help="shaded: the volumes shadow the light on its way to each sample (default: off for a "
                              ".vdb, the scene's setting for a .blend)")

@@ -13,7 +13,8 @@ import bpy
 from mathutils import Matrix, Vector
 
 from . import clipping, image_io, presets
-from .properties import NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_splat_kernels
+from .properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
+                         enum_splat_kernels)
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
@@ -32,6 +33,7 @@ METHODS = _native_choices(enum_methods)
 SPLAT_KERNELS = _native_choices(enum_splat_kernels)
 POST_FILTERS = _native_choices(enum_post_filters)
 PASSBANDS = _native_choices(enum_passbands)
+SHEET_FILLS = _native_choices(enum_sheet_fills)
 MODES = [identifier for identifier, _name, _description in enum_modes]
 
 
@@ -134,6 +136,8 @@ def apply_options(scene, args):
         settings.subgrid_stride = args.stride
     if args.passband is not None:
         settings.passband = PASSBANDS[args.passband]
+    if args.sheet_fill is not None:
+        settings.sheet_fill = SHEET_FILLS[args.sheet_fill]
     if args.gain == "auto":
         settings.use_auto_exposure = True
     elif args.gain is not None:

@@ -26,6 +26,7 @@ SHEETS = {
     "sheet_spacing": 1.0,
     "samples_per_sheet": 2,
     "opacity_cutoff": 0.99,
+    "sheet_fill": "auto",  # render_shaded only
 }
 
 # pcvr_native.Shading(): the Blinn-Phong material, VTK's and 3D Slicer's usual one

@@ -29,6 +29,9 @@ NATIVE_NAMES = {
     'CATMULL_ROM': "catmull_rom",
     'COMPENSATED': "compensated",
     'PAPER': "paper",
+    'AUTO': "auto",
+    'SPLAT': "splat",
+    'SAMPLE': "sample",
 }
 
 
@@ -72,6 +75,14 @@ enum_passbands = (
     ('COMPENSATED', "Compensated", "A small sharpening pays back the blur of the splat kernel and the post filter: "
                                    "closest to the line integrals of the sampled volume"),
     ('PAPER', "Paper", "The paper's splat kernel and post filter as they are (softer)"),
+)
+
+enum_sheet_fills = (
+    ('AUTO', "Automatic", "Sample the volume into the sheets where its footprints cover a few pixels (some of it at "
+                          "stride 1), splat it elsewhere: the faster of the two, measured"),
+    ('SPLAT', "Splat", "Always splat the voxels into the sheets: the kernel's own reconstruction, about 1 dB nearer "
+                       "the reference ray caster where sampling is chosen"),
+    ('SAMPLE', "Sample", "Always sample the volume's prefiltered lattice at the pixels that may be seen, at stride 1"),
 )
 
 enum_mip_colors = (
@@ -181,6 +192,13 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
                     "thin features of the transfer function",
         min=1, soft_max=8,
         default=defaults.SHEETS["samples_per_sheet"],
+        update=tag_changed,
+    )
+    sheet_fill: EnumProperty(
+        name="Sheet Fill",
+        description="Shaded, post-convolved: how the sheets get the volume's values",
+        items=enum_sheet_fills,
+        default=identifier(defaults.SHEETS["sheet_fill"]),
         update=tag_changed,
     )
     opacity_cutoff: FloatProperty(

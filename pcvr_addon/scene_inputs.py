@@ -88,6 +88,7 @@ class SheetSettings:
     samples_per_sheet: int
     opacity_cutoff: float
     shadows: bool = False  # shaded only: the lights' transmittance through the volumes
+    sheet_fill: str = "auto"  # shaded only: splat or sample the sheets (pcvr)
 
     def mip_arguments(self):
         return {name: getattr(self, name) for name in ("method", "splat_kernel", "post_filter", "stride",
@@ -247,7 +248,9 @@ def sheet_settings(settings):
                          sheet_spacing=as_typed(settings.sheet_spacing),
                          samples_per_sheet=settings.samples_per_sheet,
                          opacity_cutoff=as_typed(settings.opacity_cutoff),
-                         shadows=settings.shadows)
+                         shadows=settings.shadows,
+                         # Other methods only splat.
+                         sheet_fill=NATIVE_NAMES[settings.sheet_fill] if settings.method == 'PCVR' else "auto")
 
 
 def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):

@@ -66,11 +66,14 @@ def format_stats(stats):
 
 def _automatic_choices(stats):
     """What the renderer chose for itself: a coarser level of detail or sub-pixels it averaged (zoomed
-    out), sheets following the voxels' shape (anisotropic voxels, shaded and MIP)."""
+    out), sheets following the voxels' shape (anisotropic voxels, shaded and MIP), sheets sampled
+    rather than splatted (low magnification, shaded)."""
     level = f" | Level of detail {stats['level']}" if stats.get("level") else ""
     sub = stats.get("supersampling", 1)
     metric = " | Sheets in the voxels' metric" if stats.get("sheet_metric") == "voxels" else ""
-    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric
+    sampled = stats.get("grids_sampled", 0)
+    sampling = f" | Sheets sampled ({sampled} volume{'s' if sampled > 1 else ''})" if sampled else ""
+    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric + sampling
 
 
 def status_line(mode, stats):
@@ -111,7 +114,7 @@ def _mode_rows(mode, stats):
                 ("Level of detail", f"{stats.get('level', 0)}"),
                 ("Supersampling", f"{stats.get('supersampling', 1)} x {stats.get('supersampling', 1)} sub-pixels"),
                 ("Time", f"{stats['seconds']:.3f} s")]
-    seconds = [("Planning", "seconds_plan"), ("Splatting", "seconds_splat"),
+    seconds = [("Planning", "seconds_plan"), ("Splatting", "seconds_splat"), ("Sampling", "seconds_sampling"),
                ("Post-convolution", "seconds_post_convolution"), ("Shading", "seconds_shading")]
     return [
         ("Blocks", f"{stats['blocks']:,}"),
@@ -121,6 +124,9 @@ def _mode_rows(mode, stats):
         ("Transparent voxels", _share(stats.get("voxels_transparent", 0),
                                       stats["voxels"] + stats["voxels_occluded"] + stats.get("voxels_transparent", 0))),
         ("Voxels splatted", f"{stats['voxels']:,}"),
+        # Low magnification: sheets filled from the volume where samples may be seen (sheet_sampling.h).
+        ("Sheets sampled", f"{stats.get('grids_sampled', 0):,} volume(s), {stats.get('sheet_samples', 0):,} values, "
+                           f"{stats.get('sheet_samples_skipped', 0):,} left transparent"),
         ("Behind opaque", _share(stats["voxels_occluded"], stats["voxels"] + stats["voxels_occluded"])),
         ("Sheets", f"{stats['sheets']:,}" + (" (in the voxels' metric)" if stats.get("sheet_metric") == "voxels" else "")),
         ("Tiles", f"{stats['tiles']:,} of {stats['tile_size']} px" if stats.get("tile_size") else f"{stats['tiles']:,}"),

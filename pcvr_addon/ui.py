@@ -79,6 +79,8 @@ class PCVR_RENDER_PT_method(PCVRRenderPanel, Panel):
         if settings.mode == 'SHADED':
             col.prop(settings, "samples_per_sheet")
             col.prop(settings, "opacity_cutoff")
+            if settings.method == 'PCVR':
+                col.prop(settings, "sheet_fill")
 
         draw_sampling_estimate(layout.column(align=True), context)
 

@@ -132,6 +132,23 @@ def test_shaded_arguments(tmp_path, box_vdb):
     assert run.returncode == 2 and "--light-direction" in run.stderr
 
 
+def test_sheet_fill_splat_and_sample_render_the_same_head(tmp_path):
+    """--sheet-fill: the sheets splatted or sampled from the volume (at this magnification the automatic choice
+    samples): the same head to within the reconstructions' difference (measured: 0.0057 on average over linear
+    RGBA, 0.12 at most, at the skull's rim)."""
+    head = ls.head_vdb(tmp_path / "head.vdb")
+    images = {}
+    for fill in ("splat", "sample", "auto"):
+        check(pcvr(head, "-o", tmp_path / f"{fill}.exr", "--mode", "shaded", "--preset", "ct-bone", "--magnification", 1,
+                   "--sheet-fill", fill))
+        images[fill] = image_io.read_passes(str(tmp_path / f"{fill}.exr"))[""][..., :4]
+    difference = np.abs(images["splat"] - images["sample"])
+    assert difference.mean() <= 0.012 and difference.max() <= 0.25
+    assert np.array_equal(images["auto"], images["sample"])
+    run = pcvr(head, "-o", tmp_path / "out.exr", "--mode", "shaded", "--sheet-fill", "gather")
+    assert run.returncode == 2 and "--sheet-fill" in run.stderr
+
+
 def test_stream_above_reads_a_big_vdb_from_its_file(tmp_path):
     """--stream-above: a volume of more MiB is streamed (the status line says so), with the same image."""
     i = np.indices((96, 96, 96), dtype=np.float32) / 95 * 2 - 1

@@ -24,7 +24,7 @@ def test_table_holds_the_native_defaults(table, function):
     native = native_defaults(function)
     shared = {name: value for name, value in table.items() if name in native}
     assert shared == {name: native[name] for name in shared}
-    assert set(table) - set(shared) <= {"samples_per_sheet", "opacity_cutoff"}  # render_mip has neither
+    assert set(table) - set(shared) <= {"samples_per_sheet", "opacity_cutoff", "sheet_fill"}  # render_mip has none
 
 
 def test_material_is_the_native_shading():
@@ -47,6 +47,7 @@ def property_default(struct, name):
     ("sheet_spacing", defaults.SHEETS, "sheet_spacing"),
     ("samples_per_sheet", defaults.SHEETS, "samples_per_sheet"),
     ("opacity_cutoff", defaults.SHEETS, "opacity_cutoff"),
+    ("sheet_fill", defaults.SHEETS, "sheet_fill"),
 ])
 def test_scene_settings_default_to_the_table(setting, table, name):
     assert property_default(bpy.types.Scene.bl_rna.properties["pcvr"].fixed_type, setting) == table[name]

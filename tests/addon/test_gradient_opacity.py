@@ -26,8 +26,10 @@ def blob_object(tmp_path, rng):
 
 
 def unlit(tf):
-    """The transfer function's own colours, as a volume without shading shows them."""
-    return dict(ambient=(1, 1, 1), shading=pn.Shading(ambient=1, diffuse=0, specular=0), transfer_functions=tf)
+    """The transfer function's own colours, as a volume without shading shows them (splatted regularly, as
+    ls.shaded_setup's scenes are)."""
+    return dict(ambient=(1, 1, 1), shading=pn.Shading(ambient=1, diffuse=0, specular=0), transfer_functions=tf,
+                method="regular")
 
 
 def test_the_default_curve_reaches_the_render(blob_object):

@@ -160,7 +160,7 @@ def test_volume_without_shading_shows_its_colours(blob_object):
     blob_object.data.pcvr.use_shading = False
     image = ls.combined(bs.render(scene))
     expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
-                                ambient=(1, 1, 1), shading=pn.Shading(ambient=1, diffuse=0, specular=0))
+                                ambient=(1, 1, 1), shading=pn.Shading(ambient=1, diffuse=0, specular=0), method="regular")
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
 
 
@@ -221,7 +221,7 @@ def test_status_and_statistics_of_the_last_render(blob_object):
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=2.5)
     bs.render(scene)
     mode, stats = statistics.last_render[scene.session_uid]
-    assert mode == 'SHADED' and stats["voxels"] > 0
+    assert mode == 'SHADED' and stats["voxels"] > 0 and stats["grids_sampled"] == 0  # regular splatting
     rows = dict(statistics.statistics_rows(mode, stats))
     assert rows["Voxels splatted"] == f"{stats['voxels']:,}" and "Transparent" in rows
     assert rows["Tiles"] == f"{stats['tiles']:,} of {stats['tile_size']} px"
@@ -230,3 +230,11 @@ def test_status_and_statistics_of_the_last_render(blob_object):
     # The blob's voxels are cubes: world sheets. Anisotropic voxels' sheets follow their metric, and say so.
     assert stats["sheet_metric"] == "world" and "metric" not in statistics.format_sheet_stats(stats)
     assert "Sheets in the voxels' metric" in statistics.format_sheet_stats({**stats, "sheet_metric": "voxels"})
+    # Post-convolved at this magnification, the automatic choice samples the sheets, and the last-render line says so.
+    scene.pcvr.method = 'PCVR'
+    bs.render(scene)
+    mode, stats = statistics.last_render[scene.session_uid]
+    assert stats["grids_sampled"] == 1 and stats["voxels"] == 0 and stats["sheet_samples"] > 0
+    assert "Sheets sampled (1 volume)" in statistics.format_sheet_stats(stats)
+    rows = dict(statistics.statistics_rows(mode, stats))
+    assert rows["Sheets sampled"].startswith(f"1 volume(s), {stats['sheet_samples']:,} values")

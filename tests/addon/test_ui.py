@@ -111,7 +111,7 @@ def panel_context(scene, **members):
                            evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get, **members)
 
 
-SHEET_SETTINGS = {"sheet_post_filter", "sheet_spacing", "samples_per_sheet", "opacity_cutoff"}
+SHEET_SETTINGS = {"sheet_post_filter", "sheet_spacing", "samples_per_sheet", "opacity_cutoff", "sheet_fill"}
 ALL = {"method", "splat_kernel", "post_filter", "subgrid_stride"} | SHEET_SETTINGS
 
 
@@ -119,9 +119,9 @@ ALL = {"method", "splat_kernel", "post_filter", "subgrid_stride"} | SHEET_SETTIN
     ('XRAY', 'REGULAR', {"method", "splat_kernel"}),
     ('XRAY', 'PCVR', {"method", "splat_kernel", "post_filter", "subgrid_stride"}),
     ('XRAY', 'BILINEAR_SPREAD', {"method", "post_filter", "subgrid_stride"}),
-    ('SHADED', 'PCVR', {"method", "splat_kernel", "subgrid_stride"} | SHEET_SETTINGS),
+    ('SHADED', 'PCVR', {"method", "splat_kernel", "subgrid_stride"} | SHEET_SETTINGS),  # sheet_fill: post-convolved only
     ('SHADED', 'REGULAR', {"method", "splat_kernel", "sheet_spacing", "samples_per_sheet", "opacity_cutoff"}),
-    ('MIP', 'PCVR', {"method", "splat_kernel", "sheet_post_filter", "subgrid_stride", "sheet_spacing"}),
+    ('MIP', 'PCVR', {"method", "splat_kernel", "sheet_post_filter", "subgrid_stride", "sheet_spacing"}),  # MIP splats
 ])
 def test_method_panel_draws_only_settings_in_use(tmp_path, mode, method, shown):
     scene = bs.setup(method=method)
