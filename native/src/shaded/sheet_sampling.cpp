@@ -83,25 +83,32 @@ int8x SheetSampler::brick_may_show(int8x brick) const {
     return classification->maybe_opaque_within(lo, hi);
 }
 
-bool SheetSampler::within_ranges(const SheetGeometry& geometry, bool spherical, double u, float spacing, float8 px, float py) const {
+bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1,
+                            int y1) const {
+    if (!classification) return false;
     // The samples that read a value lie within two sheets along the ray or a gradient step across it; a
     // sample's test reads the sheets on either side of it, whose values are interpolated within
     // 1 / (2 sqrt 3) of a sheet and a lattice cell of their middles: the value's reach, in index units.
-    // It changes slowly across the image: 5% more than at the given pixels covers those between them.
-    const SampleFrames f = sample_frames(geometry, spherical, px, py, u);
+    // It changes slowly and smoothly across the image: 5% more than at the region's corners covers the
+    // pixels between them.
     auto index = [&](const Vec3x8& v) {
         return Vec3x8{to_lattice[0][0] * v.x + to_lattice[0][1] * v.y + to_lattice[0][2] * v.z,
                       to_lattice[1][0] * v.x + to_lattice[1][1] * v.y + to_lattice[1][2] * v.z,
                       to_lattice[2][0] * v.x + to_lattice[2][1] * v.y + to_lattice[2][2] * v.z};
     };
-    const Vec3x8 along = index(f.along), right = index(f.per_pixel_x), down = index(f.per_pixel_y);
-    const float8 reach = (3.29f * spacing) * sqrt8(dot(along, along)) +
-                         float(gradient_step) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
-    return !any8(1.05f * reach > float(PrefilteredLattice::kRangeReach));
+    const float8 px = select8(lane_index8() < 4.0f, broadcast8(float(x0)), broadcast8(float(x1)));
+    for (int y : {y0, y1}) {
+        const SampleFrames f = sample_frames(geometry, spherical, px, float(y), u);
+        const Vec3x8 along = index(f.along), right = index(f.per_pixel_x), down = index(f.per_pixel_y);
+        const float8 reach = (3.29f * spacing) * sqrt8(dot(along, along)) +
+                             float(gradient_step) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
+        if (any8(1.05f * reach > float(PrefilteredLattice::kRangeReach))) return false;
+    }
+    return true;
 }
 
 int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                             float* out) const {
+                             bool skip_transparent, float* out) const {
     const float* values = lattice->values.data();
     const int32_t si = int32_t(lattice->stride_i()), sj = int32_t(lattice->stride_j());
     // Trilinear cells start at elements 0 .. shape - 2 (the margin's zeros lie beyond every voxel's reach).
@@ -124,8 +131,6 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
         return select8(in, v0 + fi * (v1 - v0), broadcast8(0.0f));
     };
     const RowRays rays(geometry, spherical, u, y, origin, to_index);
-    const float8 ends = float(x0) + select8(lane_index8() < 4.0f, lane_index8(), lane_index8() + float(8 * n - 8));
-    const bool may_skip = classification && within_ranges(geometry, spherical, u, spacing, ends, float(y));
     // The slab's integral by two-point Gauss-Legendre quadrature along the ray (exact for cubics): one
     // sample at its middle would alias thin structures into dots as they cross the sheets.
     const float offset = spacing * 0.28867513f;  // 1 / (2 sqrt 3) of the slab
@@ -136,7 +141,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
     for (int q = 0; q < n; ++q) {
         Vec3x8 p, along;
         rays.at(float(x0 + 8 * q) + lane_index8(), p, along);
-        if (may_skip) {
+        if (skip_transparent) {
             // Within its reach, everything lies in the value's brick range; where that range (0 included:
             // what a skipped value holds) cannot be visible, no visible sample reads the value. Lanes
             // outside the lattice hold 0 anyway.

@@ -45,16 +45,20 @@ struct SheetSampler {
     SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const Vec3& origin0, float density_scale,
                  double block_span, const ClassificationTable* classification, float background, int gradient_step);
 
+    /// Whether the lattice's brick ranges can tell which values of the sheet of parameter u at pixels
+    /// [x0, x1] x [y0, y1] no sample that may be visible reads: what such a value reaches lies within
+    /// PrefilteredLattice::kRangeReach (and the grid is classified).
+    bool may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1, int y1) const;
+
     /// Slab integrals of the volume on the sheet of parameter u (its middle) and thickness `spacing`
-    /// at pixels x0 .. x0 + 8 n - 1 of row y, into out[0 .. 8 n); 0 for vectors that nothing visible reads.
-    /// Returns how many vectors were interpolated.
-    int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n, float* out) const;
+    /// at pixels x0 .. x0 + 8 n - 1 of row y, into out[0 .. 8 n); with `skip_transparent` (may_skip), 0
+    /// for vectors that nothing visible reads. Returns how many vectors were interpolated.
+    int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
+                   bool skip_transparent, float* out) const;
 
 private:
     /// Lanes (all ones or zero) whose lattice bricks' ranges, 0 included, may be visible.
     int8x brick_may_show(int8x brick) const;
-    /// Whether what a value at these pixels reaches lies within PrefilteredLattice::kRangeReach.
-    bool within_ranges(const SheetGeometry& geometry, bool spherical, double u, float spacing, float8 px, float py) const;
 };
 
 }  // namespace pcvr

@@ -474,6 +474,8 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
     };
     float* slot = g.slots[GridState::slot(t)].data();
     Box& box = g.boxes[GridState::slot(t)];
+    const bool skip_transparent =
+        sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1);
     for (int y = 0; y < g.height; ++y) {
         const uint8_t* cells = sample_cells_.data() + size_t(y / C) * g.cell_columns;
         for (int cx = 0; cx < g.cell_columns;) {
@@ -487,7 +489,8 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
             const int x0 = C * cx, x1 = std::min(C * end, g.width) - 1;
             scratch_.resize(size_t(C) * (end - cx));
             const int interpolated =
-                sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y, end - cx, scratch_.data());
+                sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y, end - cx, skip_transparent,
+                                   scratch_.data());
             float* row = slot + size_t(y) * g.pitch();
             for (int x = x0; x <= x1; ++x) row[x] += scratch_[size_t(x - x0)];
             stats.sheet_samples += uint64_t(C) * uint64_t(interpolated);
