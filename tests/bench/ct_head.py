@@ -71,7 +71,8 @@ def native_render(grid, cam, spec: dict, method: str, **kw):
     return img, time.perf_counter() - t0, stats
 
 
-STAGE_KEYS = ("seconds_splat", "seconds_post_convolution", "seconds_shading", "voxels", "voxels_occluded", "taps",
+STAGE_KEYS = ("seconds_splat", "seconds_sampling", "seconds_post_convolution", "seconds_shading", "voxels", "voxels_occluded",
+              "taps", "grids_sampled", "sheet_samples", "sheet_samples_skipped",
               "samples_classified", "samples_shaded", "blocks_transparent", "bricks_transparent", "tiles",
               "tiles_terminated", "tile_sheets_composited", "strides")
 
@@ -166,7 +167,7 @@ def section(res: dict | None) -> list[str]:
         lines += [f"### Transfer function \"{tf_key}\"", "",
                   "Points (HU: RGBA per mm): " + ", ".join(f"{d:g}: {tuple(c)}" for d, c in zip(tf["density"], tf["rgba"])), "",
                   "| image | VTK step 1 (s) | VTK step 0.5 (s) | `pcvr` (s) | `regular` (s) | VTK 1 / `pcvr` | VTK 0.5 / `pcvr` "
-                  "| `regular` / `pcvr` | PSNR VTK 1 / `pcvr` / `regular` | `pcvr` vs `regular` | `pcvr` splat / post / shading thread-s |",
+                  "| `regular` / `pcvr` | PSNR VTK 1 / `pcvr` / `regular` | `pcvr` vs `regular` | `pcvr` splat / sampling / post / shading thread-s |",
                   "|---|---|---|---|---|---|---|---|---|---|---|"]
         for vk, v in sc["views"].items():
             m = v["methods"]
@@ -175,7 +176,8 @@ def section(res: dict | None) -> list[str]:
             ratio = lambda a, b: f"{sec[a] / sec[b]:.2f}" if sec.get(a) and sec.get(b) else "-"  # noqa: E731
             db = lambda k: f"{m[k]['psnr_raycast']:.1f}" if "psnr_raycast" in m.get(k, {}) else "-"  # noqa: E731
             st = m["pcvr"]["stats"]
-            stages = f"{st['seconds_splat']:.2f} / {st['seconds_post_convolution']:.2f} / {st['seconds_shading']:.2f}"
+            stages = (f"{st['seconds_splat']:.2f} / {st.get('seconds_sampling', 0):.2f} / {st['seconds_post_convolution']:.2f} / "
+                      f"{st['seconds_shading']:.2f}")
             lines.append(f"| {vk[1:]}^2 | {fmt('vtk_fixed_1')} | {fmt('vtk_fixed_0.5')} | {fmt('pcvr')} | {fmt('regular')} "
                          f"| {ratio('vtk_fixed_1', 'pcvr')} | {ratio('vtk_fixed_0.5', 'pcvr')} | {ratio('regular', 'pcvr')} "
                          f"| {db('vtk_fixed_1')} / {db('pcvr')} / {db('regular')} | {m['pcvr'].get('psnr_regular', float('nan')):.1f} "
@@ -212,17 +214,23 @@ def cost_table(sc: dict) -> list[str]:
     lines = ["Cost model (the fastest run's `stats`): a *tap* is one subgrid node of a voxel's footprint window in "
              "one of the sheets its kernel reaches; a *sample* is one pixel's sample between two sheets that some "
              "voxel reaches while the pixel is not opaque (classified), and *shaded* the ones with extinction "
-             "(gradient, lighting, compositing).", "",
-             "| image | method | strides | deposits (M) | taps per deposit | splat ns per tap | samples classified / shaded (M) "
-             "| shading ns per classified sample | post-convolution thread-s |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "(gradient, lighting, compositing); a *sheet value* is one pixel's value of a sampled sheet (two trilinear "
+             "reads of the prefiltered lattice), interpolated or, where no sample that may be visible reads it, skipped.", "",
+             "| image | method | strides | deposits (M) | taps per deposit | splat ns per tap | sheet values interpolated / skipped (M) "
+             "| sampling ns per interpolated value | samples classified / shaded (M) | shading ns per classified sample "
+             "| post-convolution thread-s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for vk, v in sc["views"].items():
         for key in NATIVE:
             st = v["methods"].get(key, {}).get("stats", {})
             if "taps" not in st:
                 continue
+            splat = (f"{st['taps'] / st['voxels']:.0f} | {1e9 * st['seconds_splat'] / st['taps']:.2f}" if st["voxels"] else "- | -")
+            sampled = st.get("sheet_samples", 0)
+            sampling = (f"{sampled / 1e6:.1f} / {st['sheet_samples_skipped'] / 1e6:.1f} | {1e9 * st['seconds_sampling'] / sampled:.1f}"
+                        if sampled else "- | -")
             lines.append(f"| {vk[1:]}^2 | `{key}` | {', '.join(map(str, st['strides']))} | {st['voxels'] / 1e6:.2f} "
-                         f"| {st['taps'] / max(st['voxels'], 1):.0f} | {1e9 * st['seconds_splat'] / max(st['taps'], 1):.2f} "
+                         f"| {splat} | {sampling} "
                          f"| {st['samples_classified'] / 1e6:.1f} / {st['samples_shaded'] / 1e6:.1f} "
                          f"| {1e9 * st['seconds_shading'] / max(st['samples_classified'], 1):.0f} "
                          f"| {st['seconds_post_convolution']:.2f} |")
