@@ -28,16 +28,20 @@ import pcvr_native as pn
 from shaded_scenes import (SUN, TISSUE_AND_BONE, anisotropic_ct_volume, blob_volume, bone_tf, camera, ct_volume,
                            heads_in_air, psnr)
 
-TRANSLUCENT = pn.TransferFunction(density=[0.0, 0.1, 0.5, 1.0],
-                                  rgba=[[0, 0, 0, 0], [0.9, 0.5, 0.3, 0.05], [0.9, 0.8, 0.6, 0.2], [1, 1, 1, 0.6]])
 
-# (scene, volume, transfer function, projection, magnification, least dB against the ray caster, against the splats)
+def translucent() -> pn.TransferFunction:
+    return pn.TransferFunction(density=[0.0, 0.1, 0.5, 1.0],
+                               rgba=[[0, 0, 0, 0], [0.9, 0.5, 0.3, 0.05], [0.9, 0.8, 0.6, 0.2], [1, 1, 1, 0.6]])
+
+
+# (scene, volume, transfer function, projection, magnification, least dB against the ray caster, against the splats):
+# factories, so that pytest's parameters hold no native objects until the end of the session.
 SCENES = [
-    ("ct-bone", lambda: ct_volume(64), bone_tf(), "persp", 1.5, 32.7, 34.5),
-    ("ct-translucent", lambda: ct_volume(64), TRANSLUCENT, "ortho", 1.0, 33.3, 35.9),
-    ("blobs", lambda: blob_volume(32), TRANSLUCENT, "persp", 1.5, 56.3, 58.8),
-    ("anisotropic-ct-bone", lambda: anisotropic_ct_volume(64), bone_tf(), "persp", 1.5, 32.7, 32.2),
-    ("hounsfield-units", lambda: heads_in_air(32)[0], TISSUE_AND_BONE, "persp", 1.5, 35.1, 37.5),
+    ("ct-bone", lambda: ct_volume(64), bone_tf, "persp", 1.5, 32.7, 34.5),
+    ("ct-translucent", lambda: ct_volume(64), translucent, "ortho", 1.0, 33.3, 35.9),
+    ("blobs", lambda: blob_volume(32), translucent, "persp", 1.5, 56.3, 58.8),
+    ("anisotropic-ct-bone", lambda: anisotropic_ct_volume(64), bone_tf, "persp", 1.5, 32.7, 32.2),
+    ("hounsfield-units", lambda: heads_in_air(32)[0], lambda: TISSUE_AND_BONE, "persp", 1.5, 35.1, 37.5),
 ]
 
 
@@ -45,7 +49,7 @@ SCENES = [
                          ids=[s[0] for s in SCENES])
 def test_sampled_sheets_match_the_ray_caster_and_the_splats(name, volume, tf, projection, magnification,
                                                             against_ray_caster, against_splats):
-    grid = volume()
+    grid, tf = volume(), tf()
     cam = camera(grid, projection, magnification)
     reference = pn.render_shaded(grid, cam, tf, lights=[SUN], method="raycast", sheet_spacing=0.1)
     stats = {}

@@ -6,7 +6,7 @@
 /// the walk's sheets can be filled the other way round: each pixel that may be seen takes its value from
 /// the volume, as a ray caster would, and only there. The value is the kernel's reconstruction, as the
 /// splats' sum would give it: trilinear interpolation of the grid's PrefilteredLattice, whose blur makes
-/// up the kernel's variance less the tent's (1/6 per axis), integrated over the slab along the ray
+/// up most of the kernel's variance less the tent's (1/6 per axis), integrated over the slab along the ray
 /// (sheets hold slab integrals in the sheet parameter). Which pixels: the tile's blocks left after
 /// culling whose kernels reach the sheet mark the 8 x 8 cells they reach; of those, vectors of eight
 /// pixels that only opaque pixels read are left out, and so are those where nothing within the
@@ -23,16 +23,17 @@
 
 namespace pcvr {
 
-/// The blur weight w (PrefilteredLattice) under which trilinear interpolation has `kernel`'s per-axis
-/// variance, or a negative number for kernels that are not smooth enough to stand in for (the box,
-/// the linear kernel: narrower than the tent itself).
+/// The blur weight w (PrefilteredLattice) sampled sheets use for `kernel`: three quarters of the one under
+/// which trilinear interpolation would have the kernel's per-axis variance (measured nearest the ray
+/// caster), or a negative number for kernels that are not smooth enough to stand in for (the box, the
+/// linear kernel: narrower than the tent itself).
 float lattice_blur(const Kernel& kernel);
 
 struct SheetSampler {
     const PrefilteredLattice* lattice = nullptr;
     Vec3 origin;        ///< lattice coordinates of SheetGeometry::origin0
     float to_lattice[3][3] = {};  ///< world displacement to lattice (index) displacement
-    Mat4 to_index;                ///< the same in double (its linear part)
+    Mat4 to_index;                ///< world to index coordinates, in double
     float density_scale = 1;
     double block_span = 0;  ///< sheet parameter from a block's front (SlabView::front) past which its kernels end
     /// What decides which values may be visible (null: every one is sampled), and the density the
