@@ -35,8 +35,8 @@ def translucent() -> pn.TransferFunction:
 
 
 # scene: (volume, transfer function, projection, magnification, least dB against the ray caster, against the splats).
-# Tests take them by name: pytest's parameters, kept to the end of the session, then hold nothing that leads to
-# native objects (nanobind reports those still alive at exit as leaks).
+# Tests take them by name: pytest's marks and parameters, kept to the end of the session, then hold nothing that
+# leads to native objects (nanobind reports those still alive at exit as leaks).
 SCENES = {
     "ct-bone": (lambda: ct_volume(64), bone_tf, "persp", 1.5, 32.7, 34.5),
     "ct-translucent": (lambda: ct_volume(64), translucent, "ortho", 1.0, 33.3, 35.9),
@@ -46,7 +46,7 @@ SCENES = {
 }
 
 
-@pytest.mark.parametrize("name", SCENES)
+@pytest.mark.parametrize("name", list(SCENES))  # the mark keeps its arguments: names, not the table
 def test_sampled_sheets_match_the_ray_caster_and_the_splats(name):
     volume, tf, projection, magnification, against_ray_caster, against_splats = SCENES[name]
     grid, tf = volume(), tf()
