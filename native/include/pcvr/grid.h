@@ -101,7 +101,7 @@ struct PrefilteredLattice {
     /// Per brick (bi, bj, bk), bk fastest, and one more: its range as two 8-bit levels (low end in the
     /// low byte), level q standing for range_lowest + q range_step, low ends rounded down and high ends up.
     std::vector<uint16_t> ranges;
-    float range_lowest = 0, range_step = 1;
+    double range_lowest = 0, range_step = 1;
 
     size_t stride_i() const { return size_t(shape[1]) * size_t(shape[2]); }
     size_t stride_j() const { return size_t(shape[2]); }

@@ -19,8 +19,6 @@ SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_wor
     const Mat4 to_index = *index_to_world.inverse();  // Grid checks its transform is invertible
     const Vec3 o = to_index.transform_point(origin0);
     origin = {o.x - l.origin[0], o.y - l.origin[1], o.z - l.origin[2]};
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) to_lattice[r][c] = float(to_index.m[r][c]);
     this->to_index = to_index;
 }
 
@@ -76,7 +74,7 @@ struct RowRays {
 int8x SheetSampler::brick_may_show(int8x brick) const {
     const int8x levels = gather16(lattice->ranges.data(), brick);
     // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
-    const float lowest = lattice->range_lowest, step = lattice->range_step;
+    const float lowest = float(lattice->range_lowest), step = float(lattice->range_step);
     const float8 zero = broadcast8(0.0f);
     const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * step, zero) * density_scale + background;
     const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * step, zero) * density_scale + background;
@@ -92,9 +90,8 @@ bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, doubl
     // It changes slowly and smoothly across the image: 5% more than at the region's corners covers the
     // pixels between them.
     auto index = [&](const Vec3x8& v) {
-        return Vec3x8{to_lattice[0][0] * v.x + to_lattice[0][1] * v.y + to_lattice[0][2] * v.z,
-                      to_lattice[1][0] * v.x + to_lattice[1][1] * v.y + to_lattice[1][2] * v.z,
-                      to_lattice[2][0] * v.x + to_lattice[2][1] * v.y + to_lattice[2][2] * v.z};
+        auto row = [&](int r) { return float(to_index.m[r][0]) * v.x + float(to_index.m[r][1]) * v.y + float(to_index.m[r][2]) * v.z; };
+        return Vec3x8{row(0), row(1), row(2)};
     };
     const float8 px = select8(lane_index8() < 4.0f, broadcast8(float(x0)), broadcast8(float(x1)));
     for (int y : {y0, y1}) {

@@ -32,8 +32,7 @@ float lattice_blur(const Kernel& kernel);
 struct SheetSampler {
     const PrefilteredLattice* lattice = nullptr;
     Vec3 origin;        ///< lattice coordinates of SheetGeometry::origin0
-    float to_lattice[3][3] = {};  ///< world displacement to lattice (index) displacement
-    Mat4 to_index;                ///< world to index coordinates, in double
+    Mat4 to_index;      ///< world to index coordinates (its linear part: to lattice displacements)
     float density_scale = 1;
     double block_span = 0;  ///< sheet parameter from a block's front (SlabView::front) past which its kernels end
     /// What decides which values may be visible (null: every one is sampled), and the density the

@@ -7,6 +7,8 @@
 
 #include <tbb/parallel_for.h>
 
+#include "volume/value_levels.h"
+
 namespace pcvr {
 
 namespace {
@@ -89,15 +91,11 @@ void build_ranges(PrefilteredLattice& lattice) {
     }
     float lowest = INFINITY, most = -INFINITY;
     for (size_t b = 0; b < count; ++b) lowest = std::min(lowest, lo[b]), most = std::max(most, hi[b]);
-    // Levels wide enough that the rounding outwards never leaves the range.
-    const double step = std::max(double(most - lowest) / 254.0, 1e-30);
-    lattice.range_lowest = lowest;
-    lattice.range_step = float(step * (1.0 + 1e-5));
+    const ValueLevels levels = ValueLevels::spanning(lowest, most);
+    lattice.range_lowest = levels.lowest, lattice.range_step = levels.step;
     lattice.ranges.assign(count + 1, 0);
     tbb::parallel_for(size_t(0), count, [&](size_t b) {
-        const int low = std::clamp(int(std::floor((double(lo[b]) - lowest) / lattice.range_step)), 0, 255);
-        const int high = std::clamp(int(std::ceil((double(hi[b]) - lowest) / lattice.range_step)), 0, 255);
-        lattice.ranges[b] = uint16_t(low | (high << 8));
+        lattice.ranges[b] = uint16_t(levels.below(lo[b]) | (levels.above(hi[b]) << 8));
     });
 }
 

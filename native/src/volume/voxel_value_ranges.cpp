@@ -10,29 +10,11 @@
 
 #include "pcvr/errors.h"
 #include "volume/block_lookup.h"
+#include "volume/value_levels.h"
 
 namespace pcvr {
 
 namespace {
-
-/// The levels of the values [lowest, highest]: 255 steps, the top one reaching highest.
-void choose_levels(VoxelValueRanges& r, double lowest, double highest) {
-    r.lowest = lowest;
-    r.step = highest > lowest ? (highest - lowest) / 255.0 : 1.0;
-    while (r.value(255) < highest) r.step = std::nextafter(r.step, INFINITY);
-}
-
-uint8_t level_below(const VoxelValueRanges& r, double v) {
-    int q = int(std::clamp(std::floor((v - r.lowest) / r.step), 0.0, 255.0));
-    while (q > 0 && r.value(q) > v) --q;  // at most once: the division rounds by less than a level
-    return uint8_t(q);
-}
-
-uint8_t level_above(const VoxelValueRanges& r, double v) {
-    int q = int(std::clamp(std::ceil((v - r.lowest) / r.step), 0.0, 255.0));
-    while (q < 255 && r.value(q) < v) ++q;
-    return uint8_t(q);
-}
 
 /// One axis of the box filter: `outer` runs of `inner` bytes, each the least (Max false) or the largest
 /// of `taps` input runs `tap_pitch` apart (runs `in_pitch` apart in the input, `out_pitch` in the output).
@@ -67,18 +49,19 @@ VoxelValueRanges build_voxel_value_ranges(const std::vector<VoxelBlock>& blocks,
             lowest = std::min(lowest, double(v)), highest = std::max(highest, double(v));
             if (!block.values) break;  // a constant block: one value
         }
-    choose_levels(out, lowest, highest);
+    const ValueLevels levels = ValueLevels::spanning(lowest, highest);
+    out.lowest = levels.lowest, out.step = levels.step;
 
     // Each voxel's own levels (inactive and non-finite ones the background's).
-    const uint8_t background_lo = level_below(out, background), background_hi = level_above(out, background);
+    const uint8_t background_lo = levels.below(background), background_hi = levels.above(background);
     std::vector<uint8_t> own_lo(blocks.size() * kSize), own_hi(blocks.size() * kSize);
     tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
         const VoxelBlock& block = blocks[b];
         for (int offset = 0; offset < kSize; ++offset) {
             const float v = block.value(offset);
             const bool counts = block.active(offset) && std::isfinite(v);
-            own_lo[b * kSize + offset] = counts ? level_below(out, v) : background_lo;
-            own_hi[b * kSize + offset] = counts ? level_above(out, v) : background_hi;
+            own_lo[b * kSize + offset] = counts ? levels.below(v) : background_lo;
+            own_hi[b * kSize + offset] = counts ? levels.above(v) : background_hi;
         }
     });
 
