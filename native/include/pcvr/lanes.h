@@ -51,16 +51,18 @@ inline float8 gather8(const float* table, int8x index) {
 #endif
 }
 
-/// table[index] per lane, widened; indices must be valid, and so must index + 1 (AVX2 reads 32 bits).
-inline int8x gather16(const uint16_t* table, int8x index) {
+/// Whether bit index of `bits` is set, per lane (all ones or zero); index >> 5 must be a valid word.
+inline int8x bit_set8(const uint32_t* bits, int8x index) {
+    const int8x word = index >> 5;
 #if defined(__AVX2__) && defined(__FMA__)
-    const __m256i pairs = _mm256_i32gather_epi32(reinterpret_cast<const int*>(table), __m256i(index), 2);
-    return int8x(_mm256_and_si256(pairs, _mm256_set1_epi32(0xffff)));
+    const int8x words = int8x(_mm256_i32gather_epi32(reinterpret_cast<const int*>(bits), __m256i(word), 4));
 #else
-    int8x out;
-    for (int l = 0; l < 8; ++l) out[l] = table[index[l]];
-    return out;
+    int8x words;
+    for (int l = 0; l < 8; ++l) words[l] = int32_t(bits[word[l]]);
 #endif
+    // Logical shifts: the bit's word may have its top bit set.
+    typedef uint32_t uint8x __attribute__((vector_size(32)));
+    return -int8x((uint8x(words) >> uint8x(index & 31)) & 1u);
 }
 
 /// table[i] + f (table[i + 1] - table[i]) per lane (i + 1 valid too): each lane's two entries in one

@@ -20,6 +20,20 @@ SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_wor
     const Vec3 o = to_index.transform_point(origin0);
     origin = {o.x - l.origin[0], o.y - l.origin[1], o.z - l.origin[2]};
     this->to_index = to_index;
+    if (!classification) return;
+    // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
+    const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
+    visible_bricks_.assign(bricks / 32 + 1, 0u);
+    const float lowest = float(l.range_lowest), level = float(l.range_step);
+    const float8 zero = broadcast8(0.0f);
+    for (size_t b = 0; b < bricks; b += 8) {
+        int8x levels{};
+        for (size_t e = 0; e < 8 && b + e < bricks; ++e) levels[e] = l.ranges[b + e];
+        const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * level, zero) * density_scale + background;
+        const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * level, zero) * density_scale + background;
+        // b is a multiple of 8: its eight bits share a word.
+        visible_bricks_[b / 32] |= lane_mask(classification->maybe_opaque_within(lo, hi)) << (b % 32);
+    }
 }
 
 namespace {
@@ -70,16 +84,6 @@ struct RowRays {
 };
 
 }  // namespace
-
-int8x SheetSampler::brick_may_show(int8x brick) const {
-    const int8x levels = gather16(lattice->ranges.data(), brick);
-    // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
-    const float lowest = float(lattice->range_lowest), step = float(lattice->range_step);
-    const float8 zero = broadcast8(0.0f);
-    const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * step, zero) * density_scale + background;
-    const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * step, zero) * density_scale + background;
-    return classification->maybe_opaque_within(lo, hi);
-}
 
 bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1,
                             int y1) const {
@@ -146,7 +150,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
             const int8x b = __builtin_convertvector(select8(in, p.x * per_brick, zero), int8x) * bi +
                             __builtin_convertvector(select8(in, p.y * per_brick, zero), int8x) * bj +
                             __builtin_convertvector(select8(in, p.z * per_brick, zero), int8x);
-            if (!any8(in & brick_may_show(b))) {
+            if (!any8(in & bit_set8(visible_bricks_.data(), b))) {
                 store8(out + 8 * q, zero);
                 continue;
             }
