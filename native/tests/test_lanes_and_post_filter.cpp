@@ -36,6 +36,17 @@ TEST(table_lookups_interpolate_each_lanes_two_entries) {
     }
 }
 
+TEST(bit_lookups_read_each_lanes_bit_of_the_word_it_falls_in) {
+    // Words with their top bit set too: the shift must be logical.
+    const std::vector<uint32_t> bits = {0x80000001u, 0x0000ff00u, 0xffffffffu, 0u};
+    const int8x index = {0, 1, 31, 32 + 8, 32 + 16, 64 + 17, 96, 96 + 31};
+    const int8x set = bit_set8(bits.data(), index);
+    for (int l = 0; l < 8; ++l) {
+        const bool expected = bits[size_t(index[l] >> 5)] >> (index[l] & 31) & 1u;
+        CHECK(set[l] == (expected ? -1 : 0));
+    }
+}
+
 TEST(post_filters_reach_and_overshoot) {
     for (int stride : {1, 3, 4, 8}) {
         CHECK(PostFilter(PostFilterShape::Bilinear, stride).reach_nodes() == 1);

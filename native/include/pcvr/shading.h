@@ -173,7 +173,8 @@ private:
     std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
 };
 
-inline Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
+__attribute__((always_inline)) inline Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye,
+                                                            const Vec3x8& position) const {
     if (!lit_ || modulated_) return shade_modulated(colour, gradient, to_eye, position);
     return shade_lit(colour, gradient, to_eye, position, nullptr, broadcast8(1.0f));
 }
@@ -190,28 +191,35 @@ inline Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x
     return {l, energy};
 }
 
-inline Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
+__attribute__((always_inline)) inline Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
                                 const float8* transmittance, float8 ambient_share) const {
     if (scatter_) return scatter(colour, to_eye, position, transmittance, ambient_share);
     Vec3x8 diffuse = lanes(ambient_) * ambient_share, specular = lanes({0, 0, 0});
-    // Divided by its largest component before it is squared: the gradients of densities near 1e30
-    // or 1e-30, or of voxels 1e-12 units wide, square beyond float's range.
+    // Scaled by the power of two nearest its largest component's inverse before it is squared: the
+    // gradients of densities near 1e30 or 1e-30, or of voxels 1e-12 units wide, square beyond float's
+    // range. From the exponent's bits (capped, so that the scale stays a normal number), not a division:
+    // the lighting is one chain of dependent steps per eight samples, and its length is its cost.
     const float8 largest = max8(max8(abs8(gradient.x), abs8(gradient.y)), abs8(gradient.z));
     const int8x has_normal = (largest > 0) & (largest < INFINITY);
-    const Vec3x8 g = gradient * select8(has_normal, 1.0f / largest, broadcast8(0.0f));
+    const int8x exponent = int8x(largest) & 0x7f800000;  // the bits, not the value
+    const int8x capped = exponent > (253 << 23) ? int8x{} + (253 << 23) : exponent;
+    const float8 scale = float8(0x7f000000 - capped);  // 2^(127 - e): largest times it lies in [1, 4)
+    const Vec3x8 g = gradient * select8(has_normal, scale, broadcast8(0.0f));
     if (any8(has_normal) && !lights_.empty()) {
         // Two-sided: the normal faces the eye. No normal where the gradient vanishes: ambient only.
+        // The normal's length and the half vector's are divided out of the dot products, so that
+        // their square roots overlap.
         const float8 facing = select8(dot(g, to_eye) < 0, broadcast8(-1.0f), broadcast8(1.0f));
-        const Vec3x8 n = g * select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
+        const float8 per_length = select8(has_normal, facing / sqrt8(dot(g, g)), broadcast8(0.0f));
         for (size_t li = 0; li < lights_.size(); ++li) {
             const auto [l, energy] = arriving(lights_[li], position, lights_[li].transmittance ? transmittance + li : nullptr);
-            const float8 n_dot_l = dot(n, l);
+            const float8 n_dot_l = dot(g, l) * per_length;
             const float8 lit = select8(n_dot_l > 0, n_dot_l, broadcast8(0.0f));
             diffuse = diffuse + energy * (diffuse_ * lit);
             if (specular_ > 0) {
                 const Vec3x8 h = l + to_eye;
                 const float8 h2 = max8(dot(h, h), broadcast8(1e-30f));
-                const float8 n_dot_h = clamp8(dot(n, h) / sqrt8(h2), 0.0f, 1.0f);
+                const float8 n_dot_h = clamp8(dot(g, h) * per_length / sqrt8(h2), 0.0f, 1.0f);
                 const float8 x = n_dot_h * float(kPowerSteps);
                 const int8x k = __builtin_convertvector(x, int8x);
                 const float8 power = lerp_pairs8(power_.data(), k, x - __builtin_convertvector(k, float8));

@@ -687,11 +687,11 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // derivatives per pixel and per unit of the sheet parameter into a world gradient.
             // The frame is divided by |along| first: products of three world lengths leave float's
             // range for voxels 1e-12 or 1e9 units wide, and a common factor leaves the direction alone.
-            const float8 per_length = 1.0f / sqrt8(dot(f.along, f.along));
+            const float8 along_length = sqrt8(dot(f.along, f.along)), per_length = 1.0f / along_length;
             const Vec3x8 ahead = f.along * per_length, ppx = f.per_pixel_x * per_length, ppy = f.per_pixel_y * per_length;
             const Vec3x8 from_x = cross(ppy, ahead), from_y = cross(ahead, ppx), from_u = cross(ppx, ppy);
             const Vec3x8 to_eye = ahead * -1.0f;
-            const float8 slab_length = spacing / per_length;  // world length of the slab along each ray
+            const float8 slab_length = spacing * along_length;  // world length of the slab along each ray
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 glow{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};  // emitted radiance per world unit
             bool glowing = false;
@@ -754,9 +754,14 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             const int8x lit = sigma_sum > 0;
             if (!any8(lit) && !glowing) continue;
             samples_shaded_ += uint64_t(__builtin_popcount(lane_mask(lit & open)));
-            const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
             Vec3x8 emission{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};
-            for (int k = 0; k < lit_count; ++k) emission = emission + lit_colours[k] * (extinctions[k] * per_sigma);
+            if (lit_count == 1) {  // one medium's colour is its own, unweighed (no division on the way to the image)
+                const Vec3x8& colour = lit_colours[0];
+                emission = {select8(lit, colour.x, emission.x), select8(lit, colour.y, emission.y), select8(lit, colour.z, emission.z)};
+            } else {
+                const float8 per_sigma = select8(lit, 1.0f / select8(lit, sigma_sum, broadcast8(1.0f)), broadcast8(0.0f));
+                for (int k = 0; k < lit_count; ++k) emission = emission + lit_colours[k] * (extinctions[k] * per_sigma);
+            }
             const float8 opacity = 1.0f - exp8(-sigma_sum * slab_length * share * (1.0f / float(samples)));
             const float8 weight = select8(lit, (1.0f - alpha) * opacity, broadcast8(0.0f));
             store8(red_.data() + p, load8(red_.data() + p) + weight * emission.x);
