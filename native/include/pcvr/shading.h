@@ -123,7 +123,8 @@ public:
     /// `position` (world, relative to the shader's origin).
     /// Inline: the renderers' sample loops call it per eight samples, where a call and its arguments
     /// through memory had cost more than the lighting itself.
-    Vec3x8 shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const;
+    __attribute__((always_inline)) Vec3x8 shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye,
+                                                const Vec3x8& position) const;
     /// The same for one sample.
     Vec3f shade(const Vec3f& colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const;
 
@@ -156,8 +157,8 @@ private:
     static Arriving arriving(const PreparedLight& light, const Vec3x8& position, const float8* transmittance);
     /// shade() with each shadowed light's transmittance at the samples (lights_' order, unshadowed ones unread).
     /// `ambient_share`: the ambient light's share that reaches the samples (ambient occlusion; else 1).
-    Vec3x8 shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
-                     const float8* transmittance, float8 ambient_share) const;
+    __attribute__((always_inline)) Vec3x8 shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye,
+                                                    const Vec3x8& position, const float8* transmittance, float8 ambient_share) const;
     Vec3x8 scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance,
                    float8 ambient_share) const;
     /// The mean transmittance of the occluders at eight samples (1 without).
