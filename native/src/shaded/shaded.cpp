@@ -314,7 +314,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                 // A block's kernels end at most its diagonal and two reaches past their front.
                 const double per_index = view.depth_reach() / kernel.radius();
                 const double span = 2.0 * view.depth_reach() + std::sqrt(3.0) * (VoxelBlock::kDim - 1) * per_index;
-                samplers.push_back(std::make_unique<SheetSampler>(*lattice, grid.index_to_world(), geometry.origin0,
+                samplers.push_back(std::make_unique<SheetSampler>(*lattice, grid.index_to_world(), geometry,
                                                                   float(volume.density_scale), span, cull_transparent ? classification : nullptr,
                                                                   setup.grids[g].background, finest));
                 sampler = samplers.back().get();

@@ -13,13 +13,16 @@ float lattice_blur(const Kernel& kernel) {
     return float(0.75 * (kernel.variance() - 1.0 / 6.0) / 2.0);
 }
 
-SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_world, const Vec3& origin0, float scale, double span,
+SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_world, const SheetGeometry& geometry, float scale, double span,
                            const ClassificationTable* table, float background_density, int step)
     : lattice(&l), density_scale(scale), block_span(span), classification(table), background(background_density), gradient_step(step) {
     const Mat4 to_index = *index_to_world.inverse();  // Grid checks its transform is invertible
-    const Vec3 o = to_index.transform_point(origin0);
+    const Vec3 o = to_index.transform_point(geometry.origin0);
     origin = {o.x - l.origin[0], o.y - l.origin[1], o.z - l.origin[2]};
     this->to_index = to_index;
+    origin_dx = to_index.transform_vector(geometry.origin_dx), origin_dy = to_index.transform_vector(geometry.origin_dy);
+    dir0 = to_index.transform_vector(geometry.dir0), dir_dx = to_index.transform_vector(geometry.dir_dx);
+    dir_dy = to_index.transform_vector(geometry.dir_dy);
     if (!classification) return;
     // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
     const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
@@ -50,12 +53,12 @@ struct RowRays {
     double a = 0, b = 0, c = 0;  // spheres: |metric direction|^2 = a + b px + c px^2
     double depth0 = 0, depth_dx = 0, rate = 1;  // planes: depth = depth0 + depth_dx px; rate = plane_k
 
-    RowRays(const SheetGeometry& g, bool is_spherical, double u_, int y, const Vec3& origin, const Mat4& to_index)
+    RowRays(const SheetGeometry& g, const SheetSampler& in_lattice, bool is_spherical, double u_, int y)
         : spherical(is_spherical), u(u_) {
-        base = origin + to_index.transform_vector(g.origin_dy * double(y));
-        base_dx = to_index.transform_vector(g.origin_dx);
-        ray = to_index.transform_vector(g.dir0 + g.dir_dy * double(y));
-        ray_dx = to_index.transform_vector(g.dir_dx);
+        base = in_lattice.origin + in_lattice.origin_dy * double(y);
+        base_dx = in_lattice.origin_dx;
+        ray = in_lattice.dir0 + in_lattice.dir_dy * double(y);
+        ray_dx = in_lattice.dir_dx;
         if (spherical) {
             const Vec3 m0 = g.metric_dir0 + g.metric_dir_dy * double(y), m1 = g.metric_dir_dx;
             a = dot(m0, m0), b = 2.0 * dot(m0, m1), c = dot(m1, m1);
@@ -131,7 +134,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
         const float8 v0 = v00 + fj * (v01 - v00), v1 = v10 + fj * (v11 - v10);
         return select8(in, v0 + fi * (v1 - v0), broadcast8(0.0f));
     };
-    const RowRays rays(geometry, spherical, u, y, origin, to_index);
+    const RowRays rays(geometry, *this, spherical, u, y);
     // The slab's integral by two-point Gauss-Legendre quadrature along the ray (exact for cubics): one
     // sample at its middle would alias thin structures into dots as they cross the sheets.
     const float offset = spacing * 0.28867513f;  // 1 / (2 sqrt 3) of the slab

@@ -36,6 +36,9 @@ struct SheetSampler {
     const PrefilteredLattice* lattice = nullptr;
     Vec3 origin;        ///< lattice coordinates of SheetGeometry::origin0
     Mat4 to_index;      ///< world to index coordinates (its linear part: to lattice displacements)
+    /// SheetGeometry's origin_dx, origin_dy, dir0, dir_dx and dir_dy as lattice displacements: a row's
+    /// rays from a few multiply-adds instead of five transforms per run of vectors.
+    Vec3 origin_dx, origin_dy, dir0, dir_dx, dir_dy;
     float density_scale = 1;
     double block_span = 0;  ///< sheet parameter from a block's front (SlabView::front) past which its kernels end
     /// What decides which values may be visible (null: every one is sampled), and the density the
@@ -45,7 +48,7 @@ struct SheetSampler {
     int gradient_step = 1;
 
     SheetSampler() = default;
-    SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const Vec3& origin0, float density_scale,
+    SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const SheetGeometry& geometry, float density_scale,
                  double block_span, const ClassificationTable* classification, float background, int gradient_step);
 
     /// Whether the lattice's brick ranges can tell which values of the sheet of parameter u at pixels
