@@ -129,6 +129,17 @@ inline float8 sqrt8(float8 x) {
 #endif
 }
 
+/// 1 / sqrt(x) to about 2 ulp: the approximation and one Newton step, shorter than a square root and a
+/// division where a loop waits on it. x must be positive and normal.
+inline float8 rsqrt8(float8 x) {
+#if defined(__AVX2__) && defined(__FMA__)
+    const float8 r = float8(_mm256_rsqrt_ps(__m256(x)));
+    return r * (1.5f - (0.5f * x) * (r * r));
+#else
+    return 1.0f / sqrt8(x);
+#endif
+}
+
 /// e^x to about 2 ulp for x in [-87, 88] (outside: clamped), by the usual split x = n ln 2 + r,
 /// a degree-6 polynomial for e^r on |r| <= ln 2 / 2 and n put into the exponent bits.
 inline float8 exp8(float8 x) {

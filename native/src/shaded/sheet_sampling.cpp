@@ -73,7 +73,7 @@ struct RowRays {
     void at(float8 px, Vec3x8& p, Vec3x8& along) const {
         float8 scale, per_u;
         if (spherical) {
-            per_u = 1.0f / sqrt8(float(a) + px * (float(b) + px * float(c)));
+            per_u = rsqrt8(float(a) + px * (float(b) + px * float(c)));
             scale = per_u * float(u);
         } else {
             scale = float(depth0) + px * float(depth_dx);
@@ -112,7 +112,7 @@ bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, doubl
 }
 
 int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                             bool skip_transparent, float* out) const {
+                             bool skip_transparent, float* out, int width) const {
     const float* values = lattice->values.data();
     const int32_t si = int32_t(lattice->stride_i()), sj = int32_t(lattice->stride_j());
     // Trilinear cells start at elements 0 .. shape - 2 (the margin's zeros lie beyond every voxel's reach).
@@ -153,13 +153,15 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
             const int8x b = __builtin_convertvector(select8(in, p.x * per_brick, zero), int8x) * bi +
                             __builtin_convertvector(select8(in, p.y * per_brick, zero), int8x) * bj +
                             __builtin_convertvector(select8(in, p.z * per_brick, zero), int8x);
-            if (!any8(in & bit_set8(visible_bricks_.data(), b))) {
-                store8(out + 8 * q, zero);
-                continue;
-            }
+            if (!any8(in & bit_set8(visible_bricks_.data(), b))) continue;
         }
-        const float8 sum = density(p - along * offset) + density(p + along * offset);
-        store8(out + 8 * q, sum * (0.5f * spacing * density_scale));
+        const float8 value = (density(p - along * offset) + density(p + along * offset)) * (0.5f * spacing * density_scale);
+        float* to = out + 8 * q;
+        if (8 * q + 8 <= width) {
+            store8(to, load8(to) + value);
+        } else {
+            for (int l = 0; l < width - 8 * q; ++l) to[l] += value[l];
+        }
         ++interpolated;
     }
     return interpolated;

@@ -57,10 +57,11 @@ struct SheetSampler {
     bool may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1, int y1) const;
 
     /// Slab integrals of the volume on the sheet of parameter u (its middle) and thickness `spacing`
-    /// at pixels x0 .. x0 + 8 n - 1 of row y, into out[0 .. 8 n); with `skip_transparent` (may_skip), 0
-    /// for vectors that nothing visible reads. Returns how many vectors were interpolated.
+    /// at pixels x0 .. x0 + 8 n - 1 of row y, added to out[0 .. width) (width <= 8 n: the pixels past it
+    /// are left out); with `skip_transparent` (may_skip), nothing for vectors that nothing visible reads.
+    /// Returns how many vectors were interpolated.
     int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                   bool skip_transparent, float* out) const;
+                   bool skip_transparent, float* out, int width) const;
 
 private:
     /// One bit per lattice brick (PrefilteredLattice::bricks, bk fastest), set where its range, 0 included,

@@ -487,12 +487,8 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
             while (end < g.cell_columns && cells[end] && read(C * end, y)) ++end;
             // Vectors [cx, end), their pixels past the slot's width dropped.
             const int x0 = C * cx, x1 = std::min(C * end, g.width) - 1;
-            scratch_.resize(size_t(C) * (end - cx));
-            const int interpolated =
-                sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y, end - cx, skip_transparent,
-                                   scratch_.data());
-            float* row = slot + size_t(y) * g.pitch();
-            for (int x = x0; x <= x1; ++x) row[x] += scratch_[size_t(x - x0)];
+            const int interpolated = sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y,
+                                                        end - cx, skip_transparent, slot + size_t(y) * g.pitch() + x0, x1 - x0 + 1);
             stats.sheet_samples += uint64_t(C) * uint64_t(interpolated);
             stats.sheet_samples_skipped += uint64_t(C) * uint64_t(end - cx - interpolated);
             box.include(Box{x0, y, x1, y});
