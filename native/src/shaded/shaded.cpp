@@ -316,7 +316,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                 const double span = 2.0 * view.depth_reach() + std::sqrt(3.0) * (VoxelBlock::kDim - 1) * per_index;
                 samplers.push_back(std::make_unique<SheetSampler>(*lattice, grid.index_to_world(), geometry,
                                                                   float(volume.density_scale), span, cull_transparent ? classification : nullptr,
-                                                                  setup.grids[g].background, finest));
+                                                                  setup.grids[g].background, finest, post_shape));
                 sampler = samplers.back().get();
             }
             setup.layers.push_back({&view, uint32_t(g), filter, post_convolved, sampler});

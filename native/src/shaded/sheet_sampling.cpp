@@ -14,8 +14,9 @@ float lattice_blur(const Kernel& kernel) {
 }
 
 SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_world, const SheetGeometry& geometry, float scale, double span,
-                           const ClassificationTable* table, float background_density, int step)
+                           const ClassificationTable* table, float background_density, int step, PostFilterShape post_shape)
     : lattice(&l), density_scale(scale), block_span(span), classification(table), background(background_density), gradient_step(step) {
+    for (int stride = 1; stride <= kMostStride; ++stride) post_filters_.emplace_back(post_shape, stride);
     const Mat4 to_index = *index_to_world.inverse();  // Grid checks its transform is invertible
     const Vec3 o = to_index.transform_point(geometry.origin0);
     origin = {o.x - l.origin[0], o.y - l.origin[1], o.z - l.origin[2]};
@@ -88,8 +89,19 @@ struct RowRays {
 
 }  // namespace
 
+int SheetSampler::stride_at(const SheetGeometry& geometry, bool spherical, double u, int width, int height) const {
+    const SampleFrames f = sample_frames(geometry, spherical, broadcast8(0.5f * float(width)), 0.5f * float(height), u);
+    auto length_in_index = [&](const Vec3x8& v) {
+        const Vec3 w{double(v.x[0]), double(v.y[0]), double(v.z[0])};
+        return length(to_index.transform_vector(w));
+    };
+    const double per_pixel = std::max(length_in_index(f.per_pixel_x), length_in_index(f.per_pixel_y));
+    if (!(per_pixel > 0)) return 1;
+    return int(std::clamp(std::floor(1.0 / per_pixel + 1e-6), 1.0, double(kMostStride)));
+}
+
 bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1,
-                            int y1) const {
+                            int y1, int spread) const {
     if (!classification) return false;
     // The samples that read a value lie within two sheets along the ray or a gradient step across it; a
     // sample's test reads the sheets on either side of it, whose values are interpolated within
@@ -105,14 +117,14 @@ bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, doubl
         const SampleFrames f = sample_frames(geometry, spherical, px, float(y), u);
         const Vec3x8 along = index(f.along), right = index(f.per_pixel_x), down = index(f.per_pixel_y);
         const float8 reach = (3.29f * spacing) * sqrt8(dot(along, along)) +
-                             float(gradient_step) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
+                             float(gradient_step + spread) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
         if (any8(1.05f * reach > float(PrefilteredLattice::kRangeReach))) return false;
     }
     return true;
 }
 
 int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                             bool skip_transparent, float* out, int width) const {
+                             bool skip_transparent, float* out, int width, int step) const {
     const float* values = lattice->values.data();
     const int32_t si = int32_t(lattice->stride_i()), sj = int32_t(lattice->stride_j());
     // Trilinear cells start at elements 0 .. shape - 2 (the margin's zeros lie beyond every voxel's reach).
@@ -144,7 +156,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
     int interpolated = 0;
     for (int q = 0; q < n; ++q) {
         Vec3x8 p, along;
-        rays.at(float(x0 + 8 * q) + lane_index8(), p, along);
+        rays.at(float(x0) + float(step) * (float(8 * q) + lane_index8()), p, along);
         if (skip_transparent) {
             // Within its reach, everything lies in the value's brick range; where that range (0 included:
             // what a skipped value holds) cannot be visible, no visible sample reads the value. Lanes

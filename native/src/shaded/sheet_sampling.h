@@ -20,6 +20,7 @@
 #include "pcvr/math.h"
 #include "pcvr/transfer_function.h"
 #include "shaded/sheet_geometry.h"
+#include "splat/post_convolution.h"
 
 #include <cstdint>
 #include <vector>
@@ -49,19 +50,33 @@ struct SheetSampler {
 
     SheetSampler() = default;
     SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const SheetGeometry& geometry, float density_scale,
-                 double block_span, const ClassificationTable* classification, float background, int gradient_step);
+                 double block_span, const ClassificationTable* classification, float background, int gradient_step,
+                 PostFilterShape post_shape);
+
+    /// The largest post-convolution stride sampled sheets take.
+    static constexpr int kMostStride = 4;
+
+    /// The subgrid stride of the sheet of parameter u: the whole pixels a lattice element spans at the
+    /// image's centre (as automatic_stride, one node per element), capped at kMostStride. Above 1 the
+    /// sheet is sampled at its subgrid nodes and post-convolved to the pixels, as the paper's subgrid
+    /// is splatted; the same for every tile, so that tiles meet without seams.
+    int stride_at(const SheetGeometry& geometry, bool spherical, double u, int width, int height) const;
+    /// The post filter from a stride-L subgrid to the pixels.
+    const PostFilter& post_filter(int stride) const { return post_filters_[size_t(stride - 1)]; }
 
     /// Whether the lattice's brick ranges can tell which values of the sheet of parameter u at pixels
-    /// [x0, x1] x [y0, y1] no sample that may be visible reads: what such a value reaches lies within
-    /// PrefilteredLattice::kRangeReach (and the grid is classified).
-    bool may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1, int y1) const;
+    /// [x0, x1] x [y0, y1] no sample that may be visible reads: what such a value reaches, `spread`
+    /// pixels of post-convolution included, lies within PrefilteredLattice::kRangeReach (and the grid
+    /// is classified).
+    bool may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1, int y1,
+                  int spread = 0) const;
 
     /// Slab integrals of the volume on the sheet of parameter u (its middle) and thickness `spacing`
-    /// at pixels x0 .. x0 + 8 n - 1 of row y, added to out[0 .. width) (width <= 8 n: the pixels past it
-    /// are left out); with `skip_transparent` (may_skip), nothing for vectors that nothing visible reads.
-    /// Returns how many vectors were interpolated.
+    /// at pixels x0, x0 + step, ... (8 n of them) of row y, added to out[0 .. width) (width <= 8 n: the
+    /// values past it are left out); with `skip_transparent` (may_skip), nothing for vectors that
+    /// nothing visible reads. Returns how many vectors were interpolated.
     int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                   bool skip_transparent, float* out, int width) const;
+                   bool skip_transparent, float* out, int width, int step = 1) const;
 
 private:
     /// One bit per lattice brick (PrefilteredLattice::bricks, bk fastest), set where its range, 0 included,
@@ -69,6 +84,7 @@ private:
     /// lookup in a table small enough to stay in cache (a bit a brick: 118 KB for the CT head, where
     /// the ranges are 1.9 MB).
     std::vector<uint32_t> visible_bricks_;
+    std::vector<PostFilter> post_filters_;  // strides 1 .. kMostStride
 };
 
 }  // namespace pcvr

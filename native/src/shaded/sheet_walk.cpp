@@ -474,6 +474,12 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
     };
     float* slot = g.slots[GridState::slot(t)].data();
     Box& box = g.boxes[GridState::slot(t)];
+    const int L = sampler.stride_at(*setup.geometry, setup.sheets.spherical, middle, setup.width, setup.height);
+    if (L > 1) {
+        sample_subgrid(setup, sampler, L, middle, spacing, g, read, slot, box, stats);
+        stats.seconds_sampling += seconds_since(start);
+        return;
+    }
     const bool skip_transparent =
         sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1);
     for (int y = 0; y < g.height; ++y) {
@@ -496,6 +502,77 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
         }
     }
     stats.seconds_sampling += seconds_since(start);
+}
+
+template <class Read>
+void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler& sampler, int L, double middle, float spacing,
+                                 GridState& g, const Read& read, float* slot, Box& box, WalkStats& stats) {
+    constexpr int C = GridState::kCell;
+    const PostFilter& filter = sampler.post_filter(L);
+    const int reach = filter.reach_nodes();
+    // The cells whose pixels are wanted: marked, and read by a pixel not yet opaque in one of their rows.
+    for (int cy = 0; cy < g.cell_rows; ++cy)
+        for (int cx = 0; cx < g.cell_columns; ++cx) {
+            uint8_t& cell = sample_cells_[size_t(cy) * g.cell_columns + cx];
+            if (!cell) continue;
+            bool wanted = false;
+            for (int y = cy * C; y < std::min(cy * C + C, g.height) && !wanted; ++y) wanted = read(C * cx, y);
+            cell = wanted;
+        }
+    // The subgrid over the slot (image pixel L n is node n) and the taps beyond it; the nodes the wanted
+    // cells' pixels read.
+    const int nx0 = floor_div(g.x0, L) - reach, ny0 = floor_div(g.y0, L) - reach;
+    const int columns = floor_div(g.x0 + g.width - 1, L) + reach + 1 - nx0, rows = floor_div(g.y0 + g.height - 1, L) + reach + 1 - ny0;
+    node_wanted_.assign(size_t(columns) * rows, 0);
+    for (int cy = 0; cy < g.cell_rows; ++cy)
+        for (int cx = 0; cx < g.cell_columns; ++cx) {
+            if (!sample_cells_[size_t(cy) * g.cell_columns + cx]) continue;
+            const int px0 = g.x0 + C * cx, px1 = g.x0 + std::min(C * cx + C, g.width) - 1;
+            const int py0 = g.y0 + C * cy, py1 = g.y0 + std::min(C * cy + C, g.height) - 1;
+            const int c0 = floor_div(px0, L) - 1 - nx0, c1 = floor_div(px1, L) + 2 - nx0;
+            const int r0 = floor_div(py0, L) - 1 - ny0, r1 = floor_div(py1, L) + 2 - ny0;
+            for (int r = r0; r <= r1; ++r) std::fill_n(node_wanted_.data() + size_t(r) * columns + c0, c1 - c0 + 1, uint8_t(1));
+        }
+    const size_t pitch = size_t(columns) + 8;  // a run's last vector may pass the row's end
+    nodes_.assign(pitch * rows, 0.0f);
+    const bool skip_transparent = sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0,
+                                                   g.x0 + g.width - 1, g.y0 + g.height - 1, L * reach);
+    for (int r = 0; r < rows; ++r) {
+        const uint8_t* wanted = node_wanted_.data() + size_t(r) * columns;
+        for (int c = 0; c < columns;) {
+            if (!wanted[c]) {
+                ++c;
+                continue;
+            }
+            int end = c + 1;
+            while (end < columns && wanted[end]) ++end;
+            const int vectors = (end - c + 7) / 8;
+            const int interpolated = sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, L * (nx0 + c),
+                                                        L * (ny0 + r), vectors, skip_transparent, nodes_.data() + size_t(r) * pitch + c,
+                                                        end - c, L);
+            stats.sheet_samples += uint64_t(8) * uint64_t(interpolated);
+            stats.sheet_samples_skipped += uint64_t(8) * uint64_t(vectors - interpolated);
+            c = end;
+        }
+    }
+    // The wanted cells' pixels from the nodes, a row of cells at a time, each run of wanted cells as one region.
+    const NodeSheet sheet{nodes_.data(), pitch, nx0, ny0};
+    for (int cy = 0; cy < g.cell_rows; ++cy) {
+        const uint8_t* cells = sample_cells_.data() + size_t(cy) * g.cell_columns;
+        for (int cx = 0; cx < g.cell_columns;) {
+            if (!cells[cx]) {
+                ++cx;
+                continue;
+            }
+            int end = cx + 1;
+            while (end < g.cell_columns && cells[end]) ++end;
+            const int x0 = C * cx, x1 = std::min(C * end, g.width) - 1, y0 = C * cy, y1 = std::min(C * cy + C, g.height) - 1;
+            post_convolve_region(sheet, filter, g.x0 + x0, g.y0 + y0, x1 - x0 + 1, y1 - y0 + 1, slot + size_t(y0) * g.pitch() + x0,
+                                 g.pitch(), scratch_, true);
+            box.include(Box{x0, y0, x1, y1});
+            cx = end;
+        }
+    }
 }
 
 void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s) {

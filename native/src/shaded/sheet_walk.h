@@ -120,6 +120,12 @@ private:
     /// (`some_opaque`: whether the tile has any).
     void sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int64_t t, const std::vector<TileBlock>& blocks,
                       const std::vector<Active>& active, const PixelRect& rect, bool some_opaque, WalkStats& stats);
+    /// sample_sheet's sheets of subgrid stride L > 1 (SheetSampler::stride_at): the nodes that the marked
+    /// cells read (`read(x, y)`: whether slot pixels x .. x + 7 of row y are read), sampled, then
+    /// post-convolved to those cells' pixels in `slot`.
+    template <class Read>
+    void sample_subgrid(const SheetWalkSetup& setup, const SheetSampler& sampler, int L, double middle, float spacing, GridState& g,
+                        const Read& read, float* slot, Box& box, WalkStats& stats);
 
     std::vector<std::unique_ptr<GridState>> grids_;
     std::vector<std::unique_ptr<LayerState>> layers_;
@@ -131,6 +137,8 @@ private:
     std::vector<uint8_t> cell_shows_[64];  // composite_sample: per source, per cell of its grid, whether a value there may be visible
     OpenPixels open_pixels_;  // the tile's pixels not yet opaque, for every layer's occlusion map
     std::vector<uint8_t> sample_cells_;  // sample_sheet: per cell of the grid's slot, whether to sample it
+    std::vector<uint8_t> node_wanted_;   // sample_subgrid: per node of the sheet's subgrid, whether a wanted pixel reads it
+    std::vector<float> nodes_;           // sample_subgrid: the sampled nodes (0 where none is wanted)
     std::vector<uint8_t> row_may_show_;  // composite_sample: per vector of a row of the box, whether a cell it meets may show
     std::vector<uint8_t> may_show_;  // composite_sample: per vector of the sheet's box, whether a sample there may be visible
     std::vector<float> scratch_;
