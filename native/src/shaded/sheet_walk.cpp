@@ -460,12 +460,13 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
     // its gradient's stencil (slot pixels are tile pixels shifted by the halo).
     const int h = g.halo, tw = rect.width(), th = rect.height();
     const float8 cutoff = broadcast8(setup.opacity_cutoff);
-    auto read = [&](int x, int y) {
+    // (With `last_row`, of any of rows y .. last_row.)
+    auto read = [&](int x, int y, int last_row = -1) {
         if (!some_opaque) return true;
         // Tile pixels x - 2h .. x + 7 in rows y - 2h .. y: whole vectors, which may take in pixels past
         // the tile's edges (those only make it sample more; the planes are padded by a vector).
         const int x0 = std::max(0, x - 2 * h), x1 = std::min(tw - 1, x + GridState::kCell - 1);
-        const int y0 = std::max(0, y - 2 * h), y1 = std::min(th - 1, y);
+        const int y0 = std::max(0, y - 2 * h), y1 = std::min(th - 1, std::max(y, last_row));
         if (x0 > x1 || y0 > y1) return false;
         for (int ty = y0; ty <= y1; ++ty)
             for (int tx = x0; tx <= x1; tx += 8)
@@ -515,9 +516,7 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
         for (int cx = 0; cx < g.cell_columns; ++cx) {
             uint8_t& cell = sample_cells_[size_t(cy) * g.cell_columns + cx];
             if (!cell) continue;
-            bool wanted = false;
-            for (int y = cy * C; y < std::min(cy * C + C, g.height) && !wanted; ++y) wanted = read(C * cx, y);
-            cell = wanted;
+            cell = read(C * cx, C * cy, std::min(C * cy + C, g.height) - 1);
         }
     // The subgrid over the slot (image pixel L n is node n) and the taps beyond it; the nodes the wanted
     // cells' pixels read.
@@ -535,8 +534,11 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
         }
     const size_t pitch = size_t(columns) + 8;  // a run's last vector may pass the row's end
     nodes_.assign(pitch * rows, 0.0f);
-    const bool skip_transparent = sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0,
-                                                   g.x0 + g.width - 1, g.y0 + g.height - 1, L * reach);
+    // Skipped nodes hold 0, and the brick ranges hold 0 too: a pixel's value, a weighted mean of its
+    // nodes, stays within them unless the filter has negative lobes (Catmull-Rom's overshoot), which
+    // the ranges do not bound: then every wanted node is interpolated.
+    const bool skip_transparent = filter.overshoot() == 0.0 && sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing,
+                                                                               g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1, L * reach);
     for (int r = 0; r < rows; ++r) {
         const uint8_t* wanted = node_wanted_.data() + size_t(r) * columns;
         for (int c = 0; c < columns;) {
