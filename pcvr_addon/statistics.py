@@ -72,7 +72,9 @@ def _automatic_choices(stats):
     sub = stats.get("supersampling", 1)
     metric = " | Sheets in the voxels' metric" if stats.get("sheet_metric") == "voxels" else ""
     sampled = stats.get("grids_sampled", 0)
-    sampling = f" | Sheets sampled ({sampled} volume{'s' if sampled > 1 else ''})" if sampled else ""
+    subgrids = [s for s in stats.get("sampled_strides", []) if s > 1]
+    post = f", post-convolved at stride {format_strides(subgrids)}" if subgrids else ""
+    sampling = f" | Sheets sampled ({sampled} volume{'s' if sampled > 1 else ''}{post})" if sampled else ""
     return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric + sampling
 
 
@@ -126,7 +128,8 @@ def _mode_rows(mode, stats):
         ("Voxels splatted", f"{stats['voxels']:,}"),
         # Low magnification: sheets filled from the volume where samples may be seen (sheet_sampling.h).
         ("Sheets sampled", f"{stats.get('grids_sampled', 0):,} volume(s), {stats.get('sheet_samples', 0):,} values, "
-                           f"{stats.get('sheet_samples_skipped', 0):,} left transparent"),
+                           f"{stats.get('sheet_samples_skipped', 0):,} left transparent"
+                           + (f", subgrid strides {format_strides(stats['sampled_strides'])}" if stats.get("sampled_strides") else "")),
         ("Behind opaque", _share(stats["voxels_occluded"], stats["voxels"] + stats["voxels_occluded"])),
         ("Sheets", f"{stats['sheets']:,}" + (" (in the voxels' metric)" if stats.get("sheet_metric") == "voxels" else "")),
         ("Tiles", f"{stats['tiles']:,} of {stats['tile_size']} px" if stats.get("tile_size") else f"{stats['tiles']:,}"),

@@ -179,6 +179,8 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     if (stats.is_none()) return;
     nb::list strides;
     for (int v : s.strides) strides.append(v);
+    nb::list sampled_strides;
+    for (int v : s.sampled_strides) sampled_strides.append(v);
     stats["blocks"] = s.blocks_total;
     stats["blocks_outside"] = s.blocks_outside;
     stats["blocks_clipped"] = s.blocks_clipped;
@@ -203,6 +205,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["sheet_samples"] = s.sheet_samples;
     stats["sheet_samples_skipped"] = s.sheet_samples_skipped;
     stats["strides"] = strides;
+    stats["sampled_strides"] = sampled_strides;
     stats["level"] = s.level;
     stats["seconds"] = s.seconds;
     stats["seconds_plan"] = s.seconds_plan;
@@ -426,7 +429,8 @@ void bind_shaded(nb::module_& m) {
           "per grid. Each sample's factor is the colour of the voxels around it weighted by their density.\n"
           "sheet_fill: 'auto' samples a grid's sheets instead of splatting them where method 'pcvr' splats all of it\n"
           "at stride 1 (stats['grids_sampled'], stats['sheet_samples'], stats['seconds_sampling']); 'splat' never\n"
-          "does; 'sample' does for every grid that fits, at stride 1 (method 'pcvr' only).");
+          "does; 'sample' does for every grid that fits (method 'pcvr' only). A sheet on which a voxel spans two\n"
+          "pixels or more is sampled at a subgrid of that stride and post-convolved (stats['sampled_strides']).");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

@@ -235,6 +235,10 @@ def test_status_and_statistics_of_the_last_render(blob_object):
     bs.render(scene)
     mode, stats = statistics.last_render[scene.session_uid]
     assert stats["grids_sampled"] == 1 and stats["voxels"] == 0 and stats["sheet_samples"] > 0
-    assert "Sheets sampled (1 volume)" in statistics.format_sheet_stats(stats)
+    assert "Sheets sampled (1 volume" in statistics.format_sheet_stats(stats)
     rows = dict(statistics.statistics_rows(mode, stats))
     assert rows["Sheets sampled"].startswith(f"1 volume(s), {stats['sheet_samples']:,} values")
+    assert rows["Sheets sampled"].endswith(f"subgrid strides {statistics.format_strides(stats['sampled_strides'])}")
+    # Sheets on which a voxel spans several pixels are sampled on a subgrid, and the line says at which strides.
+    line = statistics.format_sheet_stats({**stats, "sampled_strides": [1, 2, 3]})
+    assert "Sheets sampled (1 volume, post-convolved at stride 2, 3)" in line

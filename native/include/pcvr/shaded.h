@@ -154,6 +154,10 @@ struct ShadedStats {
     uint64_t grids_sampled = 0;
     uint64_t sheet_samples = 0;
     uint64_t sheet_samples_skipped = 0;
+    /// The subgrid strides sampled sheets took, an automatic choice per sheet: 1 where the values are the
+    /// pixels, L where a lattice element spans L pixels or more and the sheet was sampled at its stride-L
+    /// subgrid and post-convolved.
+    std::vector<int> sampled_strides;
     std::vector<int> strides;         ///< per grid
     int level = 0;                    ///< the coarsest level of detail a grid was rendered from
     double seconds = 0;

@@ -416,6 +416,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     stats.sheets = total.last_sheet >= total.first_sheet ? uint64_t(total.last_sheet - total.first_sheet + 1) : 0;
     stats.sheet_samples = total.sheet_samples;
     stats.sheet_samples_skipped = total.sheet_samples_skipped;
+    for (int L = 1; L <= SheetSampler::kMostStride; ++L)
+        if (total.sampled_strides >> L & 1u) stats.sampled_strides.push_back(L);
     stats.seconds_sampling = total.seconds_sampling;
     stats.seconds_splat = total.seconds_splat;
     stats.seconds_post_convolution = total.seconds_post_convolution;

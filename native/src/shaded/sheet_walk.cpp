@@ -29,6 +29,7 @@ void WalkStats::add(const WalkStats& o) {
     tile_sheets_skipped += o.tile_sheets_skipped;
     sheet_samples += o.sheet_samples;
     sheet_samples_skipped += o.sheet_samples_skipped;
+    sampled_strides |= o.sampled_strides;
     seconds_sampling += o.seconds_sampling;
     seconds_splat += o.seconds_splat;
     seconds_post_convolution += o.seconds_post_convolution;
@@ -476,6 +477,7 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
     float* slot = g.slots[GridState::slot(t)].data();
     Box& box = g.boxes[GridState::slot(t)];
     const int L = sampler.stride_at(*setup.geometry, setup.sheets.spherical, middle, setup.width, setup.height);
+    stats.sampled_strides |= uint32_t(1) << L;
     if (L > 1) {
         sample_subgrid(setup, sampler, L, middle, spacing, g, read, slot, box, stats);
         stats.seconds_sampling += seconds_since(start);

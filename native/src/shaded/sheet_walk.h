@@ -87,7 +87,8 @@ struct WalkStats {
     uint64_t voxels_splatted = 0, voxels_occluded = 0, taps = 0;
     uint64_t samples_classified = 0, samples_shaded = 0;  ///< pixel-samples: classified, and with extinction (lit, composited)
     uint64_t tiles_terminated = 0, tile_sheets_composited = 0, tile_sheets_skipped = 0;
-    uint64_t sheet_samples = 0, sheet_samples_skipped = 0;  ///< sampled layers' pixel values interpolated, and left 0 (8 a vector)
+    uint64_t sheet_samples = 0, sheet_samples_skipped = 0;  ///< sampled layers' values interpolated, and left 0 (8 a vector)
+    uint32_t sampled_strides = 0;  ///< bit L set where a sampled sheet took subgrid stride L (SheetSampler::stride_at)
     double seconds_sampling = 0;
     double seconds_splat = 0, seconds_post_convolution = 0, seconds_shading = 0;
     int64_t first_sheet = INT64_MAX, last_sheet = INT64_MIN;
