@@ -161,6 +161,45 @@ inline void node_run(const PostFilter& filter, const float* sums, int p0, int p1
     for (int p = p0; p < p1; ++p) out[p] = w0[p] * n0 + w1[p] * n1 + w2[p] * n2 + w3[p] * n3;
 }
 
+/// node_run for the whole runs of nodes n0 .. n1 at a stride L known when compiling: the phases unrolled,
+/// one loop over the nodes (node_run's loop of L pixels per node was most of the horizontal pass at the
+/// small strides sampled sheets take).
+template <int L>
+void whole_node_runs(const PostFilter& filter, const float* node_row, int n0, int n1, float* h) {
+    float w[PostFilter::kTaps][L];
+    for (int k = 0; k < PostFilter::kTaps; ++k)
+        for (int p = 0; p < L; ++p) w[k][p] = filter.tap_weights(k)[p];
+    for (int n = n0; n <= n1; ++n) {
+        const float a = node_row[n - 1], b = node_row[n], c = node_row[n + 1], d = node_row[n + 2];
+        float* out = h + L * n;
+        for (int p = 0; p < L; ++p) out[p] = w[0][p] * a + w[1][p] * b + w[2][p] * c + w[3][p] * d;
+    }
+}
+
+/// Pixels [x0, x0 + width) of one node row's horizontal pass into h (by image column).
+void horizontal_pass(const PostFilter& filter, const float* node_row, int x0, int width, float* h) {
+    const int L = filter.stride();
+    const int first_column = floor_div(x0, L), last_column = floor_div(x0 + width - 1, L);
+    auto partial = [&](int n) {
+        const int p0 = std::max(0, x0 - n * L), p1 = std::min(L, x0 + width - n * L);
+        node_run(filter, node_row + n, p0, p1, h + n * L);
+    };
+    // The first and last nodes may have only some of their phases in the region.
+    const int inner0 = first_column + 1, inner1 = last_column - 1;
+    if (L > 4 || inner0 > inner1) {
+        for (int n = first_column; n <= last_column; ++n) partial(n);
+        return;
+    }
+    partial(first_column);
+    switch (L) {
+        case 1: whole_node_runs<1>(filter, node_row, inner0, inner1, h); break;
+        case 2: whole_node_runs<2>(filter, node_row, inner0, inner1, h); break;
+        case 3: whole_node_runs<3>(filter, node_row, inner0, inner1, h); break;
+        default: whole_node_runs<4>(filter, node_row, inner0, inner1, h); break;
+    }
+    partial(last_column);
+}
+
 }  // namespace
 
 void post_convolve(const SplatGrid& grid, PostFilterShape shape, ImageAccumulator& image, RenderControl& control,
@@ -226,7 +265,6 @@ void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int 
     // sum of (at most) four of those rows: long loops over the row that vectorise, where the vertical
     // pass of a node run would be a loop of only L pixels per output row.
     const int L = filter.stride();
-    const int first_column = floor_div(x0, L), last_column = floor_div(x0 + width - 1, L);
     const int first_row = floor_div(y0, L) - 1, last_row = floor_div(y0 + height - 1, L) + 2;
     const size_t row_floats = size_t(width);
     scratch.resize(row_floats * size_t(last_row - first_row + 1));
@@ -235,10 +273,7 @@ void post_convolve_region(const NodeSheet& nodes, const PostFilter& filter, int 
     for (int r = first_row; r <= last_row; ++r) {
         const float* node_row = nodes.values + size_t(r - nodes.node_y0) * nodes.pitch - nodes.node_x0;  // by subgrid column
         float* h = scratch.data() + size_t(r - first_row) * row_floats - x0;                            // by image column
-        for (int n = first_column; n <= last_column; ++n) {
-            const int p0 = std::max(0, x0 - n * L), p1 = std::min(L, x0 + width - n * L);
-            node_run(filter, node_row + n, p0, p1, h + n * L);
-        }
+        horizontal_pass(filter, node_row, x0, width, h);
     }
     for (int y = y0; y < y0 + height; ++y) {
         const int node = floor_div(y, L), phase = y - node * L;
