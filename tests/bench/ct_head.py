@@ -74,7 +74,7 @@ def native_render(grid, cam, spec: dict, method: str, **kw):
 STAGE_KEYS = ("seconds_splat", "seconds_sampling", "seconds_post_convolution", "seconds_shading", "voxels", "voxels_occluded",
               "taps", "grids_sampled", "sheet_samples", "sheet_samples_skipped",
               "samples_classified", "samples_shaded", "blocks_transparent", "bricks_transparent", "tiles",
-              "tiles_terminated", "tile_sheets_composited", "strides")
+              "tiles_terminated", "tile_sheets_composited", "strides", "sampled_strides")
 
 
 def stage_record(stats: dict) -> dict:
@@ -235,8 +235,9 @@ def cost_table(sc: dict) -> list[str]:
     lines = ["Cost model (the fastest run's `stats`): a *tap* is one subgrid node of a voxel's footprint window in "
              "one of the sheets its kernel reaches; a *sample* is one pixel's sample between two sheets that some "
              "voxel reaches while the pixel is not opaque (classified), and *shaded* the ones with extinction "
-             "(gradient, lighting, compositing); a *sheet value* is one pixel's value of a sampled sheet (two trilinear "
-             "reads of the prefiltered lattice), interpolated or, where no sample that may be visible reads it, skipped.", "",
+             "(gradient, lighting, compositing); a *sheet value* is one pixel's value of a sampled sheet, or one subgrid "
+             "node's where the sheet is sampled at a stride and post-convolved (two trilinear reads of the prefiltered "
+             "lattice), interpolated or, where no sample that may be visible reads it, skipped.", "",
              "| image | method | strides | deposits (M) | taps per deposit | splat ns per tap | sheet values interpolated / skipped (M) "
              "| sampling ns per interpolated value | samples classified / shaded (M) | shading ns per classified sample "
              "| post-convolution thread-s |",
@@ -250,7 +251,10 @@ def cost_table(sc: dict) -> list[str]:
             sampled = st.get("sheet_samples", 0)
             sampling = (f"{sampled / 1e6:.1f} / {st['sheet_samples_skipped'] / 1e6:.1f} | {1e9 * st['seconds_sampling'] / sampled:.1f}"
                         if sampled else "- | -")
-            lines.append(f"| {vk[1:]}^2 | `{key}` | {', '.join(map(str, st['strides']))} | {st['voxels'] / 1e6:.2f} "
+            # Sampled sheets take their own subgrid strides (post-convolved above 1).
+            subgrids = [s for s in st.get("sampled_strides", []) if s > 1]
+            strides = ", ".join(map(str, st["strides"])) + (f" (sampled at {', '.join(map(str, subgrids))})" if subgrids else "")
+            lines.append(f"| {vk[1:]}^2 | `{key}` | {strides} | {st['voxels'] / 1e6:.2f} "
                          f"| {splat} | {sampling} "
                          f"| {st['samples_classified'] / 1e6:.1f} / {st['samples_shaded'] / 1e6:.1f} "
                          f"| {1e9 * st['seconds_shading'] / max(st['samples_classified'], 1):.0f} "
