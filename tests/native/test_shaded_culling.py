@@ -40,14 +40,17 @@ def big_ct():
     return ct_volume(128)
 
 
-@pytest.mark.parametrize("method, post, fill", [("regular", "bilinear", "splat"), ("pcvr", "bilinear", "splat"),
-                                                ("pcvr", "catmull_rom", "splat"), ("bilinear_spread", "bilinear", "splat"),
-                                                ("pcvr", "catmull_rom", "sample")])
-def test_culling_transparent_blocks_changes_no_pixel(big_ct, method, post, fill):
+@pytest.mark.parametrize("method, post, fill, magnification",
+                         [("regular", "bilinear", "splat", 1.0), ("pcvr", "bilinear", "splat", 1.0),
+                          ("pcvr", "catmull_rom", "splat", 1.0), ("bilinear_spread", "bilinear", "splat", 1.0),
+                          ("pcvr", "catmull_rom", "sample", 1.0), ("pcvr", "catmull_rom", "sample", 3.0),
+                          ("pcvr", "bilinear", "sample", 3.0)])
+def test_culling_transparent_blocks_changes_no_pixel(big_ct, method, post, fill, magnification):
     # Sampled sheets (sheet_sampling.h) take no voxels from the culled blocks' cells, and leave at 0 the values
     # no sample that may be visible reads: measured 0.82M values interpolated (0.63M left at 0) with culling,
-    # 1.47M without.
-    cam = camera(big_ct, "persp", 1.0)
+    # 1.47M without. At magnification 3 they are sampled on subgrids of stride 2 to 4 and post-convolved; the
+    # bilinear post filter (no negative lobes) lets the brick ranges skip nodes there too.
+    cam = camera(big_ct, "persp", magnification)
     culled, kept = {}, {}
     a = pn.render_shaded(big_ct, cam, SKULL_ONLY, lights=[SUN], method=method, post_filter=post, stats=culled, sheet_fill=fill)
     b = pn.render_shaded(big_ct, cam, SKULL_ONLY, lights=[SUN], method=method, post_filter=post, stats=kept,
@@ -55,7 +58,13 @@ def test_culling_transparent_blocks_changes_no_pixel(big_ct, method, post, fill)
     assert culled["blocks_transparent"] >= 0.1 * culled["blocks"]  # measured 214 of 1534
     assert kept["blocks_transparent"] == 0
     work = "sheet_samples" if fill == "sample" else "voxels"
-    assert culled[work] < 0.9 * kept[work]
+    # Culled blocks mark no cells; on Catmull-Rom subgrids, whose wanted nodes are all interpolated, the margins
+    # of the cells that stay hold most of what the culled ones would have: measured 2.36M values against 2.42M.
+    most = 1.0 if fill == "sample" and magnification > 1.0 and post != "bilinear" else 0.9
+    assert culled[work] <= most * kept[work]
+    if magnification > 1.0:
+        assert min(culled["sampled_strides"]) >= 2
+        assert (culled["sheet_samples_skipped"] > 0) == (post == "bilinear")
     assert np.array_equal(a, b)
 
 

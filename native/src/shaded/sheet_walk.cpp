@@ -520,10 +520,11 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
             if (!cell) continue;
             cell = read(C * cx, C * cy, std::min(C * cy + C, g.height) - 1);
         }
-    // The subgrid over the slot (image pixel L n is node n) and the taps beyond it; the nodes the wanted
-    // cells' pixels read.
-    const int nx0 = floor_div(g.x0, L) - reach, ny0 = floor_div(g.y0, L) - reach;
-    const int columns = floor_div(g.x0 + g.width - 1, L) + reach + 1 - nx0, rows = floor_div(g.y0 + g.height - 1, L) + reach + 1 - ny0;
+    // The subgrid over the slot (image pixel L n is node n) and the taps beyond it (a pixel reads nodes
+    // -1 to +2 of its own, whatever the filter's weights there); the nodes the wanted cells' pixels read.
+    constexpr int margin = PostFilter::kMarginNodes;
+    const int nx0 = floor_div(g.x0, L) - margin, ny0 = floor_div(g.y0, L) - margin;
+    const int columns = floor_div(g.x0 + g.width - 1, L) + margin + 1 - nx0, rows = floor_div(g.y0 + g.height - 1, L) + margin + 1 - ny0;
     node_wanted_.assign(size_t(columns) * rows, 0);
     for (int cy = 0; cy < g.cell_rows; ++cy)
         for (int cx = 0; cx < g.cell_columns; ++cx) {
