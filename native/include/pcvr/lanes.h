@@ -69,7 +69,8 @@ inline int8x bit_set8(const uint32_t* bits, int8x index) {
 /// 64-bit load, where a pair of gathers took several times as long on the AMD cores we measure on.
 inline float8 lerp_pairs8(const float* table, int8x i, float8 f) {
 #if defined(__AVX2__) && defined(__FMA__)
-    auto pair = [&](int l) { return _mm_load_sd(reinterpret_cast<const double*>(table + i[l])); };
+    // 64 bits at any float's address (vmovq): not a double's load, which would have to be aligned.
+    auto pair = [&](int l) { return _mm_castsi128_pd(_mm_loadl_epi64(reinterpret_cast<const __m128i_u*>(table + i[l]))); };
     // Lanes a and b's pairs side by side: [t a, t a + 1, t b, t b + 1].
     auto pairs = [&](int a, int b) { return _mm_castpd_ps(_mm_unpacklo_pd(pair(a), pair(b))); };
     const __m128 p01 = pairs(0, 1), p23 = pairs(2, 3), p45 = pairs(4, 5), p67 = pairs(6, 7);
