@@ -442,12 +442,14 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
     const double front = setup.sheets.boundary(t), back = setup.sheets.boundary(t + 1);
     // The cells the layer's blocks reach on sheet t (their pixel bounds and a pixel of rounding).
     sample_cells_.assign(size_t(g.cell_columns) * g.cell_rows, 0);
+    // Blocks around the eye reach without bound (+-1e30): clamped before they become ints.
+    auto pixel = [](float x) { return int(std::clamp(double(x), -1e6, 1e6)); };
     bool any = false;
     for (const Active& a : active) {
         const TileBlock& tb = blocks[a.entry];
         if (tb.layer != layer || tb.front >= back || tb.front + sampler.block_span <= front) continue;
-        const Box pixels = Box{int(std::floor(tb.min_x)) - 1 - g.x0, int(std::floor(tb.min_y)) - 1 - g.y0, int(std::ceil(tb.max_x)) + 1 - g.x0,
-                               int(std::ceil(tb.max_y)) + 1 - g.y0}
+        const Box pixels = Box{pixel(std::floor(tb.min_x)) - 1 - g.x0, pixel(std::floor(tb.min_y)) - 1 - g.y0,
+                               pixel(std::ceil(tb.max_x)) + 1 - g.x0, pixel(std::ceil(tb.max_y)) + 1 - g.y0}
                                .clipped({0, 0, g.width - 1, g.height - 1});
         if (pixels.empty()) continue;
         for (int cy = pixels.y0 / C; cy <= pixels.y1 / C; ++cy)
