@@ -174,8 +174,7 @@ private:
     std::vector<float> power_;  // x^shininess at x = k / kPowerSteps, and one more
 };
 
-__attribute__((always_inline)) inline Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye,
-                                                            const Vec3x8& position) const {
+inline Vec3x8 Shader::shade(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position) const {
     if (!lit_ || modulated_) return shade_modulated(colour, gradient, to_eye, position);
     return shade_lit(colour, gradient, to_eye, position, nullptr, broadcast8(1.0f));
 }
@@ -192,7 +191,7 @@ inline Shader::Arriving Shader::arriving(const PreparedLight& light, const Vec3x
     return {l, energy};
 }
 
-__attribute__((always_inline)) inline Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
+inline Vec3x8 Shader::shade_lit(const Vec3x8& colour, const Vec3x8& gradient, const Vec3x8& to_eye, const Vec3x8& position,
                                 const float8* transmittance, float8 ambient_share) const {
     if (scatter_) return scatter(colour, to_eye, position, transmittance, ambient_share);
     Vec3x8 diffuse = lanes(ambient_) * ambient_share, specular = lanes({0, 0, 0});

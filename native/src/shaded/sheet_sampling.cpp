@@ -89,13 +89,15 @@ struct RowRays {
 
 }  // namespace
 
+Vec3x8 SheetSampler::in_index(const Vec3x8& v) const {
+    auto row = [&](int r) { return float(to_index.m[r][0]) * v.x + float(to_index.m[r][1]) * v.y + float(to_index.m[r][2]) * v.z; };
+    return Vec3x8{row(0), row(1), row(2)};
+}
+
 int SheetSampler::stride_at(const SheetGeometry& geometry, bool spherical, double u, int width, int height) const {
     const SampleFrames f = sample_frames(geometry, spherical, broadcast8(0.5f * float(width)), 0.5f * float(height), u);
-    auto length_in_index = [&](const Vec3x8& v) {
-        const Vec3 w{double(v.x[0]), double(v.y[0]), double(v.z[0])};
-        return length(to_index.transform_vector(w));
-    };
-    const double per_pixel = std::max(length_in_index(f.per_pixel_x), length_in_index(f.per_pixel_y));
+    const Vec3x8 right = in_index(f.per_pixel_x), down = in_index(f.per_pixel_y);
+    const double per_pixel = sqrt8(max8(dot(right, right), dot(down, down)))[0];
     if (!(per_pixel > 0)) return 1;
     return int(std::clamp(std::floor(1.0 / per_pixel + 1e-6), 1.0, double(kMostStride)));
 }
@@ -108,14 +110,10 @@ bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, doubl
     // 1 / (2 sqrt 3) of a sheet and a lattice cell of their middles: the value's reach, in index units.
     // It changes slowly and smoothly across the image: 5% more than at the region's corners covers the
     // pixels between them.
-    auto index = [&](const Vec3x8& v) {
-        auto row = [&](int r) { return float(to_index.m[r][0]) * v.x + float(to_index.m[r][1]) * v.y + float(to_index.m[r][2]) * v.z; };
-        return Vec3x8{row(0), row(1), row(2)};
-    };
     const float8 px = select8(lane_index8() < 4.0f, broadcast8(float(x0)), broadcast8(float(x1)));
     for (int y : {y0, y1}) {
         const SampleFrames f = sample_frames(geometry, spherical, px, float(y), u);
-        const Vec3x8 along = index(f.along), right = index(f.per_pixel_x), down = index(f.per_pixel_y);
+        const Vec3x8 along = in_index(f.along), right = in_index(f.per_pixel_x), down = in_index(f.per_pixel_y);
         const float8 reach = (3.29f * spacing) * sqrt8(dot(along, along)) +
                              float(gradient_step + spread) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
         if (any8(1.05f * reach > float(PrefilteredLattice::kRangeReach))) return false;

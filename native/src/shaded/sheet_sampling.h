@@ -79,6 +79,8 @@ struct SheetSampler {
                    bool skip_transparent, float* out, int width, int step = 1) const;
 
 private:
+    /// World displacements as lattice (index) displacements, eight at a time.
+    Vec3x8 in_index(const Vec3x8& v) const;
     /// One bit per lattice brick (PrefilteredLattice::bricks, bk fastest), set where its range, 0 included,
     /// may be visible under `classification`: decided once per render, so the per-vector test is a
     /// lookup in a table small enough to stay in cache (a bit a brick: 118 KB for the CT head, where

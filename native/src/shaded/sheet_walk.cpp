@@ -515,22 +515,20 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
     constexpr int C = GridState::kCell;
     const PostFilter& filter = sampler.post_filter(L);
     const int reach = filter.reach_nodes();
-    // The cells whose pixels are wanted: marked, and read by a pixel not yet opaque in one of their rows.
+    // The subgrid over the slot (image pixel L n is node n) and the taps beyond it (a pixel reads nodes
+    // -1 to +2 of its own, whatever the filter's weights there).
+    constexpr int margin = PostFilter::kMarginNodes;
+    const int nx0 = floor_div(g.x0, L) - margin, ny0 = floor_div(g.y0, L) - margin;
+    const int columns = floor_div(g.x0 + g.width - 1, L) + margin + 1 - nx0, rows = floor_div(g.y0 + g.height - 1, L) + margin + 1 - ny0;
+    // The cells whose pixels are wanted (marked, and read by a pixel not yet opaque in one of their rows),
+    // and the nodes those pixels read.
+    node_wanted_.assign(size_t(columns) * rows, 0);
     for (int cy = 0; cy < g.cell_rows; ++cy)
         for (int cx = 0; cx < g.cell_columns; ++cx) {
             uint8_t& cell = sample_cells_[size_t(cy) * g.cell_columns + cx];
             if (!cell) continue;
             cell = read(C * cx, C * cy, std::min(C * cy + C, g.height) - 1);
-        }
-    // The subgrid over the slot (image pixel L n is node n) and the taps beyond it (a pixel reads nodes
-    // -1 to +2 of its own, whatever the filter's weights there); the nodes the wanted cells' pixels read.
-    constexpr int margin = PostFilter::kMarginNodes;
-    const int nx0 = floor_div(g.x0, L) - margin, ny0 = floor_div(g.y0, L) - margin;
-    const int columns = floor_div(g.x0 + g.width - 1, L) + margin + 1 - nx0, rows = floor_div(g.y0 + g.height - 1, L) + margin + 1 - ny0;
-    node_wanted_.assign(size_t(columns) * rows, 0);
-    for (int cy = 0; cy < g.cell_rows; ++cy)
-        for (int cx = 0; cx < g.cell_columns; ++cx) {
-            if (!sample_cells_[size_t(cy) * g.cell_columns + cx]) continue;
+            if (!cell) continue;
             const int px0 = g.x0 + C * cx, px1 = g.x0 + std::min(C * cx + C, g.width) - 1;
             const int py0 = g.y0 + C * cy, py1 = g.y0 + std::min(C * cy + C, g.height) - 1;
             const int c0 = floor_div(px0, L) - 1 - nx0, c1 = floor_div(px1, L) + 2 - nx0;
