@@ -50,6 +50,20 @@ def run_blender_openvdb(code, timeout=300):
     return proc
 
 
+def file_grids(arrays, index_to_world):
+    """{name: array} as pn.write_vdb takes them: a float Grid per (i, j, k) array, three Grids (x, y, z) per
+    (i, j, k, 3) array (a vector grid, as a simulation's `color`); zeros inactive."""
+    import pcvr_native as pn
+
+    def grid(values):
+        values = np.asarray(values, np.float32)
+        if values.ndim == 4:
+            return tuple(pn.Grid.from_dense(values[..., c], index_to_world) for c in range(3))
+        return pn.Grid.from_dense(values, index_to_world)
+
+    return {name: grid(values) for name, values in arrays.items()}
+
+
 def sparse_volume(shape=(24, 20, 18), fill_fraction=0.15, seed=1):
     """A seeded float32 array: mostly zeros, a random sprinkling of positive values and one dense
     constant block (which OpenVDB stores as a tile)."""

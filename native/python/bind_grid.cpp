@@ -1,4 +1,4 @@
-// Python bindings of pcvr/grid.h: Grid, read_vdb, list_grids. Thin: conversions and GIL handling only.
+// Python bindings of pcvr/grid.h: Grid, read_vdb, list_grids, write_vdb. Thin: conversions and GIL handling only.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/array.h>
@@ -124,6 +124,52 @@ VdbCompression compression_from_string(const std::string& s) {
     throw InvalidArgument("write_vdb: compression must be 'blosc', 'zip' or 'none', got '" + s + "'");
 }
 
+/// pcvr::write_vdb without the GIL; failures to write are I/O errors: OSError rather than pcvr::Error's
+/// RuntimeError (GridError, for what cannot be written, stays itself).
+void write_file(const std::filesystem::path& path, const std::vector<VdbFileGrid>& grids, VdbCompression codec) {
+    std::string error;
+    {
+        nb::gil_scoped_release release;
+        try {
+            write_vdb(path.string(), grids, codec);
+        } catch (const GridError&) {
+            throw;
+        } catch (const Error& e) {
+            error = e.what();
+        }
+    }
+    if (!error.empty()) {
+        PyErr_SetString(PyExc_OSError, error.c_str());
+        throw nb::python_error();
+    }
+}
+
+/// write_vdb's {name: Grid or (x, y, z) Grids} and {name: {str: str}} as the grids of a file.
+std::vector<VdbFileGrid> file_grids(const nb::dict& grids, const nb::dict& metadata) {
+    std::vector<VdbFileGrid> out;
+    for (auto [key, value] : grids) {
+        VdbFileGrid grid;
+        grid.name = nb::cast<std::string>(key);
+        if (nb::isinstance<Grid>(value)) {
+            grid.components = {nb::cast<Grid>(value)};
+        } else {
+            std::vector<nb::handle> parts;
+            for (nb::handle part : nb::iter(value)) parts.push_back(part);
+            for (nb::handle part : parts)
+                if (!nb::isinstance<Grid>(part) || parts.size() != 3)
+                    throw nb::type_error(("write_vdb: grid '" + grid.name +
+                                          "' must be a Grid or a sequence of three Grids (x, y, z)").c_str());
+            for (nb::handle part : parts) grid.components.push_back(nb::cast<Grid>(part));
+        }
+        if (metadata.contains(key)) grid.metadata = nb::cast<GridMetadata>(metadata[key]);
+        out.push_back(std::move(grid));
+    }
+    for (auto [key, value] : metadata)
+        if (!grids.contains(key))
+            throw InvalidArgument("write_vdb: metadata names grid '" + nb::cast<std::string>(key) + "', which is not written");
+    return out;
+}
+
 /// The active voxels over index_bbox, read through blocks() exactly as the renderer sees them.
 nb::object to_dense(const Grid& g, float fill) {
     const auto b = g.index_bbox();
@@ -195,23 +241,7 @@ void bind_grid(nb::module_& m) {
             "write_vdb",
             [](const Grid& g, const std::filesystem::path& path, const std::string& name, const std::string& compression,
                const GridMetadata& metadata) {
-                const VdbCompression codec = compression_from_string(compression);
-                // Failures to write are I/O errors: OSError rather than the RuntimeError of pcvr::Error.
-                std::string error;
-                {
-                    nb::gil_scoped_release release;
-                    try {
-                        g.write_vdb(path.string(), name, codec, metadata);
-                    } catch (const GridError&) {
-                        throw;
-                    } catch (const Error& e) {
-                        error = e.what();
-                    }
-                }
-                if (!error.empty()) {
-                    PyErr_SetString(PyExc_OSError, error.c_str());
-                    throw nb::python_error();
-                }
+                write_file(path, {VdbFileGrid{name, {g}, metadata}}, compression_from_string(compression));
             },
             "path"_a, "name"_a = "density", "compression"_a = "blosc", "metadata"_a = GridMetadata(),
             "Write as a float fog-volume grid called `name`, compressed with 'blosc', 'zip' or 'none',\n"
@@ -267,6 +297,18 @@ void bind_grid(nb::module_& m) {
              "same 8^3 blocks the renderer walks. Raises ValueError above 2^31 voxels.")
         .def("__repr__", &grid_repr);
 
+    m.def(
+        "write_vdb",
+        [](const std::filesystem::path& path, const nb::dict& grids, const std::string& compression,
+           std::optional<nb::dict> metadata) {
+            write_file(path, file_grids(grids, metadata.value_or(nb::dict())), compression_from_string(compression));
+        },
+        "path"_a, "grids"_a, "compression"_a = "blosc", "metadata"_a = nb::none(),
+        "Write several grids into one .vdb file, in the dict's order: {name: Grid} a float grid, {name: (x, y, z)}\n"
+        "a vec3s grid from three Grids under one index_to_world (on the union of their active voxels), as\n"
+        "simulation caches hold 'density', 'flame' and 'color'. metadata: {name: {str: str}}, per grid.\n"
+        "Every grid is a fog volume. The file is replaced atomically, as Grid.write_vdb does; GridError for\n"
+        "a repeated name or components under different transforms, OSError when writing fails.");
     m.def(
         "read_vdb_vector",
         [](const std::filesystem::path& path, const std::string& grid) {

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 
 import blender_scenes as bs
-from _io_helpers import run_blender_openvdb
+from _io_helpers import file_grids
 from tools.smoke_plume import quick_material as quick_smoke_material  # noqa: F401  (the tests use it)
 
 N = 16
@@ -28,23 +28,10 @@ def fire_grids(n=N):
 
 def write_multi_grid_vdb(path, grids):
     """A .vdb file holding each of {name: values} (float grids, or vector grids where values are (n, n, n, 3):
-    Mantaflow's `color`), centred like bs.centred, written by Blender's bundled OpenVDB in a fresh interpreter
-    (pcvr_native writes one float grid per file)."""
-    arrays = {name: np.asarray(values, np.float32) for name, values in grids.items()}
-    np.savez(str(path) + ".npz", **arrays)
-    matrix = bs.centred(VOXEL, next(iter(arrays.values())).shape[0])
-    run_blender_openvdb(f"""
-        arrays = np.load({str(path) + '.npz'!r})
-        transform = vdb.createLinearTransform(np.array({matrix.tolist()!r}).T.tolist())
-        grids = []
-        for name in arrays.files:
-            grid = vdb.Vec3SGrid() if arrays[name].ndim == 4 else vdb.FloatGrid()
-            grid.copyFromArray(arrays[name])
-            grid.name, grid.transform = name, transform
-            grid.gridClass = vdb.GridClass.FOG_VOLUME
-            grids.append(grid)
-        vdb.write({str(path)!r}, grids=grids)
-    """)
+    Mantaflow's `color`), centred like bs.centred."""
+    import pcvr_native as pn
+
+    pn.write_vdb(path, file_grids(grids, bs.centred(VOXEL, next(iter(grids.values())).shape[0])))
     return str(path)
 
 

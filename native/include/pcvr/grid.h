@@ -186,9 +186,7 @@ public:
     /// with_index_to_world share them; over a background of 0 both means are the same levels).
     Grid level(int k, LevelReduction reduction = LevelReduction::MeanOverZero) const;
 
-    /// Write as a float grid named `name`. Writes to a temporary file beside `path` and renames it,
-    /// so a failed write never leaves a half-written file. Throws Error with the path on failure.
-    /// `metadata` is stored as string metadata on the grid, beside OpenVDB's own.
+    /// Write as a float grid named `name`: pcvr::write_vdb with this grid alone.
     void write_vdb(const std::string& path, const std::string& name) const;
     void write_vdb(const std::string& path, const std::string& name, VdbCompression compression,
                    const GridMetadata& metadata = {}) const;
@@ -203,6 +201,22 @@ private:
     Mat4 index_to_world_;
     std::string name_;
 };
+
+/// One grid of a file that write_vdb writes: a float grid (one component) or a vec3s grid whose x, y and z are
+/// three Grids under one index_to_world (a smoke simulation's `color` or `velocity`), on the union of their
+/// active voxels.
+struct VdbFileGrid {
+    std::string name;
+    std::vector<Grid> components;
+    GridMetadata metadata;   ///< stored as string metadata on the grid, beside OpenVDB's own
+};
+
+/// Write `grids` into one .vdb file, in order, each a fog volume. Writes to a temporary file beside `path` and
+/// renames it, so a failed write never leaves a half-written file. Throws GridError for grids that cannot be
+/// written (no grids, a repeated name, a component count other than 1 or 3, components under different
+/// transforms) and Error with the path when writing fails.
+void write_vdb(const std::string& path, const std::vector<VdbFileGrid>& grids,
+               VdbCompression compression = VdbCompression::Blosc);
 
 /// Information about one grid in a file, without reading its voxels.
 struct GridInfo {

@@ -1,5 +1,5 @@
 /// @file vdb_io.cpp
-/// @brief OpenVDB file I/O: read_vdb, list_grids and Grid::write_vdb.
+/// @brief OpenVDB file I/O: read_vdb, list_grids and write_vdb (one grid or several, float or vector).
 ///
 /// Conversions on reading: double, int32, int64, bool and mask grids become float grids (one templated
 /// copy); level sets become fog volumes via tools::sdfToFogVolume (1 inside, a linear ramp across the
@@ -11,6 +11,7 @@
 
 #include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/ValueTransformer.h>
+#include <openvdb/tree/LeafManager.h>
 
 #include <unistd.h>
 #include <fcntl.h>
@@ -26,6 +27,7 @@
 #include <map>
 #include <new>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "pcvr/errors.h"
@@ -111,6 +113,54 @@ std::string temp_path_for(const std::string& path) {
     return s.str();
 }
 
+/// The union of the three float grids' active voxels as one vec3s grid, each voxel (x, y, z) from their values
+/// there (a component's background where it has none).
+vdb::Vec3SGrid::Ptr combine_components(const std::array<vdb::FloatGrid::ConstPtr, 3>& parts) {
+    auto out = vdb::Vec3SGrid::create(vdb::Vec3s(parts[0]->background(), parts[1]->background(), parts[2]->background()));
+    for (const auto& part : parts) out->tree().topologyUnion(part->tree());
+    out->tree().voxelizeActiveTiles();  // a tile of one component may hold another's voxels
+    vdb::tree::LeafManager<vdb::Vec3STree> leaves(out->tree());
+    leaves.foreach([&parts](vdb::Vec3STree::LeafNodeType& leaf, size_t) {
+        // Accessors cache nodes and are not thread-safe: one set per leaf.
+        std::array<vdb::FloatGrid::ConstAccessor, 3> values{parts[0]->getConstAccessor(), parts[1]->getConstAccessor(),
+                                                             parts[2]->getConstAccessor()};
+        for (auto it = leaf.beginValueOn(); it; ++it) {
+            const vdb::Coord c = it.getCoord();
+            it.setValue(vdb::Vec3s(values[0].getValue(c), values[1].getValue(c), values[2].getValue(c)));
+        }
+    });
+    return out;
+}
+
+/// The OpenVDB grid that write_vdb stores for `grid`: its components' voxels (shared, not copied, for a float
+/// grid) under their transform, with the grid's name, metadata and the fog-volume class.
+vdb::GridBase::ConstPtr file_grid(const VdbFileGrid& grid, const std::string& prefix) {
+    const std::string context = prefix + "grid " + quoted(grid.name);
+    if (grid.components.size() != 1 && grid.components.size() != 3)
+        throw GridError(context + " has " + std::to_string(grid.components.size()) +
+                        " components: a float grid has 1, a vector grid 3");
+    const Mat4& index_to_world = grid.components[0].index_to_world();
+    for (const Grid& component : grid.components)
+        if (std::memcmp(component.index_to_world().m, index_to_world.m, sizeof index_to_world.m) != 0)
+            throw GridError(context + ": its components lie under different index-to-world transforms");
+
+    vdb::MetaMap meta;
+    for (const auto& [key, value] : grid.metadata) meta.insertMeta(key, vdb::StringMetadata(value));
+    meta.insertMeta(vdb::GridBase::META_GRID_NAME, vdb::StringMetadata(grid.name));
+    meta.insertMeta(vdb::GridBase::META_GRID_CLASS, vdb::StringMetadata(vdb::GridBase::gridClassToString(vdb::GRID_FOG_VOLUME)));
+    meta.insertMeta(vdb::GridBase::META_GRID_CREATOR, vdb::StringMetadata("pcvr"));
+    // The Grid's own transform: with_index_to_world may have re-placed it since it was read.
+    const detail::VdbTransform xform = detail::to_vdb_transform(index_to_world);
+    if (xform.world_scale != 1.0) meta.insertMeta(detail::kWorldScaleMetadata, vdb::DoubleMetadata(xform.world_scale));
+    if (grid.components.size() == 1) return grid.components[0].data()->vdb->copyReplacingMetadataAndTransform(meta, xform.transform);
+    vdb::Vec3SGrid::Ptr vector = combine_components({grid.components[0].data()->vdb, grid.components[1].data()->vdb,
+                                                     grid.components[2].data()->vdb});
+    static_cast<vdb::MetaMap&>(*vector) = meta;
+    vector->setTransform(xform.transform);
+    vector->setVectorType(vdb::VEC_INVARIANT);
+    return vector;
+}
+
 }  // namespace
 
 Grid read_vdb(const std::string& path, const std::string& grid_name) {
@@ -186,19 +236,19 @@ void Grid::write_vdb(const std::string& path, const std::string& name) const {
 
 void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompression compression,
                      const GridMetadata& metadata) const {
+    pcvr::write_vdb(path, {VdbFileGrid{name, {*this}, metadata}}, compression);
+}
+
+void write_vdb(const std::string& path, const std::vector<VdbFileGrid>& grids, VdbCompression compression) {
     detail::initialize_openvdb();
     const std::string prefix = "cannot write " + quoted(path) + ": ";
-
-    // A grid sharing our tree (no voxel copy) with this Grid's own name, class and transform:
-    // with_index_to_world may have re-placed it since it was read.
-    vdb::MetaMap meta;
-    for (const auto& [key, value] : metadata) meta.insertMeta(key, vdb::StringMetadata(value));
-    meta.insertMeta(vdb::GridBase::META_GRID_NAME, vdb::StringMetadata(name));
-    meta.insertMeta(vdb::GridBase::META_GRID_CLASS, vdb::StringMetadata(vdb::GridBase::gridClassToString(vdb::GRID_FOG_VOLUME)));
-    meta.insertMeta(vdb::GridBase::META_GRID_CREATOR, vdb::StringMetadata("pcvr"));
-    const detail::VdbTransform xform = detail::to_vdb_transform(index_to_world_);
-    if (xform.world_scale != 1.0) meta.insertMeta(detail::kWorldScaleMetadata, vdb::DoubleMetadata(xform.world_scale));
-    const vdb::GridBase::ConstPtr out = data_->vdb->copyReplacingMetadataAndTransform(meta, xform.transform);
+    if (grids.empty()) throw GridError(prefix + "no grids to write");
+    vdb::GridCPtrVec out;
+    std::set<std::string> names;
+    for (const VdbFileGrid& grid : grids) {
+        if (!names.insert(grid.name).second) throw GridError(prefix + "two grids are named " + quoted(grid.name));
+        out.push_back(file_grid(grid, prefix));
+    }
 
     // Write beside the target and rename: readers see the old file or the new one, never half of one.
     const std::string tmp = temp_path_for(path);
@@ -207,7 +257,7 @@ void Grid::write_vdb(const std::string& path, const std::string& name, VdbCompre
         os.open(tmp, std::ios::out | std::ios::binary | std::ios::trunc);
         if (!os) throw Error(prefix + "cannot create " + quoted(tmp) + ": " + std::strerror(errno));
         os.exceptions(std::ios::failbit | std::ios::badbit);
-        Writer(compression).write_to(os, {out});
+        Writer(compression).write_to(os, out);
         os.close();
         // Flush to disk before the rename, so a crash cannot leave an empty file under the old name.
         const int fd = ::open(tmp.c_str(), O_RDONLY);
