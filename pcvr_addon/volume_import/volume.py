@@ -15,6 +15,8 @@ and MetaImage, TIFF planes), so that a slab of i-planes is read in one sequentia
 pcvr_native.Grid.from_slabs without the whole array ever being held.
 """
 
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
@@ -80,6 +82,40 @@ class ScanVolume:
             meta["pcvr_units"] = self.units
         meta.update({f"pcvr_{key}": str(value) for key, value in self.notes.items()})
         return meta
+
+
+@contextmanager
+def held_warnings(fold=True):
+    """The format libraries' warnings held back, not printed: with `fold`, a ScanError raised inside carries
+    their first lines (once each); otherwise, and when the file reads, they are dropped. DICOM does not
+    fold: pydicom's warnings can quote header values, which may identify a patient (our own message names
+    the field at fault)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except ScanError as ex:
+            said = []
+            for warning in caught if fold else ():
+                lines = str(warning.message).strip().splitlines()
+                if lines and lines[0] not in said:
+                    said.append(lines[0])
+            if not said:
+                raise
+            raise ScanError(f"{ex} (the reader warned: {'; '.join(said[:3])})") from None
+
+
+def quietly(read_slabs, fold=True):
+    """`read_slabs` (a ScanVolume's) with each slab read under held_warnings."""
+    def read():
+        slabs = read_slabs()
+        while True:
+            with held_warnings(fold):
+                slab = next(slabs, None)
+            if slab is None:
+                return
+            yield slab
+    return read
 
 
 def planes_per_slab(plane_voxels):
