@@ -225,3 +225,65 @@ def test_the_command_line_prints_one_line(tmp_path, package, shipped):
     code, stdout, stderr = command_line(path, tmp_path)
     assert code == 1 and stdout == ""
     assert stderr.startswith(f"pcvr: {path}: ") and stderr.count("\n") == 1, stderr
+
+
+# 9 and 10. A detached NRRD header over a .nii.gz (the ITK and Slicer way to point at its voxels): pynrrd's
+# own files (tests/convert/data/README.md).
+PYNRRD_DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "pynrrd")
+
+
+def ball(folder):
+    """pynrrd's ball copied into `folder`, and its voxels as nibabel reads them, indexed [z, y, x]."""
+    import nibabel
+
+    for name in os.listdir(PYNRRD_DATA):
+        shutil.copyfile(os.path.join(PYNRRD_DATA, name), os.path.join(str(folder), name))
+    voxels = np.asarray(nibabel.load(os.path.join(str(folder), "BallBinary30x30x30.nii.gz")).dataobj)
+    return np.transpose(voxels, (2, 1, 0)).astype(np.float32)
+
+
+def test_a_positive_byte_skip_over_a_gzip_stream_counts_decompressed_bytes(tmp_path):
+    expected = ball(tmp_path)
+    with open(os.path.join(PYNRRD_DATA, "BallBinary30x30x30_nifti.nhdr")) as header:
+        text = header.read()
+    assert "# byte skip: -1\n" in text
+    path = tmp_path / "ball_byteskip_352.nhdr"   # NIfTI-1's 352 bytes before the voxels, skipped
+    path.write_text(text.replace("# byte skip: -1\n", "byte skip: 352\n"))
+    volume = volume_import.open_volume(str(path))
+    assert volume.shape == (30, 30, 30) and set(np.unique(expected)) == {0, 257}   # the ball: 257 (0x0101)
+    np.testing.assert_array_equal(values_of(volume), expected)
+    # Left-posterior-superior, unit steps: grid index [z, y, x].
+    np.testing.assert_array_equal(volume.index_to_world, np.eye(4)[:, [2, 1, 0, 3]])
+    # (pynrrd 1.1.3 seeks the byte skip in the compressed file as well, and fails on this header.)
+
+
+def test_byte_skip_minus_one_over_a_gzip_stream_takes_its_last_bytes(tmp_path):
+    import nrrd
+
+    expected = ball(tmp_path)
+    path = str(tmp_path / "BallBinary30x30x30_byteskip_minus_one_nifti.nhdr")
+    np.testing.assert_array_equal(values_of(volume_import.open_volume(path)), expected)
+    data, _header = nrrd.read(path)   # pynrrd reads it the same
+    np.testing.assert_array_equal(np.transpose(data, (2, 1, 0)), expected)
+
+
+def test_a_compressed_stream_of_another_size_than_the_header_says_is_refused(tmp_path):
+    import nrrd
+
+    ball(tmp_path)
+    path = str(tmp_path / "BallBinary30x30x30_nifti.nhdr")
+    data_file = str(tmp_path / "BallBinary30x30x30.nii.gz")
+    assert refusal(path) == (f"{path}: its data file {data_file}: the gzip stream decompresses to 54352 bytes where "
+                             "the header says 54000 (54000 bytes of int16 samples, 30 x 30 x 30), 352 bytes more: "
+                             "the samples would be misplaced (a byte skip missing or wrong?)")
+    with pytest.raises(nrrd.NRRDError, match="Size of the data does not equal"):
+        nrrd.read(path)   # pynrrd refuses it too
+
+    # A .nii.gz with bytes after its voxels: the same check.
+    values = np.arange(24, dtype=np.int16).reshape(2, 3, 4)
+    nifti = sf.nifti(str(tmp_path / "padded.nii.gz"), values, np.eye(4))
+    with gzip.open(nifti) as packed:
+        stream = packed.read()
+    with gzip.open(nifti, "wb") as repacked:
+        repacked.write(stream + b"\0" * 16)
+    assert "the gzip stream decompresses to 416 bytes where the header says 400" in refusal(nifti)
