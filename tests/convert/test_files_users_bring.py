@@ -287,3 +287,35 @@ def test_a_compressed_stream_of_another_size_than_the_header_says_is_refused(tmp
     with gzip.open(nifti, "wb") as repacked:
         repacked.write(stream + b"\0" * 16)
     assert "the gzip stream decompresses to 416 bytes where the header says 400" in refusal(nifti)
+
+
+# 8. TIFF pixels of several samples (axis S), as tifffile writes them.
+def test_planar_rgb_tiff_is_refused_as_colour(tmp_path, rng):
+    import tifffile
+
+    path = str(tmp_path / "planar_rgb.tif")
+    tifffile.imwrite(path, rng.integers(0, 255, size=(3, 9, 11)).astype(np.uint8), photometric="rgb",
+                     planarconfig="separate")
+    assert refusal(path).startswith(f"{path}: 3 samples per pixel (photometric RGB, planar, axes SYX (3, 9, 11)): "
+                                    "colour or channels; only single-channel planes convert")
+
+
+def test_a_small_stack_written_with_tifffiles_defaults_is_refused_with_the_way_to_write_it(tmp_path, rng):
+    """tifffile.imwrite stores a (3 or 4, rows, columns) array as one page of RGB(A) samples in separate
+    planes (its series axes SYX; it warns that this default will change to MINISBLACK pages). The file says
+    colour, as Fiji and tifffile read it; so it is refused, saying how to write the planes as a stack."""
+    import tifffile
+
+    planes = rng.integers(-1000, 1000, size=(4, 9, 11)).astype(np.int16)
+    path = str(tmp_path / "four_planes.tif")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        tifffile.imwrite(path, planes)
+    with tifffile.TiffFile(path) as tif:
+        assert tif.series[0].axes == "SYX" and len(tif.pages) == 1
+    assert refusal(path) == (f"{path}: 4 samples per pixel (photometric RGB, planar, axes SYX (4, 9, 11)): colour "
+                             "or channels; only single-channel planes convert; if they are 4 planes of a stack, as "
+                             "tifffile.imwrite stores a (4, rows, columns) array by default, write it with "
+                             "photometric='minisblack'")
+    tifffile.imwrite(path, planes, photometric="minisblack")
+    np.testing.assert_array_equal(values_of(volume_import.open_volume(path)), planes.astype(np.float32))
