@@ -68,8 +68,8 @@ def _where(layout):
     return f"{layout.header}: its data file {layout.path}" if layout.header else layout.path
 
 
-def _open(layout, offset):
-    raw = open(layout.path, "rb")
+def _open(layout, offset, raw):
+    """The stream of samples from the file `raw` (open; closed by the caller: gzip and bz2 leave it open)."""
     raw.seek(layout.file_offset)
     if layout.compression == "raw":
         raw.seek(layout.file_offset + offset)
@@ -81,7 +81,6 @@ def _open(layout, offset):
     elif layout.compression == "zlib":
         stream = io.BufferedReader(_ZlibReader(raw))
     else:
-        raw.close()
         raise ScanError(f"{layout.path}: compression '{layout.compression}' is not one of {', '.join(COMPRESSIONS)}")
     _skip(stream, offset)
     return stream
@@ -116,7 +115,7 @@ def read_slabs(layout, first_plane=0, planes=None):
     step = planes_per_slab(nx * ny)
     try:
         offset = layout.offset if layout.offset is not None else _offset_from_end(layout, nz * plane_bytes)
-        with _open(layout, offset) as stream:
+        with open(layout.path, "rb") as raw, _open(layout, offset, raw) as stream:
             _skip(stream, first_plane * plane_bytes)
             done = 0
             while done < planes:
@@ -140,7 +139,7 @@ def read_slabs(layout, first_plane=0, planes=None):
 
 def _offset_from_end(layout, data_bytes):
     """Where the samples start when they are the decompressed stream's last bytes: one pass to count them."""
-    with _open(layout, 0) as stream:
+    with open(layout.path, "rb") as raw, _open(layout, 0, raw) as stream:
         size = _skip(stream)
     if size < data_bytes:
         raise ScanError(f"{_where(layout)}: truncated: the header promises {data_bytes} bytes of "

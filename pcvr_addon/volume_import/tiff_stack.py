@@ -76,6 +76,9 @@ def open_tiff(path, frame=None):
                     pages = tif.asarray(key=keys, series=0)
                 except (ValueError, RuntimeError, NotImplementedError) as ex:  # e.g. a codec needing imagecodecs
                     raise ScanError(f"{path}: cannot decode pages {keys[0]}..{keys[-1]}: {ex}") from None
+                except IndexError:
+                    raise ScanError(f"{path}: truncated: the series has {planes} planes of {rows} x {columns}, the "
+                                    f"file holds {len(tif.pages)} page(s)") from None
                 yield pages.reshape(len(keys), rows, columns).astype(np.float32)
 
     sx, sy, sz = spacing

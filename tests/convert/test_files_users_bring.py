@@ -319,3 +319,19 @@ def test_a_small_stack_written_with_tifffiles_defaults_is_refused_with_the_way_t
                              "photometric='minisblack'")
     tifffile.imwrite(path, planes, photometric="minisblack")
     np.testing.assert_array_equal(values_of(volume_import.open_volume(path)), planes.astype(np.float32))
+
+
+def test_a_truncated_tiff_is_one_line_with_tifffiles_log_folded_in(tmp_path, rng):
+    """tifffile logs what it finds wrong (printed by Python's last-resort handler before our message); the
+    converter holds it back and folds it into its one line."""
+    import tifffile
+
+    path = str(tmp_path / "truncated.tif")
+    tifffile.imwrite(path, rng.integers(0, 4000, size=(5, 64, 64)).astype(np.uint16), photometric="minisblack")
+    with open(path, "r+b") as handle:
+        handle.truncate(handle.seek(0, 2) // 2)
+    message = refusal(path)
+    assert message.startswith(f"{path}: truncated: the series has 5 planes of 64 x 64, the file holds ")
+    assert "(the reader warned: <tifffile.TiffPages @8> invalid page offset" in message
+    code, _stdout, stderr = command_line(path, tmp_path)
+    assert code == 1 and stderr == f"pcvr: {message}\n"
