@@ -50,10 +50,12 @@ class Series:
                 f"{len(self.headers)} slice(s), UID {self.uid}")
 
 
-def find_series(path, skipped=None):
-    """The image series in the folder `path` (searched with its subfolders), ordered by series number.
-    `skipped` (a dict), when given, gets the files that are not slices, listed by what they are."""
-    files = sorted(os.path.join(folder, name) for folder, _dirs, names in os.walk(path)
+def find_series(path, skipped=None, subfolders=True):
+    """The image series in the folder `path` (searched with its subfolders unless told not to), ordered by
+    series number. `skipped` (a dict), when given, gets the files that are not slices, by what they are."""
+    walk = os.walk(path) if subfolders else [(path, [], [name for name in os.listdir(path)
+                                                          if os.path.isfile(os.path.join(path, name))])]
+    files = sorted(os.path.join(folder, name) for folder, _dirs, names in walk
                    for name in names if not name.startswith(".") and name.upper() != "DICOMDIR")
     series = {}
     for file in files:
@@ -146,7 +148,7 @@ def open_dicom(path, series=None):
     if dicom_mosaic.is_mosaic(header):
         return dicom_mosaic.open_mosaic(path, header, _units(header, str(header.get("Modality", ""))))
     uid = str(header.get("SeriesInstanceUID", ""))
-    found = [s for s in find_series(os.path.dirname(path) or ".") if s.uid == uid]
+    found = [s for s in find_series(os.path.dirname(path) or ".", subfolders=False) if s.uid == uid]
     return _volume(path, choose_series(path, found, series))
 
 

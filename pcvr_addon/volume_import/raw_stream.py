@@ -149,14 +149,18 @@ def _offset_from_end(layout, data_bytes):
 
 def _check_size(layout, found, plane_bytes):
     nx, ny, nz = layout.shape
-    expected = layout.stream_bytes if layout.stream_bytes is not None else layout.offset + nz * plane_bytes
-    if found != expected:
-        skipped = f"{layout.offset} bytes skipped and " if layout.offset else ""
-        raise ScanError(f"{_where(layout)}: the {layout.compression} stream decompresses to {found} bytes where the "
-                        f"header says {expected} ({skipped}{nz * plane_bytes} bytes of {layout.dtype.name} samples, "
-                        f"{nx} x {ny} x {nz}{', and the other frames' if layout.stream_bytes else ''}), {abs(found - expected)} "
-                        f"bytes {'more' if found > expected else 'fewer'}: the samples would be misplaced (a byte skip "
-                        "missing or wrong?)")
+    data = nz * plane_bytes
+    expected = layout.stream_bytes if layout.stream_bytes is not None else layout.offset + data
+    if found == expected:
+        return
+    parts = [f"{layout.offset} bytes skipped"] if layout.offset else []
+    parts.append(f"{data} bytes of {layout.dtype.name} samples, {nx} x {ny} x {nz}")
+    if expected > layout.offset + data:
+        parts.append("the other frames")
+    difference = f"{abs(found - expected)} bytes {'more' if found > expected else 'fewer'}"
+    raise ScanError(f"{_where(layout)}: the {layout.compression} stream decompresses to {found} bytes where the "
+                    f"header says {expected} ({', '.join(parts)}), {difference}: the samples would be misplaced "
+                    "(a byte skip missing or wrong?)")
 
 
 def _physical(samples, slope, intercept):
