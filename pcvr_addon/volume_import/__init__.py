@@ -11,28 +11,14 @@ The format libraries (pydicom, nibabel, pynrrd, tifffile) are imported only when
 
 import os
 
-from .volume import ScanError, ScanVolume  # noqa: F401 (the package's public names)
+from .volume import ScanError, ScanVolume, held_warnings, quietly  # noqa: F401 (ScanVolume: a public name)
 from .vdb_writer import convert, to_grid, write_vdb  # noqa: F401
 
-# By suffix; a folder of TIFF files is a stack of planes; any other folder, or a file with none of these
-# suffixes, is read as DICOM.
-FORMATS = {
-    ".nii": "nifti", ".nii.gz": "nifti",
-    ".nrrd": "nrrd", ".nhdr": "nrrd",
-    ".mha": "metaimage", ".mhd": "metaimage",
-    ".tif": "tiff", ".tiff": "tiff",
-    ".dcm": "dicom", ".ima": "dicom",
-}
+# A folder of TIFF files is a stack of planes; any other folder is searched for DICOM series; a file is read
+# as the format its suffix and content say (identify.py), or refused.
+from .identify import FORMATS, SUPPORTED, format_of, kind_of  # noqa: F401
 # File > Import's filter.
 FILE_PATTERNS = ";".join(f"*{suffix}" for suffix in FORMATS)
-
-
-def format_of(path):
-    name = path.lower()
-    for suffix in sorted(FORMATS, key=len, reverse=True):
-        if name.endswith(suffix):
-            return FORMATS[suffix]
-    return "dicom"
 
 
 def is_scan(path):
@@ -46,12 +32,19 @@ def open_volume(path, series=None, frame=None):
     if not os.path.exists(path):
         raise ScanError(f"{path}: no such file or folder")
     tiff_files = _tiff_folder(path)
-    kind = "tiff" if tiff_files else "dicom" if os.path.isdir(path) else format_of(path)
+    kind = "tiff" if tiff_files else "dicom" if os.path.isdir(path) else kind_of(path)
     if series is not None and kind != "dicom":
         raise ScanError(f"{path}: --series picks a DICOM series; this is a {kind} file")
     if frame is not None and kind not in ("nifti", "tiff"):
         raise ScanError(f"{path}: --frame picks a volume of a 4-D NIfTI or TIFF time series; this is a {kind} "
                         "file or series")
+    with held_warnings(fold=kind != "dicom"):
+        volume = _open(path, kind, series, frame, tiff_files)
+    volume.read_slabs = quietly(volume.read_slabs, fold=kind != "dicom")
+    return volume
+
+
+def _open(path, kind, series, frame, tiff_files):
     if kind == "dicom":
         from .dicom_series import open_dicom
         return open_dicom(path, series)

@@ -17,12 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import dicom_mosaic
+from .dicom_values import header_number, physical_pixels, sop_class
+from .identify import SUPPORTED
 from .volume import ScanError, ScanVolume, affine_from_axes
 
 # The header fields the grouping and the geometry need: read without the pixel data.
 HEADER_TAGS = ["SeriesInstanceUID", "SeriesNumber", "Modality", "ImagePositionPatient", "ImageOrientationPatient",
                "PixelSpacing", "Rows", "Columns", "NumberOfFrames", "SamplesPerPixel", "RescaleType", "Units",
-               "SpacingBetweenSlices", "SliceThickness"]
+               "SpacingBetweenSlices", "SliceThickness", "ImageType", "SOPClassUID", "DoseUnits"]
 # Slice positions agree to this (mm), or this fraction of the slice spacing if larger: scanners round
 # positions to a few decimals.
 POSITION_TOLERANCE_MM = 0.01
@@ -47,43 +50,74 @@ class Series:
                 f"{len(self.headers)} slice(s), UID {self.uid}")
 
 
-def find_series(path):
-    """The image series under `path` (a folder, searched with its subfolders, or one file of a series: the
-    series of that file from its folder; all of the folder's when the file is no slice, e.g. a DICOMDIR),
-    ordered by series number."""
-    from pydicom import dcmread
-    from pydicom.errors import InvalidDicomError
-
-    if os.path.isdir(path):
-        files = sorted(os.path.join(folder, name) for folder, _dirs, names in os.walk(path)
-                       for name in names if not name.startswith(".") and name.upper() != "DICOMDIR")
-    else:
-        folder = os.path.dirname(path) or "."
-        files = sorted(os.path.join(folder, name) for name in os.listdir(folder)
-                       if os.path.isfile(os.path.join(folder, name)) and name.upper() != "DICOMDIR")
+def find_series(path, skipped=None, subfolders=True):
+    """The image series in the folder `path` (searched with its subfolders unless told not to), ordered by
+    series number. `skipped` (a dict), when given, gets the files that are not slices, by what they are."""
+    walk = os.walk(path) if subfolders else [(path, [], [name for name in os.listdir(path)
+                                                          if os.path.isfile(os.path.join(path, name))])]
+    files = sorted(os.path.join(folder, name) for folder, _dirs, names in walk
+                   for name in names if not name.startswith(".") and name.upper() != "DICOMDIR")
     series = {}
     for file in files:
         try:
-            header = dcmread(file, stop_before_pixels=True, specific_tags=HEADER_TAGS)
-        except (InvalidDicomError, OSError, ValueError, EOFError):
-            continue  # not DICOM: other files in the folder
-        if "ImagePositionPatient" not in header or "ImageOrientationPatient" not in header:
-            continue  # not a slice of a volume (a report, a scout without geometry)
+            header = _read_header(file)
+        except ScanError:
+            header = None
+        reason = "not DICOM" if header is None else _not_a_slice(file, header)
+        if reason:
+            if skipped is not None:
+                skipped.setdefault(reason, []).append(file)
+            continue
         uid = str(header.get("SeriesInstanceUID", ""))
         if uid not in series:
             series[uid] = Series(uid=uid, number=header.get("SeriesNumber"),
                                  modality=str(header.get("Modality", "")), headers=[])
         series[uid].headers.append((file, header))
-    found = sorted(series.values(), key=lambda s: (s.number is None, s.number or 0, s.uid))
-    if not os.path.isdir(path):
-        return [s for s in found if any(os.path.samefile(f, path) for f, _h in s.headers)] or found
-    return found
+    return sorted(series.values(), key=lambda s: (s.number is None, _sortable(s.number), s.uid))
 
 
-def choose_series(path, found, choice):
+def _sortable(number):
+    try:
+        return float(number or 0)
+    except (TypeError, ValueError):
+        return 0.0
+
+
+def _read_header(file):
+    """The file's header without its pixel data; ScanError when pydicom cannot read it as DICOM."""
+    from pydicom import dcmread
+    from pydicom.errors import InvalidDicomError
+
+    try:
+        return dcmread(file, stop_before_pixels=True, specific_tags=HEADER_TAGS)
+    except InvalidDicomError:
+        raise ScanError(f"{file}: not a DICOM file (no 'DICM' marker after the 128-byte preamble)") from None
+    except (OSError, ValueError, EOFError, KeyError, TypeError) as ex:
+        raise ScanError(f"{file}: a malformed DICOM header ({type(ex).__name__}: {ex})") from None
+
+
+def _not_a_slice(file, header):
+    """Why `header` is no slice of a series (a sentence), or None. Siemens mosaics count as slices here:
+    _volume unpacks them."""
+    if header.get("ImagePositionPatient") is not None and header.get("ImageOrientationPatient") is not None:
+        return None
+    what = sop_class(header)
+    if "Rows" not in header:
+        return f"a DICOM {what}, which holds no image"
+    frames = header_number(file, header, "NumberOfFrames", 1, int)
+    if frames > 1 or "Enhanced" in what or "PerFrameFunctionalGroupsSequence" in header:
+        return (f"a DICOM {what} (a multi-frame image whose geometry is given per frame, {frames} frame(s)), "
+                "which does not convert")
+    return f"a DICOM {what} without an image position and orientation (no slice of a volume)"
+
+
+def choose_series(path, found, choice, skipped=None):
     """The series `choice` names (an index into `found` or a series UID); the only one when `choice` is None."""
     if not found:
-        raise ScanError(f"{path}: no DICOM image series found (no file with an image position and orientation)")
+        what = "; ".join(f"{len(files)} file(s): {reason} (e.g. {os.path.basename(files[0])})"
+                         for reason, files in sorted((skipped or {}).items()))
+        raise ScanError(f"{path}: no DICOM image series found (no file with an image position and orientation)"
+                        f"{': ' + what if what else ''}. Supported: {SUPPORTED}")
     listing = "\n".join(s.summary(i) for i, s in enumerate(found))
     if choice is None:
         if len(found) == 1:
@@ -99,43 +133,67 @@ def choose_series(path, found, choice):
 
 
 def open_dicom(path, series=None):
-    chosen = choose_series(path, find_series(path), series)
-    return _volume(path, chosen)
+    """A folder's series (the one `series` picks), or the series of the file `path` from its folder. A file
+    that is no slice is refused with what it is: it never stands for other files beside it; a DICOMDIR
+    names its folder's series."""
+    if os.path.isdir(path) or os.path.basename(path).upper() == "DICOMDIR":
+        folder = path if os.path.isdir(path) else os.path.dirname(path) or "."
+        skipped = {}
+        found = find_series(folder, skipped)
+        return _volume(path, choose_series(path, found, series, skipped))
+    header = _read_header(path)
+    reason = _not_a_slice(path, header)
+    if reason:
+        raise ScanError(f"{path}: {reason}; DICOM converts as series of single-frame slices or Siemens mosaics")
+    if dicom_mosaic.is_mosaic(header):
+        return dicom_mosaic.open_mosaic(path, header, _units(header, str(header.get("Modality", ""))))
+    uid = str(header.get("SeriesInstanceUID", ""))
+    found = [s for s in find_series(os.path.dirname(path) or ".", subfolders=False) if s.uid == uid]
+    return _volume(path, choose_series(path, found, series))
 
 
 def _volume(path, series):
     headers = series.headers
+    mosaics = [file for file, header in headers if dicom_mosaic.is_mosaic(header)]
+    if mosaics and len(headers) == 1:
+        file, header = headers[0]
+        return dicom_mosaic.open_mosaic(file, header, _units(header, series.modality))
+    if mosaics:
+        raise ScanError(f"{path}: series {series.number} holds {len(headers)} Siemens mosaics, each a whole "
+                        f"volume (time points or diffusion directions); convert one of its files, e.g. {mosaics[0]}")
     first = headers[0][1]
     for file, header in headers:
-        if int(header.get("NumberOfFrames", 1) or 1) > 1:
-            raise ScanError(f"{file}: a multi-frame image ({header.NumberOfFrames} frames); only series of "
-                            "single-frame slices convert")
-        if int(header.get("SamplesPerPixel", 1)) != 1:
-            raise ScanError(f"{file}: {header.SamplesPerPixel} samples per pixel (colour); only greyscale converts")
-    _check_same(headers, "ImageOrientationPatient", lambda h: np.array(h.ImageOrientationPatient, dtype=float),
+        frames = header_number(file, header, "NumberOfFrames", 1, int)
+        if frames > 1:
+            raise ScanError(f"{file}: a multi-frame {sop_class(header)} ({frames} frames); only "
+                            "series of single-frame slices and Siemens mosaics convert")
+        samples = header_number(file, header, "SamplesPerPixel", 1, int)
+        if samples != 1:
+            raise ScanError(f"{file}: {samples} samples per pixel (colour); only greyscale converts")
+    _check_same(headers, "ImageOrientationPatient", lambda f, h: orientation_of(f, h),
                 lambda a, b: np.allclose(a, b, atol=ORIENTATION_TOLERANCE))
-    _check_same(headers, "Rows and Columns", lambda h: (int(h.Rows), int(h.Columns)), lambda a, b: a == b)
-    _check_same(headers, "PixelSpacing", lambda h: np.array(h.get("PixelSpacing", [1.0, 1.0]), dtype=float),
+    _check_same(headers, "Rows and Columns", lambda f, h: (header_number(f, h, "Rows", None, int),
+                                                           header_number(f, h, "Columns", None, int)),
+                lambda a, b: a == b)
+    _check_same(headers, "PixelSpacing", lambda f, h: np.array(pixel_spacing(f, h)),
                 lambda a, b: np.allclose(a, b, rtol=1e-6))
     _check_decoder(headers)
 
-    orientation = np.array(first.ImageOrientationPatient, dtype=float)
-    along_row, along_column = orientation[:3], orientation[3:]
-    along_row, along_column = along_row / np.linalg.norm(along_row), along_column / np.linalg.norm(along_column)
+    along_row, along_column = orientation_of(headers[0][0], first)
     normal = np.cross(along_row, along_column)
-    positions = np.array([np.array(h.ImagePositionPatient, dtype=float) for _f, h in headers])
+    positions = np.array([header_number(f, h, "ImagePositionPatient", count=3) for f, h in headers])
     order = np.argsort(positions @ normal, kind="stable")
     files = [headers[n][0] for n in order]
     positions = positions[order]
     step, notes = _slice_step(files, positions, normal, first)
 
-    row_spacing, column_spacing = (float(s) for s in first.get("PixelSpacing", [1.0, 1.0]))
+    row_spacing, column_spacing = pixel_spacing(headers[0][0], first)
     # i: slices in order along the normal, j: rows (down the columns), k: columns (along a row).
     index_to_world = affine_from_axes(np.column_stack([step, along_column * row_spacing,
                                                        along_row * column_spacing]), positions[0])
     modality = series.modality
     units = _units(first, modality)
-    rows, columns = int(first.Rows), int(first.Columns)
+    rows, columns = (header_number(headers[0][0], first, key, None, int) for key in ("Rows", "Columns"))
     if series.number is not None:
         notes["series_number"] = str(series.number)
     return ScanVolume(source=path, source_format="DICOM", shape=(len(files), rows, columns),
@@ -143,13 +201,27 @@ def _volume(path, series):
                       modality=modality, units=units, notes=notes)
 
 
+def orientation_of(file, header):
+    """The unit directions along a row and down a column (ImageOrientationPatient's two halves)."""
+    orientation = np.array(header_number(file, header, "ImageOrientationPatient", count=6))
+    along_row, along_column = orientation[:3], orientation[3:]
+    lengths = np.linalg.norm(along_row), np.linalg.norm(along_column)
+    if min(lengths) < 1e-6:
+        raise ScanError(f"{file}: a malformed DICOM header: ImageOrientationPatient has a zero direction")
+    return along_row / lengths[0], along_column / lengths[1]
+
+
+def pixel_spacing(file, header):
+    """(row spacing, column spacing) in millimetres: PixelSpacing, 1 mm when absent."""
+    return tuple(header_number(file, header, "PixelSpacing", [1.0, 1.0], count=2))
+
+
 def _check_same(headers, name, value, same):
-    reference_file, reference = headers[0][0], value(headers[0][1])
+    reference_file, reference = headers[0][0], value(*headers[0])
     for file, header in headers[1:]:
-        try:
-            this = value(header)
-        except AttributeError:
-            raise ScanError(f"{file}: no {name}") from None
+        this = value(file, header)
+        if this is None or None in np.ravel(this):
+            raise ScanError(f"{file}: no {name}")
         if not same(this, reference):
             raise ScanError(f"{file}: its {name} differs from that of {reference_file} in the same series "
                             f"({_text(this)} against {_text(reference)}); the slices do not form one volume")
@@ -163,7 +235,7 @@ def _slice_step(files, positions, normal, first):
     """The step from slice to slice (a 3-vector), checked: no two slices at one place, none missing, evenly
     spaced, on one line. A step off the normal is a gantry tilt, noted in degrees."""
     if len(files) == 1:
-        thickness = float(first.get("SpacingBetweenSlices") or first.get("SliceThickness") or 1.0)
+        thickness = slice_thickness(files[0], first)
         return normal * thickness, {"slice_spacing": "one slice: its thickness"}
     distances = positions @ normal
     gaps = np.diff(distances)
@@ -200,6 +272,12 @@ def _slice_step(files, positions, normal, first):
     return step, notes
 
 
+def slice_thickness(file, header):
+    """SpacingBetweenSlices, else SliceThickness, else 1 mm."""
+    return (header_number(file, header, "SpacingBetweenSlices") or header_number(file, header, "SliceThickness")
+            or 1.0)
+
+
 def _check_decoder(headers):
     """Refuse before reading any pixels when a compressed transfer syntax has no decoder installed."""
     from pydicom.pixels import get_decoder
@@ -226,6 +304,8 @@ def _check_decoder(headers):
 def _units(header, modality):
     if modality == "CT":
         return "HU"
+    if modality == "RTDOSE":
+        return {"GY": "Gy", "RELATIVE": "relative dose"}.get(str(header.get("DoseUnits", "")).upper(), "")
     if modality == "PT" and header.get("Units"):
         return str(header.Units)
     rescale_type = str(header.get("RescaleType", ""))
@@ -234,18 +314,8 @@ def _units(header, modality):
 
 def _read_slices(files):
     """One float32 slab [1, rows, columns] per file, in physical units."""
-    from pydicom import dcmread
-
     for file in files:
-        try:
-            dataset = dcmread(file)
-            stored = dataset.pixel_array
-        except Exception as ex:  # pydicom's decoders raise many types; the message names no patient
-            raise ScanError(f"{file}: cannot read its pixel data: {type(ex).__name__}: {ex}") from None
-        if stored.ndim != 2:
-            raise ScanError(f"{file}: pixel data of shape {stored.shape} is not one greyscale slice")
-        slope = float(dataset.get("RescaleSlope", 1.0) or 1.0)
-        intercept = float(dataset.get("RescaleIntercept", 0.0) or 0.0)
-        # In double: integer stored values and integer rescales (CT's) give exact Hounsfield units.
-        values = stored.astype(np.float64) * slope + intercept
+        values, _dataset = physical_pixels(file)
+        if values.ndim != 2:
+            raise ScanError(f"{file}: pixel data of shape {values.shape} is not one greyscale slice")
         yield values.astype(np.float32)[np.newaxis]

@@ -97,7 +97,8 @@ def open_metaimage(path):
             offset = os.path.getsize(data_path) - int(np.prod(shape)) * dtype.itemsize
     compressed = fields.get("CompressedData", "False") == "True"
     layout = raw_stream.RawLayout(path=data_path, offset=0, file_offset=offset,
-                                  compression="zlib" if compressed else "raw", dtype=dtype, shape=shape)
+                                  compression="zlib" if compressed else "raw", dtype=dtype, shape=shape,
+                                  header="" if data_file == "LOCAL" else path)
     # Row a of `directions` is axis a's direction; columns of index_to_world are the axes' steps.
     index_to_world = affine_from_axes(directions.T * spacing, origin)
     return ScanVolume(source=path, source_format="MetaImage", shape=shape[::-1],

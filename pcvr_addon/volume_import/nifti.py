@@ -41,7 +41,8 @@ def open_nifti(path, frame=None):
     layout = raw_stream.RawLayout(
         path=path, offset=int(image.dataobj.offset) + frame * volume_bytes,
         compression="gzip" if path.lower().endswith(".gz") else "raw", dtype=dtype, shape=shape[:3],
-        slope=float(slope), intercept=float(intercept))
+        slope=float(slope), intercept=float(intercept),
+        stream_bytes=int(image.dataobj.offset) + frames * volume_bytes)
 
     lps = LPS_FROM_RAS @ image.affine
     lps[:3, :] *= scale

@@ -71,16 +71,19 @@ def open_nrrd(path):
             raise ScanError(f"{path}: its data file '{data_path}' does not exist")
         data_offset = 0
     data_offset += _skip_lines(data_path, data_offset, int(header.get("line skip", 0)))
+    # The byte skip counts bytes of the decompressed stream when the data are compressed (teem's and pynrrd's
+    # reading); -1: the samples are the data's last bytes.
     byte_skip = int(header.get("byte skip", 0))
-    if byte_skip == -1:
-        if ENCODINGS[encoding] != "raw":
-            raise ScanError(f"{path}: 'byte skip: -1' applies to raw data only")
-        data_offset = os.path.getsize(data_path) - int(np.prod(shape)) * dtype.itemsize
-    else:
-        data_offset += byte_skip
-
-    layout = raw_stream.RawLayout(path=data_path, offset=0, file_offset=data_offset,
-                                  compression=ENCODINGS[encoding], dtype=dtype, shape=shape)
+    compression = ENCODINGS[encoding]
+    if byte_skip < -1:
+        raise ScanError(f"{path}: 'byte skip: {byte_skip}' is invalid (-1 or more)")
+    skip = None if byte_skip == -1 else byte_skip
+    if compression == "raw":
+        data_bytes = int(np.prod(shape)) * dtype.itemsize
+        data_offset = os.path.getsize(data_path) - data_bytes if skip is None else data_offset + skip
+        skip = 0
+    layout = raw_stream.RawLayout(path=data_path, offset=skip, file_offset=data_offset, compression=compression,
+                                  dtype=dtype, shape=shape, header=path if detached else "")
     return ScanVolume(source=path, source_format="NRRD", shape=shape[::-1],
                       index_to_world=reversed_axes(_index_to_world(path, header)),
                       read_slabs=lambda: raw_stream.read_slabs(layout))

@@ -29,10 +29,13 @@ def open_tiff(path, frame=None):
             series = tif.series[0]
             axes, shape, dtype = series.axes, tuple(series.shape), np.dtype(series.dtype)
             spacing, spacing_note = _spacing(path, tif)
+            samples = _samples_refusal(path, axes, shape, series.keyframe)
     except (tifffile.TiffFileError, OSError, IndexError) as ex:
         raise ScanError(f"{path}: not a readable TIFF file: {ex}") from None
     if dtype.kind not in "iuf":
         raise ScanError(f"{path}: samples of type {dtype} are not scalar numbers")
+    if samples:
+        raise ScanError(samples)
     if not axes.endswith("YX"):
         raise ScanError(f"{path}: pages of axes '{axes}' (colour samples?) are not single-channel planes")
 
@@ -73,6 +76,9 @@ def open_tiff(path, frame=None):
                     pages = tif.asarray(key=keys, series=0)
                 except (ValueError, RuntimeError, NotImplementedError) as ex:  # e.g. a codec needing imagecodecs
                     raise ScanError(f"{path}: cannot decode pages {keys[0]}..{keys[-1]}: {ex}") from None
+                except IndexError:
+                    raise ScanError(f"{path}: truncated: the series has {planes} planes of {rows} x {columns}, the "
+                                    f"file holds {len(tif.pages)} page(s)") from None
                 yield pages.reshape(len(keys), rows, columns).astype(np.float32)
 
     sx, sy, sz = spacing
@@ -82,6 +88,21 @@ def open_tiff(path, frame=None):
         notes["frame"] = f"{frame} of {frames}"
     return ScanVolume(source=path, source_format="TIFF", shape=(planes, rows, columns),
                       index_to_world=index_to_world, read_slabs=read_slabs, notes=notes)
+
+
+def _samples_refusal(path, axes, shape, page):
+    """Why pixels of several samples (axis S: RGB, or channels stored as samples) do not convert, or None."""
+    count = shape[axes.index("S")] if "S" in axes else 1
+    if count == 1:
+        return None
+    photometric = getattr(page.photometric, "name", str(page.photometric))
+    planar = int(page.planarconfig) == 2
+    hint = ""
+    if planar and photometric == "RGB" and count in (3, 4):
+        hint = (f"; if they are {count} planes of a stack, as tifffile.imwrite stores a ({count}, rows, columns) "
+                "array by default, write it with photometric='minisblack'")
+    return (f"{path}: {count} samples per pixel (photometric {photometric}, {'planar' if planar else 'interleaved'}"
+            f", axes {axes} {shape}): colour or channels; only single-channel planes convert{hint}")
 
 
 def open_tiff_folder(folder, files):

@@ -11,10 +11,11 @@ import hashlib
 import os
 import re
 
-from . import format_of, open_volume, write_vdb
+from . import open_volume, write_vdb
+from .identify import names_dicom_file
 
 # Bump when the conversion's output changes, so that older cached files are not reused.
-CONVERTER_VERSION = 1
+CONVERTER_VERSION = 2
 
 
 def cache_directory():
@@ -24,7 +25,7 @@ def cache_directory():
 
 def _fingerprint(path, series, frame):
     digest = hashlib.sha1(f"{CONVERTER_VERSION}\0{os.path.abspath(path)}\0{series}\0{frame}".encode())
-    if os.path.isfile(path) and format_of(path) == "dicom":
+    if names_dicom_file(path):
         path = os.path.dirname(os.path.abspath(path))  # a file names its folder's series
     files = [path] if os.path.isfile(path) else sorted(
         os.path.join(folder, name) for folder, _dirs, names in os.walk(path) for name in names)
@@ -37,7 +38,7 @@ def _fingerprint(path, series, frame):
 def vdb_name(path):
     """A file name for the scan's .vdb that Blender will not take for a numbered sequence: a DICOM series is
     named after its folder."""
-    if os.path.isfile(path) and format_of(path) == "dicom":
+    if names_dicom_file(path):
         path = os.path.dirname(os.path.abspath(path))
     stem = os.path.basename(os.path.normpath(path))
     stem = re.sub(r"(\.nii)?\.[A-Za-z]+$", "", stem) or "scan"

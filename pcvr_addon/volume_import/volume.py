@@ -15,6 +15,9 @@ and MetaImage, TIFF planes), so that a slab of i-planes is read in one sequentia
 pcvr_native.Grid.from_slabs without the whole array ever being held.
 """
 
+import logging
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
@@ -80,6 +83,62 @@ class ScanVolume:
             meta["pcvr_units"] = self.units
         meta.update({f"pcvr_{key}": str(value) for key, value in self.notes.items()})
         return meta
+
+
+# Loggers of the format libraries that print to stderr (nibabel's own handler; tifffile's records through
+# Python's last-resort handler) or could.
+LIBRARY_LOGGERS = ("nibabel", "nibabel.global", "tifffile", "pydicom")
+
+
+class _Held(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@contextmanager
+def held_warnings(fold=True):
+    """The format libraries' warnings and log records held back, not printed: with `fold`, a ScanError
+    raised inside carries their first lines (once each); otherwise, and when the file reads, they are
+    dropped. DICOM does not fold: pydicom's warnings can quote header values, which may identify a patient
+    (our own message names the field at fault)."""
+    held = _Held()
+    loggers = [logging.getLogger(name) for name in LIBRARY_LOGGERS]
+    saved = [(logger.handlers, logger.propagate) for logger in loggers]
+    for logger in loggers:
+        logger.handlers, logger.propagate = [held], False
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield
+    except ScanError as ex:
+        said = []
+        for text in [str(w.message) for w in caught] + held.messages if fold else ():
+            lines = text.strip().splitlines()
+            if lines and lines[0] not in said:
+                said.append(lines[0])
+        if not said:
+            raise
+        raise ScanError(f"{ex} (the reader warned: {'; '.join(said[:3])})") from None
+    finally:
+        for logger, (handlers, propagate) in zip(loggers, saved):
+            logger.handlers, logger.propagate = handlers, propagate
+
+
+def quietly(read_slabs, fold=True):
+    """`read_slabs` (a ScanVolume's) with each slab read under held_warnings."""
+    def read():
+        slabs = read_slabs()
+        while True:
+            with held_warnings(fold):
+                slab = next(slabs, None)
+            if slab is None:
+                return
+            yield slab
+    return read
 
 
 def planes_per_slab(plane_voxels):
