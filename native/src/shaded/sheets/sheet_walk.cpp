@@ -1,11 +1,11 @@
-#include "shaded/sheet_walk.h"
+#include "shaded/sheets/sheet_walk.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 
-#include "shaded/emission.h"
+#include "shaded/classify/emission.h"
 
 namespace pcvr {
 

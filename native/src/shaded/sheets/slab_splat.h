@@ -27,9 +27,9 @@
 
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
-#include "shaded/occlusion_map.h"
-#include "shaded/sheet_geometry.h"
-#include "shaded/sheet_buffer.h"
+#include "shaded/sheets/occlusion_map.h"
+#include "shaded/sheets/sheet_buffer.h"
+#include "shaded/sheets/sheet_geometry.h"
 #include "splat/block_linearisation.h"
 #include "splat/phase_table.h"
 #include "splat/slab_footprint.h"

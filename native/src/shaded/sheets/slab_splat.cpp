@@ -1,4 +1,4 @@
-#include "shaded/slab_splat.h"
+#include "shaded/sheets/slab_splat.h"
 
 #include <algorithm>
 #include <cmath>
