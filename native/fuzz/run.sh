@@ -38,6 +38,5 @@ llvm-cov-14 report "$build-coverage/fuzz/fuzz_read_vdb" -object "$build-coverage
 # The shaded renderer's sources as fuzz_shaded's corpus alone reaches them.
 llvm-profdata-14 merge -sparse "$profiles"/shaded-*.profraw -o "$profiles/shaded.profdata"
 llvm-cov-14 report "$build-coverage/fuzz/fuzz_shaded" -instr-profile="$profiles/shaded.profdata" \
-    "$root"/native/src/{shaded,sheet_walk,slab_splat,slab_footprint,transfer_function,shading,raycast_reference,tile_set}.cpp \
-    "$root"/native/src/{sheet_buffer,occlusion_map,sheet_walk,slab_splat,tile_set}.h \
-    "$root"/native/include/pcvr/{shaded,transfer_function,shading,slab_footprint,compositing}.h | tee "$build/coverage-shaded.txt"
+    "$root"/native/src/shaded "$root"/native/src/splat/slab_footprint.{cpp,h} "$root"/native/src/view/tile_set.{cpp,h} \
+    "$root"/native/include/pcvr/{shaded,transfer_function,shading}.h | tee "$build/coverage-shaded.txt"

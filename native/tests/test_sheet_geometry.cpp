@@ -1,9 +1,9 @@
-// Where perspective sheets lie (src/shaded/sheet_geometry.h): the metric in which a grid's voxels are
+// Where perspective sheets lie (src/shaded/sheets/sheet_geometry.h): the metric in which a grid's voxels are
 // cubes, and the frames of samples on spheres in that metric.
 #include <cmath>
 #include <vector>
 
-#include "shaded/sheet_geometry.h"
+#include "shaded/sheets/sheet_geometry.h"
 #include "unit_test.h"
 
 using namespace pcvr;

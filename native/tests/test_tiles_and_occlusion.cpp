@@ -1,9 +1,9 @@
 // Tiles, sheet rings and occlusion maps: the bookkeeping of the sheet walk (src/view/tile_set.h,
-// src/shaded/sheet_buffer.h, src/shaded/occlusion_map.h).
+// src/shaded/sheets/sheet_buffer.h, src/shaded/sheets/occlusion_map.h).
 #include <random>
 
-#include "shaded/occlusion_map.h"
-#include "shaded/sheet_buffer.h"
+#include "shaded/sheets/occlusion_map.h"
+#include "shaded/sheets/sheet_buffer.h"
 #include "unit_test.h"
 #include "view/tile_set.h"
 

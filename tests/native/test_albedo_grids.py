@@ -1,4 +1,4 @@
-"""A colour per voxel (render_shaded(..., albedo_grids=(red, green, blue)), src/shaded/albedo_field.h): three
+"""A colour per voxel (render_shaded(..., albedo_grids=(red, green, blue)), src/shaded/light/albedo_field.h): three
 grids on the volume's voxels whose density-weighted colour multiplies the transfer function's at each sample,
 as Blender's Color Attribute multiplies the Principled Volume's Color; the ray caster reads the same factor."""
 

@@ -1,6 +1,6 @@
 """Ambient occlusion (pn.Shading(ambient_occlusion=True)): the ambient light reaches each sample through the
 volumes, as the world's light does in Cycles: times the mean of its transmittance towards +-x, +-y and +-z.
-The sheet renderers read it from six light volumes (src/shaded/light_volume.h, at twice the shadows' texel
+The sheet renderers read it from six light volumes (src/shaded/light/light_volume.h, at twice the shadows' texel
 spacing), the ray caster casts the six shadow rays at every sample: it is the judge."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Clip planes and crop boxes (render_*(clip_planes=..., clip_box=...)): the reconstructed field is cut exactly.
 X-ray integrates the kept part of each ray (kernels a plane crosses are integrated per pixel: src/splat/cut_splat.h),
-shaded and MIP samples count for the share of their stretch of ray inside (src/shaded/sample_clip.h)."""
+shaded and MIP samples count for the share of their stretch of ray inside (src/shaded/classify/sample_clip.h)."""
 
 from __future__ import annotations
 

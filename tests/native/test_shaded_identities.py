@@ -14,7 +14,7 @@
   - pcvr at a fixed stride, both projections: as regular (the post-convolution is linear);
   - bilinear_spread, orthographic: 1e-4 (both spread each voxel's whole mass; measured 1.4e-6).
   With more samples the Catmull-Rom cubic between sheets would keep the sum, but it is clamped to the
-  range of the two sheets around each sample (src/shaded/sheet_walk.cpp, AlongRay), which flattens peaks
+  range of the two sheets around each sample (src/shaded/sheets/sheet_walk_compositing.cpp, AlongRay), which flattens peaks
   between sheets: 5e-3 (measured 3.4e-3, at the phantom's one-voxel skull).
 * The image does not depend on the number of threads (tiles are rendered one thread each): bit-equal.
 * The opacity correction: halving the sheet spacing keeps the optical depth of a volume to float

@@ -1,4 +1,4 @@
-"""Levels of detail in shaded rendering and MIP (render_shaded / render_mip `level=`, src/shaded/shaded_levels.h).
+"""Levels of detail in shaded rendering and MIP (render_shaded / render_mip `level=`, src/shaded/classify/shaded_levels.h).
 
 Their levels count inactive voxels as the grid's background, which is what the sheets reconstruct towards
 beyond the active voxels (the X-ray's levels count them as 0), shaded rendering's as means and MIP's as

@@ -2,7 +2,7 @@
 0.1 voxel.
 
 A slab mean is lower than the peak inside it; render_mip fits a parabola through the three slab means
-around a maximum along the ray and adds back the box filter's loss (sheet_walk.cpp), which halves
+around a maximum along the ray and adds back the box filter's loss (sheet_walk_compositing.cpp), which halves
 the error on smooth data. What remains, measured as the largest error relative to the image's peak:
 blobs, spacing 1: 0.6-0.9% (allowed 2%), with pcvr's bilinear post filter 3.1% (allowed 4%); the CT phantom, whose one-voxel skull the slabs and the
 post-filter flatten: regular at spacing 0.5, 1.9-2.0% (allowed 4%); pcvr with the Catmull-Rom post

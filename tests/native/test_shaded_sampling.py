@@ -1,4 +1,4 @@
-"""Sheets sampled instead of splatted (src/shaded/sheet_sampling.h).
+"""Sheets sampled instead of splatted (src/shaded/sheets/sheet_sampling.h).
 
 Where a grid's footprints cover a few pixels (some of it splatted at stride 1), `pcvr` fills its sheets by
 interpolating the grid's prefiltered lattice at the pixels that may be seen, instead of splatting every voxel

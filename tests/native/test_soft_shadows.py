@@ -1,4 +1,4 @@
-"""Soft shadows of a sun with a disc (Light.sun(angle=...), src/shaded/penumbra.h) against the ray caster, which
+"""Soft shadows of a sun with a disc (Light.sun(angle=...), src/shaded/light/penumbra.h) against the ray caster, which
 averages shadow rays to 32 points over the disc: a caster covering half of the light's way throws a shadow edge
 across a receiver 18 voxels behind it, seen from above."""
 

@@ -50,7 +50,7 @@ enum class ShadedMethod { Regular, Pcvr, BilinearSpread, Raycast };
 /// Parses "regular", "pcvr", "bilinear_spread" or "raycast"; throws InvalidArgument listing the names.
 ShadedMethod shaded_method_from_name(const std::string& name);
 
-/// How the sheet renderer fills a grid's sheets (src/shaded/sheet_sampling.h).
+/// How the sheet renderer fills a grid's sheets (src/shaded/sheets/sheet_sampling.h).
 enum class SheetFill {
     /// `pcvr`'s shaded renders sample a grid's sheets where every block of it is splatted at stride 1
     /// (no post-convolution: the footprints are a few pixels) and its lattice fits
@@ -83,13 +83,13 @@ struct ShadedParams {
     bool depth = false;           ///< also fill RgbaImage::depth (for a Depth pass)
     /// Level of detail (Grid::level, inactive voxels counting as the background: means for shaded
     /// rendering, maxima for MIP) every grid is rendered from, by every method; -1: each grid's coarsest
-    /// level whose voxels project small enough that the image stays near level 0's (src/shaded/shaded_levels.h).
+    /// level whose voxels project small enough that the image stays near level 0's (src/shaded/classify/shaded_levels.h).
     /// Sheets are `sheet_spacing` voxels of the level apart. 0 (the grids themselves) by default.
     int level = 0;
     /// Lights whose Light::shadow is Default cast shadows: their light reaches each sample through the
     /// volumes (every grid, its transfer function and clip region), attenuated by exp(-optical depth).
     /// The sheet renderers read it from a transmittance volume per light built once per render
-    /// (src/shaded/light_volume.h); the ray caster marches a shadow ray per sample.
+    /// (src/shaded/light/light_volume.h); the ray caster marches a shadow ray per sample.
     bool shadows = false;
     /// Splat the sheets, or sample them where that costs less (SheetFill; ShadedStats::grids_sampled).
     SheetFill sheet_fill = SheetFill::Automatic;
@@ -104,10 +104,10 @@ struct ShadedVolume {
     const Shading* material = nullptr;
     /// When set, only the part of the reconstructed field inside it is seen (world space): samples count
     /// for the share of their stretch of ray inside, and cut faces are lit by the plane's normal
-    /// (src/shaded/sample_clip.h).
+    /// (src/shaded/classify/sample_clip.h).
     const ClipRegion* clip = nullptr;
     /// A colour per voxel (red, green, blue grids on this grid's voxels: the same index_to_world) that
-    /// multiplies the transfer function's colour, density-weighted at each sample (src/shaded/albedo_field.h;
+    /// multiplies the transfer function's colour, density-weighted at each sample (src/shaded/light/albedo_field.h;
     /// Blender's Color Attribute). All null: none.
     std::array<const Grid*, 3> albedo_grids{};
 

@@ -86,7 +86,7 @@ public:
 };
 
 /// A colour that multiplies the transfer function's at each point: a volume's albedo per voxel
-/// (ShadedVolume::albedo_grids, src/shaded/albedo_field.h). Positions are relative to the Shader's origin.
+/// (ShadedVolume::albedo_grids, src/shaded/light/albedo_field.h). Positions are relative to the Shader's origin.
 /// Implementations are immutable and safe to read from many threads.
 class AlbedoModulation {
 public:

@@ -12,7 +12,7 @@
 /// (-z in camera space). It is affine in index space, so sheets of constant depth (the shaded
 /// renderer's) cut every voxel's kernel the same way up to its position: the footprint also carries
 /// how the depth of each ray's closest approach to the centre changes across it, which is what turns
-/// a sheet's depth range into a range along each ray (src/shaded/slab_splat.h).
+/// a sheet's depth range into a range along each ray (src/shaded/sheets/slab_splat.h).
 #pragma once
 
 #include "pcvr/camera.h"

@@ -26,7 +26,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/lanes.h"
 #include "pcvr/shaded.h"
-#include "shaded/sample_clip.h"
+#include "shaded/classify/sample_clip.h"
 
 namespace pcvr {
 

@@ -1,4 +1,4 @@
-#include "shaded/light_volume.h"
+#include "shaded/light/light_volume.h"
 
 #include <tbb/parallel_for.h>
 
@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "shaded/extinction_field.h"
-#include "shaded/penumbra.h"
+#include "shaded/light/extinction_field.h"
+#include "shaded/light/penumbra.h"
 
 namespace pcvr {
 

@@ -1,4 +1,4 @@
-#include "shaded/albedo_field.h"
+#include "shaded/light/albedo_field.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "shaded/transparency_culling.h"
+#include "shaded/classify/transparency_culling.h"
 
 #include <algorithm>
 #include <cmath>

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "shaded/sheet_buffer.h"
+#include "shaded/sheets/sheet_buffer.h"
 #include "view/tile_set.h"
 
 namespace pcvr {

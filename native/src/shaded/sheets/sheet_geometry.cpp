@@ -1,4 +1,4 @@
-#include "shaded/sheet_geometry.h"
+#include "shaded/sheets/sheet_geometry.h"
 
 #include <algorithm>
 #include <cmath>

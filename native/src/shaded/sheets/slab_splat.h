@@ -1,6 +1,6 @@
 /// @file slab_splat.h
 /// @brief Splatting voxels slab by slab into a tile's sheet ring: the per-view preparation of one grid
-/// (SlabView) and the per-deposit work (SlabView::deposit).
+/// (SlabView; slab_view.cpp) and the per-deposit work (SlabView::deposit; slab_splat.cpp).
 ///
 /// A SlabView holds everything about one grid seen from one camera that does not change from sheet to
 /// sheet or tile to tile: the projection, the subgrid stride, the footprint and depth-profile tables,
@@ -27,9 +27,9 @@
 
 #include "pcvr/grid.h"
 #include "pcvr/kernel.h"
-#include "shaded/occlusion_map.h"
-#include "shaded/sheet_geometry.h"
-#include "shaded/sheet_buffer.h"
+#include "shaded/sheets/occlusion_map.h"
+#include "shaded/sheets/sheet_buffer.h"
+#include "shaded/sheets/sheet_geometry.h"
 #include "splat/block_linearisation.h"
 #include "splat/phase_table.h"
 #include "splat/slab_footprint.h"
@@ -111,6 +111,14 @@ double depth_per_voxel(const ViewProjection& projection, const Grid& grid, const
 class SlabView {
 public:
     SlabView(const Grid& grid, const Camera& camera, const SheetLattice& sheets, const SlabSplatParams& params);
+
+    /// Voxels a deposit projects at once (SlabBatch's lanes; DepthOrder is padded to whole batches).
+    static constexpr int kBatch = 8;
+    /// Sheets one kernel may span (its deposit keeps a pointer and a share per sheet on the stack): enough
+    /// for voxels 30 times longer than wide seen along their short side at the default spacing.
+    static constexpr int kMostSlabs = 128;
+    /// Windows wider than this many nodes take the per-tap path.
+    static constexpr int kMostWindow = 16;
 
     const Grid& grid() const { return *grid_; }
     const ViewProjection& projection() const { return projection_; }

@@ -1,4 +1,4 @@
-#include "shaded/penumbra.h"
+#include "shaded/light/penumbra.h"
 
 #include <tbb/parallel_for.h>
 

@@ -19,7 +19,7 @@
 #include "pcvr/lanes.h"
 #include "pcvr/math.h"
 #include "pcvr/transfer_function.h"
-#include "shaded/sheet_geometry.h"
+#include "shaded/sheets/sheet_geometry.h"
 #include "splat/post_convolution.h"
 
 #include <cstdint>

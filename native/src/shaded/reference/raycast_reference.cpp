@@ -1,4 +1,4 @@
-#include "shaded/raycast_reference.h"
+#include "shaded/reference/raycast_reference.h"
 
 #include <tbb/parallel_for.h>
 
@@ -11,13 +11,13 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/transfer_function.h"
-#include "shaded/albedo_field.h"
-#include "shaded/compositing.h"
-#include "shaded/emission.h"
-#include "shaded/sample_clip.h"
-#include "shaded/shaded_levels.h"
-#include "shaded/sheet_walk.h"
-#include "shaded/slab_splat.h"
+#include "shaded/classify/emission.h"
+#include "shaded/classify/sample_clip.h"
+#include "shaded/classify/shaded_levels.h"
+#include "shaded/light/albedo_field.h"
+#include "shaded/sheets/compositing.h"
+#include "shaded/sheets/sheet_walk.h"
+#include "shaded/sheets/slab_splat.h"
 
 namespace pcvr {
 

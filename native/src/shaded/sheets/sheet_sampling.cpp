@@ -1,4 +1,4 @@
-#include "shaded/sheet_sampling.h"
+#include "shaded/sheets/sheet_sampling.h"
 
 #include <algorithm>
 #include <cmath>

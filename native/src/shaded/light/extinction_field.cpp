@@ -1,4 +1,4 @@
-#include "shaded/extinction_field.h"
+#include "shaded/light/extinction_field.h"
 
 #include <tbb/parallel_for.h>
 
@@ -9,7 +9,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/transfer_function.h"
 #include "pcvr/zeroed_buffer.h"
-#include "shaded/shaded_levels.h"
+#include "shaded/classify/shaded_levels.h"
 
 namespace pcvr {
 
