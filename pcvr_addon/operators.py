@@ -7,8 +7,9 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import camera, clipping, prepared_scene, presets, transfer_function
-from .volumes import KERNEL_RADIUS_VOXELS
+from . import prepared_scene, presets
+from .scene import camera, clipping, transfer_function
+from .scene.volumes import KERNEL_RADIUS_VOXELS
 
 
 def volume_grid(operator, context, obj):

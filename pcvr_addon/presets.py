@@ -14,8 +14,8 @@ import re
 
 import bpy
 
-from .transfer_function import DEFAULT_GRADIENT_RAMP, DEFAULT_RAMP, ramp_elements
-from .typed import as_typed
+from .scene.transfer_function import DEFAULT_GRADIENT_RAMP, DEFAULT_RAMP, ramp_elements
+from .scene.typed import as_typed
 
 SUBDIR = os.path.join("pcvr", "transfer_function")
 SHIPPED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets", "transfer_function")

@@ -7,7 +7,8 @@ from bpy.types import Panel, UIList
 
 from bl_ui.utils import PresetPanel
 
-from . import lighting, native_render, presets, statistics
+from . import native_render, presets, statistics
+from .scene import lighting
 
 
 def property_split(layout):

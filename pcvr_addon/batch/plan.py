@@ -26,7 +26,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .. import camera, command_scene, prepared_scene, register, scene_inputs, unregister
+from .. import command_scene, prepared_scene, register, unregister
+from ..scene import camera, scene_inputs
 from .jobs import Job
 
 

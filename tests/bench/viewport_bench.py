@@ -65,7 +65,7 @@ def phantom_grid(n):
 
 def inputs_for(mode, grid, points=RAMP):
     """RenderInputs and DisplayInputs of the phantom, as scene_inputs.read makes them from a Blender scene."""
-    from pcvr_addon import lighting, scene_inputs as si
+    from pcvr_addon.scene import lighting, scene_inputs as si
 
     ramp = si.RampInputs(positions=tuple(p for p, _ in points), rgba=tuple(c for _, c in points), use_grid_range=False,
                          tf_min=0.0, tf_max=1.0, opacity_scale=1.0)
@@ -77,7 +77,7 @@ def inputs_for(mode, grid, points=RAMP):
     world = (0.05, 0.05, 0.05)
     sun = lighting.LightSpec("sun", SUN_DIRECTION, (1.0, 1.0, 1.0), 1.0)
     settings = dict(method="pcvr", splat_kernel="gauss1.4", stride=0)
-    from pcvr_addon import defaults
+    from pcvr_addon.scene import defaults
     inputs = si.RenderInputs(
         mode=mode, volumes=(volume,), threads=0,
         xray=si.XRaySettings(post_filter=defaults.XRAY["post_filter"], passband=defaults.XRAY["passband"], **settings)
@@ -94,7 +94,7 @@ def inputs_for(mode, grid, points=RAMP):
 
 def orbit(index_to_world, n, count):
     """`count` perspective views at 1280 x 720 around the phantom's centre, filling about 80% of the height."""
-    from pcvr_addon.camera import CameraView
+    from pcvr_addon.scene.camera import CameraView
     from pcvr_native.cameras import look_at, perspective
 
     centre = (np.asarray(index_to_world) @ np.array([(n - 1) / 2] * 3 + [1.0]))[:3]
