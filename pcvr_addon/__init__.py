@@ -4,7 +4,8 @@
 
 import bpy
 
-from . import compat, engine, passes, viewport_session
+from . import compat, engine
+from .render import passes, viewport_session
 
 
 class PCVRRenderEngine(bpy.types.RenderEngine):

@@ -22,7 +22,8 @@ import sys
 
 import bpy
 
-from . import command_scene, convert_command, image_io, register, statistics, unregister
+from . import command_scene, convert_command, image_io, register, unregister
+from .render import statistics
 from .scene import camera
 from .batch import run as batch_run
 from .command_scene import (DEFAULT_LIGHT_DIRECTION, DEFAULT_MAGNIFICATION, METHODS, MODES, PASSBANDS, POST_FILTERS,

@@ -22,7 +22,7 @@ functions, so that the add-on registers, and its settings can be edited, even wh
 statistics.py has what the user reads of a render: its progress, status line and the interface's rows.
 """
 
-from . import native_render, passes, prepared_scene, statistics
+from .render import native_render, passes, prepared_scene, statistics
 from .scene import camera, scene_inputs
 
 

@@ -7,7 +7,8 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import prepared_scene, presets
+from . import presets
+from .render import prepared_scene
 from .scene import camera, clipping, transfer_function
 from .scene.volumes import KERNEL_RADIUS_VOXELS
 

@@ -7,7 +7,8 @@ from bpy.types import Panel, UIList
 
 from bl_ui.utils import PresetPanel
 
-from . import native_render, presets, statistics
+from . import presets
+from .render import native_render, statistics
 from .scene import lighting
 
 

@@ -18,7 +18,8 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from .. import image_io, native_render, passes, prepared_scene
+from .. import image_io
+from ..render import native_render, passes, prepared_scene
 
 
 @dataclass

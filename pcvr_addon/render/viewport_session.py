@@ -17,7 +17,7 @@ import weakref
 import numpy as np
 
 from . import native_render, passes, prepared_scene, viewport
-from .scene import camera, scene_inputs
+from ..scene import camera, scene_inputs
 
 
 def _tag_redraw(engine_reference):

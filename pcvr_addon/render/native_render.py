@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import cache, viewport
-from .scene import camera, volumes
+from ..scene import camera, volumes
 
 
 def native_camera(view):

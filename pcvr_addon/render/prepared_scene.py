@@ -9,7 +9,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from . import cache
-from .scene import clipping, scene_inputs, transfer_function, volume_material, volumes
+from ..scene import clipping, scene_inputs, transfer_function, volume_material, volumes
 
 def read_grid(filepath, grid_name):
     import pcvr_native
