@@ -44,7 +44,8 @@ classes = (
 
 
 def register():
-    from . import import_volume, operators, properties, ui
+    from . import operators, properties, ui
+    from .io import import_volume
 
     properties.register()
     operators.register()
@@ -56,7 +57,8 @@ def register():
 
 
 def unregister():
-    from . import import_volume, operators, properties, ui
+    from . import operators, properties, ui
+    from .io import import_volume
 
     compat.forget_at_exit()
     for cls in reversed(classes):

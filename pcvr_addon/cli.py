@@ -22,7 +22,8 @@ import sys
 
 import bpy
 
-from . import command_scene, convert_command, image_io, register, unregister
+from . import command_scene, convert_command, register, unregister
+from .io import image_io
 from .render import statistics
 from .scene import camera
 from .batch import run as batch_run

@@ -12,7 +12,8 @@ import sys
 import bpy
 from mathutils import Matrix, Vector
 
-from . import image_io, presets
+from . import presets
+from .io import image_io
 from .scene import clipping
 from .properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
                          enum_splat_kernels)

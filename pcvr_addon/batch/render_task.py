@@ -18,7 +18,7 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from .. import image_io
+from ..io import image_io
 from ..render import native_render, passes, prepared_scene
 
 

@@ -13,7 +13,8 @@ import pytest
 import blender_scenes as bs
 import clip_scenes as cs
 import lit_scenes as ls
-from pcvr_addon import command_scene, image_io
+from pcvr_addon import command_scene
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 

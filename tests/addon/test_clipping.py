@@ -14,7 +14,7 @@ import blender_scenes as bs
 import clip_scenes as cs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import image_io
+from pcvr_addon.io import image_io
 from pcvr_addon.render import prepared_scene, statistics
 from pcvr_addon.scene import scene_inputs
 
