@@ -44,26 +44,26 @@ classes = (
 
 
 def register():
-    from . import operators, properties, ui
+    from .ui import operators, panels, properties
     from .io import import_volume
 
     properties.register()
     operators.register()
     import_volume.register()
-    ui.register()
+    panels.register()
     for cls in classes:
         bpy.utils.register_class(cls)
     compat.unregister_at_exit(unregister)
 
 
 def unregister():
-    from . import operators, properties, ui
+    from .ui import operators, panels, properties
     from .io import import_volume
 
     compat.forget_at_exit()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
-    ui.unregister()
+    panels.unregister()
     import_volume.unregister()
     operators.unregister()
     properties.unregister()

@@ -11,7 +11,7 @@ import pytest
 import blender_scenes as bs
 import lit_scenes as ls
 import material_scenes as ms
-from pcvr_addon import ui
+from pcvr_addon.ui import panels as ui
 from pcvr_addon.scene import blackbody
 
 from test_ui import draw, panel_context

@@ -9,7 +9,7 @@ import pytest
 
 import blender_scenes as bs
 import pcvr_addon
-from pcvr_addon import presets, ui
+from pcvr_addon.ui import panels as ui, presets
 from pcvr_addon.render import cache, native_render, statistics
 
 

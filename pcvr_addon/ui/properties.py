@@ -14,7 +14,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from .scene import defaults, transfer_function
+from ..scene import defaults, transfer_function
 
 # How pcvr_native and the command line spell the enum items below.
 NATIVE_NAMES = {

@@ -8,8 +8,8 @@ from bpy.types import Panel, UIList
 from bl_ui.utils import PresetPanel
 
 from . import presets
-from .render import native_render, statistics
-from .scene import lighting
+from ..render import native_render, statistics
+from ..scene import lighting
 
 
 def property_split(layout):

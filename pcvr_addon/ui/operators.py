@@ -8,9 +8,9 @@ from bpy.types import Operator
 from mathutils import Matrix
 
 from . import presets
-from .render import prepared_scene
-from .scene import camera, clipping, transfer_function
-from .scene.volumes import KERNEL_RADIUS_VOXELS
+from ..render import prepared_scene
+from ..scene import camera, clipping, transfer_function
+from ..scene.volumes import KERNEL_RADIUS_VOXELS
 
 
 def volume_grid(operator, context, obj):
