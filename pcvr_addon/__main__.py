@@ -4,7 +4,7 @@
 
 import sys
 
-from .cli import main
+from .cli.main import main
 
 # Guarded: the worker processes of a local Dask cluster (--workers) import this module again as they start.
 if __name__ == "__main__":

@@ -26,7 +26,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .. import command_scene, register, unregister
+from .. import register, unregister
+from ..cli import command_scene
 from ..render import prepared_scene
 from ..scene import camera, scene_inputs
 from .jobs import Job

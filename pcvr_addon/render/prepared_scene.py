@@ -8,8 +8,8 @@ scene_inputs.read)."""
 import dataclasses
 from dataclasses import dataclass, field
 
-from . import cache
 from ..scene import clipping, scene_inputs, transfer_function, volume_material, volumes
+from . import cache
 
 def read_grid(filepath, grid_name):
     import pcvr_native

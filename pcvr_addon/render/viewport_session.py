@@ -16,8 +16,8 @@ import weakref
 
 import numpy as np
 
-from . import native_render, passes, prepared_scene, viewport
 from ..scene import camera, scene_inputs
+from . import native_render, passes, prepared_scene, viewport
 
 
 def _tag_redraw(engine_reference):

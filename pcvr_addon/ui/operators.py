@@ -7,10 +7,10 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import presets
 from ..render import prepared_scene
 from ..scene import camera, clipping, transfer_function
 from ..scene.volumes import KERNEL_RADIUS_VOXELS
+from . import presets
 
 
 def volume_grid(operator, context, obj):

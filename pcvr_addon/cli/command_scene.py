@@ -12,11 +12,11 @@ import sys
 import bpy
 from mathutils import Matrix, Vector
 
-from .ui import presets
-from .io import image_io
-from .scene import clipping
-from .ui.properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
-                            enum_splat_kernels)
+from ..io import image_io
+from ..scene import clipping
+from ..ui import presets
+from ..ui.properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters,
+                             enum_sheet_fills, enum_splat_kernels)
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
