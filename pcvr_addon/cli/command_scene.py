@@ -14,9 +14,10 @@ from mathutils import Matrix, Vector
 
 from ..io import image_io
 from ..scene import clipping
+from ..scene.defaults import NATIVE_NAMES
 from ..ui import presets
-from ..ui.properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters,
-                             enum_sheet_fills, enum_splat_kernels)
+from ..ui.properties import (enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
+                             enum_splat_kernels)
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows

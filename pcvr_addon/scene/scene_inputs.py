@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..ui.properties import NATIVE_NAMES
 from . import lighting, transfer_function, volume_material, volumes
 from .clipping import ClipError, Clipping, volume_clipping
+from .defaults import NATIVE_NAMES
 from .typed import as_typed
 
 
