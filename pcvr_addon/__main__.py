@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""python -m pcvr_addon render|convert INPUT -o OUTPUT [options]; see cli.py."""
+"""python -m pcvr_addon render|convert INPUT -o OUTPUT [options]; see cli/main.py."""
 
 import sys
 

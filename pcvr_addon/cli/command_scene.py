@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""The scene a command line renders, for `python -m pcvr_addon render` (cli.py) and its batches (batch/): a .vdb
+"""The scene a command line renders, for `python -m pcvr_addon render` (main.py) and its batches (batch/): a .vdb
 imported, framed and lit, and the command line's options applied to a scene. Below both, so neither imports the
 other."""
 
@@ -21,7 +21,7 @@ from ..ui.properties import (enum_methods, enum_modes, enum_passbands, enum_post
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
-# a white surface facing it as white, as in Cycles (see lighting.py).
+# a white surface facing it as white, as in Cycles (see scene/lighting.py).
 DEFAULT_LIGHT_DIRECTION = (0.4, -0.4, -0.8)
 SUN_STRENGTH = math.pi
 # Blender's default world colour, the ambient light and background of a .vdb.

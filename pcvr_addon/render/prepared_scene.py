@@ -3,7 +3,7 @@
 """The prepare stage: a scene's volumes read (through the cache, streamed where too big to read whole) and placed
 in world space, with their transfer functions, lights and materials made into pcvr_native objects. What every
 render of the scene re-uses, from any view; it runs on any thread (Blender's data was read before, by
-scene_inputs.read)."""
+scene.scene_inputs.read)."""
 
 import dataclasses
 from dataclasses import dataclass, field

@@ -237,7 +237,7 @@ class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
 
 def ramp_texture_property(name, description):
     """A pointer to a Texture whose colour ramp the volume's settings use (a Texture is an ID: see
-    transfer_function.py)."""
+    scene/transfer_function.py)."""
     return PointerProperty(name=name, description=description, type=bpy.types.Texture,
                            poll=lambda _self, texture: texture.use_color_ramp, update=tag_changed)
 
@@ -276,7 +276,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
-    # What shaded mode renders: the transfer function, or the object's material (volume_material.py).
+    # What shaded mode renders: the transfer function, or the object's material (scene/volume_material.py).
     source: EnumProperty(
         name="Source",
         description="What gives the volume its colour, opacity and light in shaded mode",
@@ -306,7 +306,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         update=tag_changed,
     )
 
-    # Clipping (every mode); see clipping.py.
+    # Clipping (every mode); see scene/clipping.py.
     use_crop: BoolProperty(
         name="Crop",
         description="Keep only the part of the volume inside the crop object's box",
@@ -331,7 +331,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=0,
     )
 
-    # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
+    # The transfer function (shaded and maximum intensity modes); see scene/transfer_function.py.
     transfer_function: ramp_texture_property(
         name="Transfer Function",
         description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
@@ -362,7 +362,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
-    # Gradient opacity (shaded mode): the opacity times a ramp's alpha over |gradient|; see transfer_function.py.
+    # Gradient opacity (shaded mode): the opacity times a ramp's alpha over |gradient|; see scene/transfer_function.py.
     use_gradient_opacity: BoolProperty(
         name="Gradient Opacity",
         description="Scale the opacity by a function of how fast the density changes: boundaries stay, uniform "

@@ -1,5 +1,5 @@
 """Shaded mode with volume.pcvr.source = 'MATERIAL': the object's Principled Volume read into one native grid and
-transfer function per grid it names (pcvr_addon/volume_material.py)."""
+transfer function per grid it names (pcvr_addon/scene/volume_material.py)."""
 
 import math
 
