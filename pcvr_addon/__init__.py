@@ -4,7 +4,8 @@
 
 import bpy
 
-from . import compat, engine, passes, viewport_session
+from . import compat, engine
+from .render import passes, viewport_session
 
 
 class PCVRRenderEngine(bpy.types.RenderEngine):
@@ -43,24 +44,26 @@ classes = (
 
 
 def register():
-    from . import import_volume, operators, properties, ui
+    from .ui import operators, panels, properties
+    from .io import import_volume
 
     properties.register()
     operators.register()
     import_volume.register()
-    ui.register()
+    panels.register()
     for cls in classes:
         bpy.utils.register_class(cls)
     compat.unregister_at_exit(unregister)
 
 
 def unregister():
-    from . import import_volume, operators, properties, ui
+    from .ui import operators, panels, properties
+    from .io import import_volume
 
     compat.forget_at_exit()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
-    ui.unregister()
+    panels.unregister()
     import_volume.unregister()
     operators.unregister()
     properties.unregister()

@@ -12,17 +12,18 @@ A render goes through four stages, so that the viewport can run the last three o
 Blender's data must not be touched) and repeat only those that a change reaches. pcvr_native is imported inside
 functions, so that the add-on registers, and its settings can be edited, even where the native module cannot load.
 
-| stage   | function                     | runs on                | gives                                              |
-|---------|------------------------------|------------------------|----------------------------------------------------|
-| read    | scene_inputs.read            | Blender's main thread  | the scene as plain values                          |
-| prepare | prepared_scene.prepare       | any thread             | world-space grids (through the cache), transfer functions, lights |
-| render  | native_render.render_raw     | any thread             | the native results: integral, RGBA and depth, maxima |
-| finish  | passes.finish                | any thread             | the passes, then passes.write_result into Blender's render result |
+| stage   | function                        | runs on                | gives                                              |
+|---------|---------------------------------|------------------------|----------------------------------------------------|
+| read    | scene.scene_inputs.read         | Blender's main thread  | the scene as plain values                          |
+| prepare | render.prepared_scene.prepare   | any thread             | world-space grids (through the cache), transfer functions, lights |
+| render  | render.native_render.render_raw | any thread             | the native results: integral, RGBA and depth, maxima |
+| finish  | render.passes.finish            | any thread             | the passes, then passes.write_result into Blender's render result |
 
-statistics.py has what the user reads of a render: its progress, status line and the interface's rows.
+render/statistics.py has what the user reads of a render: its progress, status line and the interface's rows.
 """
 
-from . import camera, native_render, passes, prepared_scene, scene_inputs, statistics
+from .render import native_render, passes, prepared_scene, statistics
+from .scene import camera, scene_inputs
 
 
 def render(engine, depsgraph):

@@ -30,7 +30,7 @@ def blender(request):
         return
     import bpy
     import pcvr_addon
-    from pcvr_addon import cache
+    from pcvr_addon.render import cache
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     cache.grids.clear()

@@ -27,7 +27,8 @@ import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 import pcvr_addon  # noqa: E402
-from pcvr_addon import command_scene, image_io  # noqa: E402
+from pcvr_addon.cli import command_scene  # noqa: E402
+from pcvr_addon.io import image_io  # noqa: E402
 
 # From the front (Blender's -Y: the patient's face), a little from the patient's right and from above.
 VIEW_DIRECTION = Vector((0.4, 1.0, -0.2)).normalized()

@@ -81,11 +81,11 @@ def tone_map(integral: np.ndarray) -> np.ndarray:
 
 
 def write_png(path: str, grey: np.ndarray) -> None:
-    """Through pcvr_addon.image_io when it is there, else Blender's bundled OpenImageIO directly."""
+    """Through pcvr_addon.io.image_io when it is there, else Blender's bundled OpenImageIO directly."""
     rgb = np.repeat(grey[:, :, None], 3, axis=2)
     try:
         sys.path.insert(0, REPO)
-        from pcvr_addon.image_io import write_image
+        from pcvr_addon.io.image_io import write_image
     except Exception:  # the add-on's package imports bpy and its engine; any failure: write directly
         write_image = None
     if write_image is not None:

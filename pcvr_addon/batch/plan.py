@@ -2,9 +2,9 @@
 
 """Planning a batch: each Job read out of a Blender scene into plain values that any process can render.
 
-The scene of a job is made exactly as `python -m pcvr_addon render` makes it (command_scene.vdb_scene and
-command_scene.apply_options; a .blend opened as it is), once for all the jobs with the same scene and options; each
-job then sets its frame and orbits the camera to its angle, and `scene_inputs.read` takes what the render
+The scene of a job is made exactly as `python -m pcvr_addon render` makes it (cli.command_scene.vdb_scene and
+cli.command_scene.apply_options; a .blend opened as it is), once for all the jobs with the same scene and options;
+each job then sets its frame and orbits the camera to its angle, and `scene.scene_inputs.read` takes what the render
 engine's F12 would read (RenderInputs, DisplayInputs, the camera's view). Rendering those (render_task.py)
 runs the engine's own prepare, render_raw and finish, which need no Blender data: so a worker with no scene
 at all renders the same pixels as F12. The planner reads a scene's volume once, where `render` reads it to frame
@@ -26,7 +26,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .. import camera, command_scene, prepared_scene, register, scene_inputs, unregister
+from .. import register, unregister
+from ..cli import command_scene
+from ..render import prepared_scene
+from ..scene import camera, scene_inputs
 from .jobs import Job
 
 

@@ -3,10 +3,11 @@
 """A batch's unit of work: render a task's PlannedJobs and write their images. The one function that renders in
 a batch, in this process or on a Dask worker, so that both give the same bits.
 
-It runs the render engine's own stages after reading the scene (prepared_scene.prepare,
-native_render.render_raw, passes.finish: F12's code), which touch no Blender data, and writes the passes as `python -m pcvr_addon render` does
-(image_io.write_passes). Grids come through the engine's cache (cache.grids), which lives as long as the
-process: a worker reads a volume once for all the views of it it renders, in this task and the next.
+It runs the render engine's own stages after reading the scene (render.prepared_scene.prepare,
+render.native_render.render_raw, render.passes.finish: F12's code), which touch no Blender data, and writes the
+passes as `python -m pcvr_addon render` does (io.image_io.write_passes). Grids come through the engine's cache
+(render.cache.grids), which lives as long as the process: a worker reads a volume once for all the views of it
+it renders, in this task and the next.
 
 Each image is written to a temporary file and renamed into place, and carries the batch's run id in its
 ImageDescription: a task run again (Dask retries the tasks of a worker lost mid-run) leaves alone the images
@@ -18,7 +19,8 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from .. import image_io, native_render, passes, prepared_scene
+from ..io import image_io
+from ..render import native_render, passes, prepared_scene
 
 
 @dataclass

@@ -13,9 +13,10 @@ import sys
 import time
 import uuid
 
+from ..cli import command_scene
+from ..io import image_io
 from . import jobs as batch_jobs
 from . import manifest
-from .. import command_scene, image_io
 
 # The options this module adds to the render command (cli names); the others are the render's own.
 BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")

@@ -9,7 +9,8 @@ import bpy
 import numpy as np
 import pcvr_native as pn
 
-from pcvr_addon import compat, image_io
+from pcvr_addon import compat
+from pcvr_addon.io import image_io
 
 N = 16
 

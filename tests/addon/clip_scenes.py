@@ -1,5 +1,5 @@
 """Crop boxes and clip planes for the add-on tests, and the world-space numbers they stand for, worked out here
-by hand (not by pcvr_addon.clipping) so that the tests check the add-on's reading of Blender's objects."""
+by hand (not by pcvr_addon.scene.clipping) so that the tests check the add-on's reading of Blender's objects."""
 
 import bpy
 import numpy as np

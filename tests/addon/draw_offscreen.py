@@ -58,7 +58,7 @@ def draw_in_render(image, output):
     """Replace PCVR's F12 render by a draw of `image` into an offscreen framebuffer; save the result."""
     import gpu
     from mathutils import Matrix
-    from pcvr_addon import viewport_draw
+    from pcvr_addon.render import viewport_draw
 
     def render(engine, depsgraph):
         offscreen = gpu.types.GPUOffScreen(*REGION, format='RGBA32F')

@@ -43,7 +43,7 @@ def main(archive, work_dir, leave_enabled):
     assert f"{MODULE}.engine" in sys.modules, "the render did not go through the installed extension"
 
     # Shaded, with a preset that the extension ships.
-    assert Path(sys.modules[f"{MODULE}.presets"].find("Cloud")).is_relative_to(work_dir / "repo")
+    assert Path(sys.modules[f"{MODULE}.ui.presets"].find("Cloud")).is_relative_to(work_dir / "repo")
     obj.data.pcvr.apply_preset("Cloud")
     scene.pcvr.mode = 'SHADED'
     ls.add_light('SUN', power=3.0)

@@ -57,6 +57,7 @@ def use_material(obj, material):
 
 def prepared():
     """The current scene as a render prepares it (its volumes, media and the warnings the render reports)."""
-    from pcvr_addon import prepared_scene, scene_inputs
+    from pcvr_addon.render import prepared_scene
+    from pcvr_addon.scene import scene_inputs
     inputs, _ = scene_inputs.read(bpy.context.evaluated_depsgraph_get(), prepared_scene.export_grid)
     return prepared_scene.prepare(inputs)

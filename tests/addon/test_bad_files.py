@@ -17,7 +17,7 @@ import pytest
 
 import blender_scenes as bs
 from _io_helpers import unprivileged_prefix
-from pcvr_addon import image_io
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 

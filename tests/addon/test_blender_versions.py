@@ -17,7 +17,8 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import compat, image_io
+from pcvr_addon import compat
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -74,7 +75,7 @@ def test_readme_example_renders_and_exits_cleanly(tmp_path):
     assert '"/data/smoke.vdb"' in script and '"/tmp/smoke.png"' in script
     script = script.replace('"/data/smoke.vdb"', repr(vdb)).replace('"/tmp/smoke.png"', repr(str(png)))
     script += textwrap.dedent("""
-        from pcvr_addon import image_io
+        from pcvr_addon.io import image_io
         xray = image_io.render_result_passes(scene)["ViewLayer.XRay"]
         print("XRay", xray[xray.shape[0] // 2, xray.shape[1] // 2, 0])
         """)

@@ -8,7 +8,8 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon import engine as pcvr_engine, image_io
+from pcvr_addon import engine as pcvr_engine
+from pcvr_addon.io import image_io
 
 
 def test_break_stops_the_render(tmp_path, monkeypatch):

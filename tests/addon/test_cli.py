@@ -13,7 +13,8 @@ import pytest
 import blender_scenes as bs
 import clip_scenes as cs
 import lit_scenes as ls
-from pcvr_addon import command_scene, image_io
+from pcvr_addon.cli import command_scene
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -86,7 +87,7 @@ def test_numbered_vdb_is_a_sequence(tmp_path):
 
 def test_without_openimageio(tmp_path, box_vdb):
     """bpy 4.2 bundles no OpenImageIO module: the command line says what to install, before rendering."""
-    script = "import sys; sys.modules['OpenImageIO'] = None; from pcvr_addon.cli import main; sys.exit(main())"
+    script = "import sys; sys.modules['OpenImageIO'] = None; from pcvr_addon.cli.main import main; sys.exit(main())"
     run = subprocess.run([sys.executable, "-c", script, "render", box_vdb, "-o", tmp_path / "box.exr"],
                          cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert run.returncode == 1 and "pip install openimageio" in run.stderr, run.stdout + run.stderr

@@ -14,7 +14,9 @@ import blender_scenes as bs
 import clip_scenes as cs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import image_io, prepared_scene, scene_inputs, statistics
+from pcvr_addon.io import image_io
+from pcvr_addon.render import prepared_scene, statistics
+from pcvr_addon.scene import scene_inputs
 
 SIZE = (48, 48)
 # The F12 render and the reference make the same native call with the same grid and numbers: they differ only

@@ -7,8 +7,8 @@ import bpy
 import pcvr_native as pn
 import pytest
 
-from pcvr_addon import defaults
-from pcvr_addon.properties import NATIVE_NAMES
+from pcvr_addon.scene import defaults
+from pcvr_addon.scene.defaults import NATIVE_NAMES
 
 
 def native_defaults(function):

@@ -7,7 +7,7 @@ import bpy
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon import image_io
+from pcvr_addon.io import image_io
 
 
 @pytest.fixture

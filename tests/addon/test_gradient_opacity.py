@@ -13,7 +13,9 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import image_io, presets, scene_inputs, transfer_function
+from pcvr_addon.ui import presets
+from pcvr_addon.io import image_io
+from pcvr_addon.scene import scene_inputs, transfer_function
 
 ROOT = Path(__file__).resolve().parents[2]
 

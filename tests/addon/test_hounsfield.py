@@ -6,7 +6,7 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon.passes import EXPOSURE_GREY
+from pcvr_addon.render.passes import EXPOSURE_GREY
 
 
 @pytest.fixture

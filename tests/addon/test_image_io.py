@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from pcvr_addon import image_io
+from pcvr_addon.io import image_io
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ import numpy as np
 import pcvr_native as pn
 
 import scan_files as sf
-from pcvr_addon import image_io
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 

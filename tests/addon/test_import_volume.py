@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import scan_files as sf
-from pcvr_addon import import_volume
+from pcvr_addon.io import import_volume
 
 ROW = np.array([0.0, 1.0, 0.0])      # a sagittal-ish series: rows along +y, columns down -z
 COLUMN = np.array([0.0, 0.0, -1.0])

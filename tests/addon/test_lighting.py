@@ -9,7 +9,8 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import image_io, lighting
+from pcvr_addon.io import image_io
+from pcvr_addon.scene import lighting
 
 HEIGHT = 2.0  # of the lights above the plane
 

@@ -1,5 +1,5 @@
 """Shaded mode with volume.pcvr.source = 'MATERIAL': the object's Principled Volume read into one native grid and
-transfer function per grid it names (pcvr_addon/volume_material.py)."""
+transfer function per grid it names (pcvr_addon/scene/volume_material.py)."""
 
 import math
 
@@ -11,7 +11,8 @@ import pytest
 import blender_scenes as bs
 import lit_scenes as ls
 import material_scenes as ms
-from pcvr_addon import blackbody, ui
+from pcvr_addon.ui import panels as ui
+from pcvr_addon.scene import blackbody
 
 from test_ui import draw, panel_context
 
@@ -112,7 +113,7 @@ def test_quick_fire_glows_orange_where_the_flame_is(fire_vdb):
 
 def test_blackbody_emission_follows_cycles_formula():
     """At 2500 K with intensity 1: sigma T^4 times the blackbody colour of luminance 1."""
-    from pcvr_addon.volume_material import BLACKBODY_SIGMA, GridMedium
+    from pcvr_addon.scene.volume_material import BLACKBODY_SIGMA, GridMedium
     medium = GridMedium(grid="temperature", kelvin=1000.0, blackbody_intensity=1.0)
     emitted = medium.emission_at([2.5])[0]
     np.testing.assert_allclose(emitted, 5.670373e-8 * 1e-6 / math.pi * 2500.0 ** 4 * blackbody.colour(2500.0))
@@ -170,7 +171,7 @@ def test_absorption_plus_flame_linked_emission_reads_as_two_grids():
     tree.links.new(emission.outputs[0], add.inputs[1])
     tree.links.new(add.outputs[0], output.inputs["Volume"])
 
-    from pcvr_addon import volume_material
+    from pcvr_addon.scene import volume_material
     media = volume_material.read(material)
     assert media.warnings == ()
     dense, glowing = media.grids
@@ -185,7 +186,7 @@ def test_a_node_feeding_density_is_named():
     tree = material.node_tree
     math_node = tree.nodes.new("ShaderNodeMath")
     tree.links.new(math_node.outputs[0], tree.nodes["Principled Volume"].inputs["Density"])
-    from pcvr_addon import volume_material
+    from pcvr_addon.scene import volume_material
     media = volume_material.read(material)
     assert media.grids == () and "node 'Math' (Math) feeding Principled Volume's Density" in media.warnings[0]
 
@@ -205,7 +206,7 @@ def _blackbody_into(material, node_name, socket, temperature):
 
 
 def test_a_blackbody_node_colours_the_emission():
-    from pcvr_addon import volume_material
+    from pcvr_addon.scene import volume_material
     # A constant temperature is a constant colour: the Blackbody node's, luminance 1.
     material = ms.principled_material(Density=0.0, Emission_Strength=2.0)
     _blackbody_into(material, "Principled Volume", "Emission Color", 1500.0)
@@ -229,6 +230,6 @@ def test_a_grid_times_a_blackbody_grid_is_named():
     flame.attribute_type, flame.attribute_name = 'GEOMETRY', "flame"
     tree.links.new(flame.outputs["Fac"], tree.nodes["Principled Volume"].inputs["Emission Strength"])
     _blackbody_into(material, "Principled Volume", "Emission Color", "temperature")
-    from pcvr_addon import volume_material
+    from pcvr_addon.scene import volume_material
     media = volume_material.read(material)
     assert media.grids == () and "grid 'flame'" in media.warnings[0] and "grid 'temperature'" in media.warnings[0]

@@ -6,7 +6,7 @@ import pytest
 from mathutils import Vector
 
 import blender_scenes as bs
-from pcvr_addon import statistics
+from pcvr_addon.render import statistics
 
 
 def look_at(camera, target=(0, 0, 0)):

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon import cache, image_io
+from pcvr_addon.io import image_io
+from pcvr_addon.render import cache
 
 
 @pytest.fixture

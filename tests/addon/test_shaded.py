@@ -10,8 +10,8 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import statistics
-from pcvr_addon.passes import BACKGROUND_DEPTH
+from pcvr_addon.render import statistics
+from pcvr_addon.render.passes import BACKGROUND_DEPTH
 
 
 @pytest.fixture

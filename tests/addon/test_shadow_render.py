@@ -10,7 +10,7 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import statistics
+from pcvr_addon.render import statistics
 
 # A sun travelling along +x: its -Z axis turned about Y.
 SUN_ROTATION = (0.0, -math.pi / 2 + 0.1, 0.0)

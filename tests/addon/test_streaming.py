@@ -9,7 +9,7 @@ import pcvr_native as pn
 import pytest
 
 import blender_scenes as bs
-from pcvr_addon import cache, prepared_scene, statistics
+from pcvr_addon.render import cache, prepared_scene, statistics
 
 
 @pytest.fixture

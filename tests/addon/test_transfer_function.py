@@ -10,7 +10,8 @@ import pytest
 
 import blender_scenes as bs
 import lit_scenes as ls
-from pcvr_addon import presets, transfer_function
+from pcvr_addon.ui import presets
+from pcvr_addon.scene import transfer_function
 
 SHIPPED = sorted(presets.display_name(name) for name in os.listdir(presets.SHIPPED) if name.endswith(".py"))
 REQUIRED = {"CT Bone", "CT Soft Tissue", "CT Muscle", "CT Lung", "MR Default", "Cloud"}

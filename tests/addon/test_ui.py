@@ -9,7 +9,8 @@ import pytest
 
 import blender_scenes as bs
 import pcvr_addon
-from pcvr_addon import cache, native_render, presets, statistics, ui
+from pcvr_addon.ui import panels as ui, presets
+from pcvr_addon.render import cache, native_render, statistics
 
 
 def test_shares_output_dimensions_color_management_and_camera_panels():

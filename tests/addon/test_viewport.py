@@ -12,7 +12,7 @@ import pytest
 import blender_scenes as bs
 import lit_scenes as ls
 import viewport_scenes as vs
-from pcvr_addon import cache, prepared_scene, viewport
+from pcvr_addon.render import cache, prepared_scene, viewport
 
 SIZE = (96, 64)
 

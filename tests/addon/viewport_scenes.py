@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from pcvr_addon import viewport_draw, viewport_session
+from pcvr_addon.render import viewport_draw, viewport_session
 
 # Long enough for any render of these small scenes on a busy machine; only reached when something hangs.
 IDLE_TIMEOUT = 60.0

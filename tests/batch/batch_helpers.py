@@ -5,7 +5,8 @@ import os
 
 import numpy as np
 
-from pcvr_addon import cli, image_io
+from pcvr_addon.cli import main as cli
+from pcvr_addon.io import image_io
 from pcvr_addon.batch import jobs, run
 
 

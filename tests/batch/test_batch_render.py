@@ -9,7 +9,8 @@ import pytest
 
 import batch_helpers as bh
 import batch_scenes
-from pcvr_addon import cli, image_io
+from pcvr_addon.cli import main as cli
+from pcvr_addon.io import image_io
 from pcvr_addon.batch import render_task
 
 

@@ -123,7 +123,7 @@ def test_a_volume_split_over_two_workers_sums_to_the_streamed_render(tmp_path, c
 
 @pytest.mark.parametrize("where", ["--scheduler", "--workers"])
 def test_command_line_joins_a_cluster_or_starts_one(tmp_path, sequence, client, where):
-    from pcvr_addon import cli
+    from pcvr_addon.cli import main as cli
 
     argv = ["render", str(sequence / "smoke_####.vdb"), "--frames", "1-2", "-o", str(tmp_path / "f_####.exr")]
     argv += [where, client.scheduler.address if where == "--scheduler" else "1"]

@@ -15,7 +15,8 @@ import pytest
 import batch_helpers as bh
 import batch_scenes
 import pcvr_addon
-from pcvr_addon import command_scene, image_io
+from pcvr_addon.cli import command_scene
+from pcvr_addon.io import image_io
 
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent

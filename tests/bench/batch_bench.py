@@ -121,7 +121,7 @@ def child(quick, work):
 
 
 def _import_renderer():
-    from pcvr_addon import image_io
+    from pcvr_addon.io import image_io
     from pcvr_addon.batch import render_task  # noqa: F401  (bpy, the add-on, pcvr_native)
     image_io.openimageio()
 

@@ -35,7 +35,10 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, REPO)
 
 import pcvr_addon  # noqa: E402
-from pcvr_addon import cache, command_scene, image_io, lighting, transfer_function  # noqa: E402
+from pcvr_addon.cli import command_scene  # noqa: E402
+from pcvr_addon.io import image_io  # noqa: E402
+from pcvr_addon.render import cache  # noqa: E402
+from pcvr_addon.scene import lighting, transfer_function  # noqa: E402
 from tools import ct_head, smoke_plume  # noqa: E402
 
 

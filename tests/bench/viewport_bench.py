@@ -65,7 +65,7 @@ def phantom_grid(n):
 
 def inputs_for(mode, grid, points=RAMP):
     """RenderInputs and DisplayInputs of the phantom, as scene_inputs.read makes them from a Blender scene."""
-    from pcvr_addon import lighting, scene_inputs as si
+    from pcvr_addon.scene import lighting, scene_inputs as si
 
     ramp = si.RampInputs(positions=tuple(p for p, _ in points), rgba=tuple(c for _, c in points), use_grid_range=False,
                          tf_min=0.0, tf_max=1.0, opacity_scale=1.0)
@@ -77,7 +77,7 @@ def inputs_for(mode, grid, points=RAMP):
     world = (0.05, 0.05, 0.05)
     sun = lighting.LightSpec("sun", SUN_DIRECTION, (1.0, 1.0, 1.0), 1.0)
     settings = dict(method="pcvr", splat_kernel="gauss1.4", stride=0)
-    from pcvr_addon import defaults
+    from pcvr_addon.scene import defaults
     inputs = si.RenderInputs(
         mode=mode, volumes=(volume,), threads=0,
         xray=si.XRaySettings(post_filter=defaults.XRAY["post_filter"], passband=defaults.XRAY["passband"], **settings)
@@ -94,7 +94,7 @@ def inputs_for(mode, grid, points=RAMP):
 
 def orbit(index_to_world, n, count):
     """`count` perspective views at 1280 x 720 around the phantom's centre, filling about 80% of the height."""
-    from pcvr_addon.camera import CameraView
+    from pcvr_addon.scene.camera import CameraView
     from pcvr_native.cameras import look_at, perspective
 
     centre = (np.asarray(index_to_world) @ np.array([(n - 1) / 2] * 3 + [1.0]))[:3]
@@ -112,7 +112,7 @@ def orbit(index_to_world, n, count):
 
 def time_step(prepared, display, views, step):
     """Seconds of one viewport step (render and finish) from each of `views`."""
-    from pcvr_addon import native_render, passes
+    from pcvr_addon.render import native_render, passes
 
     never = threading.Event()
     seconds = []
@@ -126,7 +126,7 @@ def time_step(prepared, display, views, step):
 
 def time_steps(prepared, display, views):
     """Median seconds of each viewport step (render and finish) over `views`."""
-    from pcvr_addon import native_render, viewport
+    from pcvr_addon.render import native_render, viewport
 
     rows = []
     for step in viewport.STEPS:
@@ -142,7 +142,7 @@ class Watcher:
     """A ProgressiveRenderer with an event per new image."""
 
     def __init__(self, inputs, display):
-        from pcvr_addon import native_render, passes, prepared_scene, viewport
+        from pcvr_addon.render import native_render, passes, prepared_scene, viewport
         self.new_image = threading.Event()
         self.renderer = viewport.ProgressiveRenderer(prepared_scene.prepare, native_render.render_viewport_step,
                                                      passes.viewport_pixels, on_image=self.new_image.set,
@@ -205,7 +205,7 @@ def full_resolution_at(n, view_count, log):
     """Shaded full-resolution viewport images of the n^3 phantom with RAMP and SKULL_RAMP: median and least
     milliseconds over `view_count` views, after a first render from each (which builds what a grid keeps:
     its prefiltered lattice, its value ranges)."""
-    from pcvr_addon import prepared_scene, viewport
+    from pcvr_addon.render import prepared_scene, viewport
 
     grid, index_to_world = phantom_grid(n)
     views = orbit(index_to_world, n, view_count)
@@ -225,7 +225,7 @@ MODES = ('XRAY', 'SHADED')
 
 def run(quick=False, log=lambda message: None, modes=MODES):
     """Every measurement for `modes` (X-ray and shaded): a dict for results.json."""
-    from pcvr_addon import prepared_scene
+    from pcvr_addon.render import prepared_scene
 
     n = 64 if quick else 128
     grid, index_to_world = phantom_grid(n)
@@ -304,7 +304,7 @@ def main(argv=None):
                         help="coarse steps at level 0 (as before they took coarser levels), to compare")
     args = parser.parse_args(argv)
     if args.no_levels:
-        from pcvr_addon import viewport
+        from pcvr_addon.render import viewport
         viewport.LEVEL_PIXELS = 0.0
     results = run(args.quick, log=lambda message: print(message, file=sys.stderr), modes=tuple(args.modes))
     print("\n".join(section(results)))

@@ -78,10 +78,10 @@ def main(archive, work):
                                                 text=True, check=True).stdout)
 
     install_shipped_wheel(archive, work)
-    sys.path.append(str(work / "addon"))  # the helpers import pcvr_addon.image_io
+    sys.path.append(str(work / "addon"))  # the helpers import pcvr_addon.io.image_io
     import blender_scenes as bs
     import lit_scenes as ls
-    from pcvr_addon import image_io
+    from pcvr_addon.io import image_io
 
     # F12: a smooth blob in X-ray (densities 0 to 1.5), then the CT head in Hounsfield units, shaded.
     images = {}

@@ -230,7 +230,7 @@ def render_views(job, scene, configure, read, log, warm_key=lambda config: confi
 
 def combined_pass(scene):
     """The last render's Combined pass, float RGBA, row 0 on top."""
-    from pcvr_addon import image_io
+    from pcvr_addon.io import image_io
     passes = image_io.render_result_passes(scene)
     combined = passes.get("ViewLayer.Combined")
     if combined is None:

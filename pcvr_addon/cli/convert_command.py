@@ -13,7 +13,7 @@ volume_import for the conventions.
 import os
 import sys
 
-from . import volume_import
+from .. import volume_import
 
 
 def add_parser(commands):
@@ -56,7 +56,7 @@ def render_input(args):
             print("pcvr: --series picks a DICOM series; INPUT is a .vdb or .blend", file=sys.stderr)
             return 1
         return 0
-    from .volume_import.vdb_cache import cached_vdb
+    from ..volume_import.vdb_cache import cached_vdb
 
     try:
         args.input, volume = cached_vdb(os.path.abspath(args.input), series=args.series, frame=args.frame)

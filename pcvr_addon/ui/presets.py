@@ -3,8 +3,8 @@
 """Transfer-function presets: small Python files that set the transfer function and material of
 `bpy.context.volume.pcvr`, as Blender's preset menus run them (script.execute_preset).
 
-The shipped ones are in presets/transfer_function/ beside this file: 3D Slicer's volume-rendering presets,
-their numbers as Slicer publishes them, and a cloud preset of our own. Users save their own with the Add
+The shipped ones are in the add-on's presets/transfer_function/ (beside ui/): 3D Slicer's volume-rendering
+presets, their numbers as Slicer publishes them, and a cloud preset of our own. Users save their own with the Add
 Preset button (operators.PCVR_OT_transfer_function_preset_add), into Blender's user presets folder
 (scripts/presets/pcvr/transfer_function). Where a user's preset has a shipped one's name, the user's wins.
 """
@@ -14,11 +14,11 @@ import re
 
 import bpy
 
-from .transfer_function import DEFAULT_GRADIENT_RAMP, DEFAULT_RAMP, ramp_elements
-from .typed import as_typed
+from ..scene.transfer_function import DEFAULT_GRADIENT_RAMP, DEFAULT_RAMP, ramp_elements
+from ..scene.typed import as_typed
 
 SUBDIR = os.path.join("pcvr", "transfer_function")
-SHIPPED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets", "transfer_function")
+SHIPPED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "presets", "transfer_function")
 
 
 def search_paths():

@@ -3,12 +3,13 @@
 """The prepare stage: a scene's volumes read (through the cache, streamed where too big to read whole) and placed
 in world space, with their transfer functions, lights and materials made into pcvr_native objects. What every
 render of the scene re-uses, from any view; it runs on any thread (Blender's data was read before, by
-scene_inputs.read)."""
+scene.scene_inputs.read)."""
 
 import dataclasses
 from dataclasses import dataclass, field
 
-from . import cache, clipping, scene_inputs, transfer_function, volume_material, volumes
+from ..scene import clipping, scene_inputs, transfer_function, volume_material, volumes
+from . import cache
 
 def read_grid(filepath, grid_name):
     import pcvr_native

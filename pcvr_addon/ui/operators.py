@@ -7,8 +7,10 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
-from . import camera, clipping, prepared_scene, presets, transfer_function
-from .volumes import KERNEL_RADIUS_VOXELS
+from ..render import prepared_scene
+from ..scene import camera, clipping, transfer_function
+from ..scene.volumes import KERNEL_RADIUS_VOXELS
+from . import presets
 
 
 def volume_grid(operator, context, obj):

@@ -15,7 +15,7 @@ from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ImportHelper
 
-from . import volume_import
+from .. import volume_import
 
 MENU_LABEL = "PCVR Volume (DICOM, NIfTI, NRRD, MetaImage, TIFF)"
 PRESET_FOR_MODALITY = {"CT": "CT Bone", "MR": "MR Default"}
@@ -77,7 +77,7 @@ class PCVR_OT_import_volume(Operator, ImportHelper):
                     ".blend, else the user's cache)")
 
     def execute(self, context):
-        from .volume_import.vdb_cache import cached_vdb
+        from ..volume_import.vdb_cache import cached_vdb
 
         path = scan_path(self.filepath)
         try:

@@ -7,7 +7,9 @@ from bpy.types import Panel, UIList
 
 from bl_ui.utils import PresetPanel
 
-from . import lighting, native_render, presets, statistics
+from ..render import native_render, statistics
+from ..scene import lighting
+from . import presets
 
 
 def property_split(layout):

@@ -22,8 +22,12 @@ import sys
 
 import bpy
 
-from . import camera, command_scene, convert_command, image_io, register, statistics, unregister
-from .batch import run as batch_run
+from .. import register, unregister
+from ..batch import run as batch_run
+from ..io import image_io
+from ..render import statistics
+from ..scene import camera
+from . import command_scene, convert_command
 from .command_scene import (DEFAULT_LIGHT_DIRECTION, DEFAULT_MAGNIFICATION, METHODS, MODES, PASSBANDS, POST_FILTERS,
                             SPLAT_KERNELS)
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import lighting, transfer_function, volume_material, volumes
 from .clipping import ClipError, Clipping, volume_clipping
-from .properties import NATIVE_NAMES
+from .defaults import NATIVE_NAMES
 from .typed import as_typed
 
 

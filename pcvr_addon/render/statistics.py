@@ -97,7 +97,7 @@ def _share(part, whole):
     return f"{part:,} ({100 * part / whole:.0f}%)" if whole else f"{part:,}"
 
 
-# What clipping (clipping.py) saved and cost: (label, native statistic).
+# What clipping (scene/clipping.py) saved and cost: (label, native statistic).
 CLIP_ROWS = (("Blocks cut away", "blocks_clipped"), ("Voxels cut through", "voxels_cut"))
 
 

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
-"""The scene a command line renders, for `python -m pcvr_addon render` (cli.py) and its batches (batch/): a .vdb
+"""The scene a command line renders, for `python -m pcvr_addon render` (main.py) and its batches (batch/): a .vdb
 imported, framed and lit, and the command line's options applied to a scene. Below both, so neither imports the
 other."""
 
@@ -12,13 +12,16 @@ import sys
 import bpy
 from mathutils import Matrix, Vector
 
-from . import clipping, image_io, presets
-from .properties import (NATIVE_NAMES, enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
-                         enum_splat_kernels)
+from ..io import image_io
+from ..scene import clipping
+from ..scene.defaults import NATIVE_NAMES
+from ..ui import presets
+from ..ui.properties import (enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
+                             enum_splat_kernels)
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
-# a white surface facing it as white, as in Cycles (see lighting.py).
+# a white surface facing it as white, as in Cycles (see scene/lighting.py).
 DEFAULT_LIGHT_DIRECTION = (0.4, -0.4, -0.8)
 SUN_STRENGTH = math.pi
 # Blender's default world colour, the ambient light and background of a .vdb.

@@ -16,7 +16,8 @@ import weakref
 
 import numpy as np
 
-from . import camera, native_render, passes, prepared_scene, scene_inputs, viewport
+from ..scene import camera, scene_inputs
+from . import native_render, passes, prepared_scene, viewport
 
 
 def _tag_redraw(engine_reference):

@@ -20,7 +20,7 @@ import uuid
 import bpy
 import numpy as np
 
-from . import compat
+from .. import compat
 
 FORMATS = {
     ".exr": "float",

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import compat
+from .. import compat
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import cache, camera, viewport, volumes
+from ..scene import camera, volumes
+from . import cache, viewport
 
 
 def native_camera(view):

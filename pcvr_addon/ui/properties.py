@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
 """PCVR settings: one property group per datablock (scene, view layer, volume). Defaults that pcvr_native
-also has come from defaults.py."""
+also has come from scene/defaults.py, and so does NATIVE_NAMES, pcvr_native's spelling of the enum items below."""
 
 import bpy
 from bpy.props import (
@@ -14,31 +14,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from . import defaults, transfer_function
-
-# How pcvr_native and the command line spell the enum items below.
-NATIVE_NAMES = {
-    'REGULAR': "regular",
-    'PCVR': "pcvr",
-    'BILINEAR_SPREAD': "bilinear_spread",
-    'GAUSS_1_4': "gauss1.4",
-    'GAUSS_2_0': "gauss2.0",
-    'LINEAR': "linear",
-    'BOX': "box",
-    'BILINEAR': "bilinear",
-    'CATMULL_ROM': "catmull_rom",
-    'COMPENSATED': "compensated",
-    'PAPER': "paper",
-    'AUTO': "auto",
-    'SPLAT': "splat",
-    'SAMPLE': "sample",
-}
-
-
-def identifier(native_name):
-    """The enum identifier of a pcvr_native name."""
-    return next(key for key, value in NATIVE_NAMES.items() if value == native_name)
-
+from ..scene import defaults, transfer_function
 
 enum_modes = (
     ('XRAY', "X-Ray", "Line integral of the density along each pixel's ray"),
@@ -141,28 +117,28 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Method",
         description="Splatting algorithm",
         items=enum_methods,
-        default=identifier(defaults.XRAY["method"]),
+        default=defaults.identifier(defaults.XRAY["method"]),
         update=tag_changed,
     )
     splat_kernel: EnumProperty(
         name="Splat Kernel",
         description="Reconstruction kernel of a voxel",
         items=enum_splat_kernels,
-        default=identifier(defaults.XRAY["splat_kernel"]),
+        default=defaults.identifier(defaults.XRAY["splat_kernel"]),
         update=tag_changed,
     )
     post_filter: EnumProperty(
         name="Post Filter",
         description="Filter that turns the subgrid into the image (X-ray)",
         items=enum_post_filters,
-        default=identifier(defaults.XRAY["post_filter"]),
+        default=defaults.identifier(defaults.XRAY["post_filter"]),
         update=tag_changed,
     )
     passband: EnumProperty(
         name="Passband",
         description="X-ray with PCVR or regular splatting: pay back the blur of the splat kernel and post filter",
         items=enum_passbands,
-        default=identifier(defaults.XRAY["passband"]),
+        default=defaults.identifier(defaults.XRAY["passband"]),
         update=tag_changed,
     )
     subgrid_stride: IntProperty(
@@ -176,7 +152,7 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Post Filter",
         description="Filter that turns each sheet's subgrid into pixels (shaded and maximum intensity)",
         items=enum_post_filters,
-        default=identifier(defaults.SHEETS["post_filter"]),
+        default=defaults.identifier(defaults.SHEETS["post_filter"]),
         update=tag_changed,
     )
     sheet_spacing: FloatProperty(
@@ -198,7 +174,7 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Sheet Fill",
         description="Shaded, post-convolved: how the sheets get the volume's values",
         items=enum_sheet_fills,
-        default=identifier(defaults.SHEETS["sheet_fill"]),
+        default=defaults.identifier(defaults.SHEETS["sheet_fill"]),
         update=tag_changed,
     )
     opacity_cutoff: FloatProperty(
@@ -261,7 +237,7 @@ class PCVRViewLayerSettings(DatablockSettings, bpy.types.PropertyGroup):
 
 def ramp_texture_property(name, description):
     """A pointer to a Texture whose colour ramp the volume's settings use (a Texture is an ID: see
-    transfer_function.py)."""
+    scene/transfer_function.py)."""
     return PointerProperty(name=name, description=description, type=bpy.types.Texture,
                            poll=lambda _self, texture: texture.use_color_ramp, update=tag_changed)
 
@@ -300,7 +276,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
-    # What shaded mode renders: the transfer function, or the object's material (volume_material.py).
+    # What shaded mode renders: the transfer function, or the object's material (scene/volume_material.py).
     source: EnumProperty(
         name="Source",
         description="What gives the volume its colour, opacity and light in shaded mode",
@@ -330,7 +306,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         update=tag_changed,
     )
 
-    # Clipping (every mode); see clipping.py.
+    # Clipping (every mode); see scene/clipping.py.
     use_crop: BoolProperty(
         name="Crop",
         description="Keep only the part of the volume inside the crop object's box",
@@ -355,7 +331,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=0,
     )
 
-    # The transfer function (shaded and maximum intensity modes); see transfer_function.py.
+    # The transfer function (shaded and maximum intensity modes); see scene/transfer_function.py.
     transfer_function: ramp_texture_property(
         name="Transfer Function",
         description="Texture whose colour ramp gives colour (RGB) and opacity per voxel (alpha) over the range",
@@ -386,7 +362,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         default=1.0,
         update=tag_changed,
     )
-    # Gradient opacity (shaded mode): the opacity times a ramp's alpha over |gradient|; see transfer_function.py.
+    # Gradient opacity (shaded mode): the opacity times a ramp's alpha over |gradient|; see scene/transfer_function.py.
     use_gradient_opacity: BoolProperty(
         name="Gradient Opacity",
         description="Scale the opacity by a function of how fast the density changes: boundaries stay, uniform "

@@ -6,6 +6,8 @@ pcvr_native is still tuned (sheet spacing, samples per sheet and the shaded post
 tests/addon/test_defaults.py compares this table with the defaults in pcvr_native's own signatures: a change
 there fails that test until it is made here too, and the interface, the command line and scripts follow.
 Names and values are pcvr_native's keyword arguments.
+
+NATIVE_NAMES spells the settings' enum items (ui/properties.py) as pcvr_native and the command line do.
 """
 
 # render_xray
@@ -36,3 +38,26 @@ MATERIAL = {
     "specular": 0.2,
     "shininess": 10.0,
 }
+
+# How pcvr_native and the command line spell the enum items of the settings (ui/properties.py).
+NATIVE_NAMES = {
+    'REGULAR': "regular",
+    'PCVR': "pcvr",
+    'BILINEAR_SPREAD': "bilinear_spread",
+    'GAUSS_1_4': "gauss1.4",
+    'GAUSS_2_0': "gauss2.0",
+    'LINEAR': "linear",
+    'BOX': "box",
+    'BILINEAR': "bilinear",
+    'CATMULL_ROM': "catmull_rom",
+    'COMPENSATED': "compensated",
+    'PAPER': "paper",
+    'AUTO': "auto",
+    'SPLAT': "splat",
+    'SAMPLE': "sample",
+}
+
+
+def identifier(native_name):
+    """The enum identifier of a pcvr_native name."""
+    return next(key for key, value in NATIVE_NAMES.items() if value == native_name)
