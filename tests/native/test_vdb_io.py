@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import pcvr_native as pn
-from _io_helpers import HAVE_BPY, affine_matrix, run_blender_openvdb, sparse_volume
+from _io_helpers import HAVE_BPY, affine_matrix, describe, run_blender_openvdb, run_python, sparse_volume
 
 needs_bpy = pytest.mark.skipif(not HAVE_BPY, reason="bpy (Blender's bundled openvdb module) is not installed")
 
@@ -391,3 +391,25 @@ def test_blender_reads_what_we_write(tmp_path):
     origin, *axes = np.array(result["corners"])
     np.testing.assert_allclose(origin, m[:3, 3], atol=1e-12)
     np.testing.assert_allclose(np.array(axes).T - origin[:, None], m[:3, :3], atol=1e-12)
+
+
+def test_format_225_reads_as_224_without_a_console_warning(tmp_path):
+    """OpenVDB 13 (Blender 5.3's) writes format 225, which only announces its half-float grid type: a float grid
+    is stored as in 224. Ours, read with its format number made 225, gives the same grid and prints nothing
+    (OpenVDB 10's header reader would log "unsupported VDB file format" on the console for every such file)."""
+    values = sparse_volume(shape=(12, 10, 8), seed=8)
+    pn.Grid.from_dense(values, affine_matrix(seed=9)).write_vdb(tmp_path / "224.vdb")
+    data = bytearray((tmp_path / "224.vdb").read_bytes())
+    assert int.from_bytes(data[8:12], "little") == 224
+    data[8:12] = (225).to_bytes(4, "little")
+    (tmp_path / "225.vdb").write_bytes(data)
+    proc = run_python(f"""
+        import numpy as np, pcvr_native as pn
+        a, b = (pn.read_vdb({str(tmp_path)!r} + name) for name in ("/224.vdb", "/225.vdb"))
+        assert np.array_equal(a.to_dense(), b.to_dense()) and np.array_equal(a.index_to_world, b.index_to_world)
+        assert pn.list_grids({str(tmp_path / '225.vdb')!r})[0]["active_voxels"] == a.active_voxel_count
+        assert pn.stream_vdb({str(tmp_path / '225.vdb')!r}).active_voxel_count == a.active_voxel_count
+        print("same")
+    """)
+    assert proc.returncode == 0 and proc.stdout.strip() == "same", describe(proc)
+    assert "unsupported VDB file format" not in proc.stderr + proc.stdout

@@ -31,6 +31,7 @@
 #include <cstring>
 #include <filesystem>
 #include <new>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -80,7 +81,7 @@ public:
         file_.is.exceptions(std::ios::failbit | std::ios::badbit);
 
         if (file_.size < 8) file_.corrupt("too short to be a VDB file (" + std::to_string(file_.size) + " bytes)");
-        readHeader(file_.is);  // throws "not a VDB file" on a wrong magic number
+        read_header();  // throws "not a VDB file" on a wrong magic number
         // Tag the stream with the header's versions and compression, as io::File::open does.
         file_.meta = std::make_shared<vdb::io::StreamMetadata>();
         file_.meta->setSeekable(true);
@@ -212,6 +213,31 @@ public:
     bool can_check_layout(const Entry& e) const { return LayoutCheck::layout_of(e.gd) != nullptr; }
 
 private:
+    /// Archive::readHeader, except for format 225: OpenVDB 11 and 12 (Blender 5's) write it, and it only announces
+    /// their half-float grid type, which this build refuses by its type name as any unregistered type; every
+    /// other grid is stored as in 224. readHeader would print "unsupported VDB file format" on the user's console
+    /// for each such file although it reads, so its header is read as 224's, from a copy that says so.
+    void read_header() {
+        constexpr uint32_t kHalfGridFormat = 225;
+        constexpr std::streamsize kHeaderBytes = 8 + 4 + 8 + 1 + 36;  // magic, format, library, offsets flag, UUID
+        uint32_t format = 0;
+        if (file_.size >= kHeaderBytes) {
+            file_.is.seekg(8);
+            file_.is.read(reinterpret_cast<char*>(&format), sizeof format);
+            file_.is.seekg(0);
+        }
+        if (format != kHalfGridFormat || vdb::OPENVDB_FILE_VERSION >= kHalfGridFormat) {
+            readHeader(file_.is);
+            return;
+        }
+        std::string header(size_t(kHeaderBytes), '\0');
+        file_.is.read(header.data(), kHeaderBytes);
+        const uint32_t readable = vdb::OPENVDB_FILE_VERSION;
+        std::memcpy(header.data() + 8, &readable, sizeof readable);
+        std::istringstream copy(header);
+        readHeader(copy);  // the file's stream is past the header already
+    }
+
     /// The grid whose tree an instance shares. `depth` stops a corrupt file's cycle of instances.
     vdb::GridBase::Ptr instance_parent(const Entry& e, size_t depth = 0) {
         for (size_t i = 0; i < entries_.size(); ++i)
