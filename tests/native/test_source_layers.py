@@ -1,6 +1,7 @@
 """The house rules of issues 19 and 38, read from the sources: each folder of native/src includes only its own layer
 and the layers before it, the sub-folders of a layer (shaded/'s) only their own and those before them, include/pcvr
-includes nothing private, and the add-on's modules import no circle."""
+includes nothing private, and the add-on's packages import only their own row and those below, with no circle
+between modules."""
 
 import ast
 import functools
@@ -125,13 +126,24 @@ def test_every_source_sits_in_a_layer():
             assert not nested, (layer, part, nested)
 
 
-def test_addon_modules_import_no_circle():
-    """No module of the add-on imports, at module level, one that imports it back (function-level imports are
-    lazy on purpose: the native module, Blender's gpu, the batch's Dask)."""
+# The add-on's packages bottom to top (issue 38): each module imports, at module level, only from its own row and
+# the rows below. The command line and its batches share a row (a batch renders what the command line sets up, and
+# the command line runs batches); the root package (registration), engine.py and __main__.py sit on top.
+ADDON_LAYERS = (("compat", "volume_import"), ("scene",), ("render",), ("io",), ("ui",), ("cli", "batch"),
+                ("", "engine", "__main__"))
+
+
+@functools.lru_cache(maxsize=None)
+def addon_imports():
+    """{module: the add-on modules it imports at module level}, modules by dotted name below pcvr_addon ("" for
+    the package itself). Function-level imports are lazy on purpose (the native module, Blender's gpu, the batch's
+    Dask) and not counted."""
     addon = NATIVE.parent / "pcvr_addon"
     modules = {}
     for path in addon.rglob("*.py"):
         parts = list(path.relative_to(addon).with_suffix("").parts)
+        if parts[0] == "presets":  # Blender's preset scripts: data that the preset menus run, not modules
+            continue
         modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
     imports = {}
     for name, path in modules.items():
@@ -146,7 +158,29 @@ def test_addon_modules_import_no_circle():
                 for candidate in named + [".".join(stem + [alias.name]) for alias in node.names]:
                     if candidate in modules and candidate != name:
                         found.add(candidate)
-        imports[name] = found
+        imports[name] = frozenset(found)
+    return imports
+
+
+def addon_rank(module):
+    """The row of ADDON_LAYERS that holds the module's package (its first name)."""
+    package = module.split(".")[0]
+    return next(rank for rank, row in enumerate(ADDON_LAYERS) if package in row)
+
+
+def test_addon_packages_import_only_their_own_row_and_those_below():
+    imports = addon_imports()
+    unplaced = sorted({module.split(".")[0] for module in imports} - {p for row in ADDON_LAYERS for p in row})
+    assert not unplaced, f"packages in no row of ADDON_LAYERS: {unplaced}"
+    upward = [f"{module} -> {imported}" for module, found in sorted(imports.items()) for imported in sorted(found)
+              if addon_rank(imported) > addon_rank(module)]
+    assert not upward, "add-on imports that run upwards:\n" + "\n".join(upward)
+    assert addon_rank("scene.volumes") < addon_rank("render.passes") < addon_rank("ui.panels")
+
+
+def test_addon_modules_import_no_circle():
+    """No module of the add-on imports, at module level, one that imports it back."""
+    imports = addon_imports()
 
     def circle_through(start):
         stack = [(start, [start])]
@@ -159,5 +193,5 @@ def test_addon_modules_import_no_circle():
                     stack.append((imported, path + [imported]))
         return None
 
-    circles = [" -> ".join(circle) for circle in map(circle_through, sorted(modules)) if circle]
-    assert len(modules) > 30 and not circles, circles
+    circles = [" -> ".join(circle) for circle in map(circle_through, sorted(imports)) if circle]
+    assert len(imports) > 30 and not circles, circles
