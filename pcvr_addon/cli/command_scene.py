@@ -120,27 +120,27 @@ def _import_vdb(filepath):
     return obj, int(numbered.group(2)) if numbered else None
 
 
+# Options that set one scene setting: (option, setting, the setting's value by the option's, or None: as given).
+SCENE_OPTIONS = (
+    ("method", "method", METHODS), ("splat_kernel", "splat_kernel", SPLAT_KERNELS), ("stride", "subgrid_stride", None),
+    ("passband", "passband", PASSBANDS), ("sheet_fill", "sheet_fill", SHEET_FILLS),
+    ("sheet_spacing", "sheet_spacing", None), ("samples_per_sheet", "samples_per_sheet", None),
+    ("opacity_cutoff", "opacity_cutoff", None), ("stream_above", "stream_above", None), ("shadows", "shadows", None),
+)
+
+
 def apply_options(scene, args):
     scene.render.engine = 'PCVR'
     settings = scene.pcvr
     if args.mode is not None:
         settings.mode = args.mode
-    if args.method is not None:
-        settings.method = METHODS[args.method]
-    if args.splat_kernel is not None:
-        settings.splat_kernel = SPLAT_KERNELS[args.splat_kernel]
+    for option, setting, values in SCENE_OPTIONS:
+        value = getattr(args, option)
+        if value is not None:
+            setattr(settings, setting, value if values is None else values[value])
     if args.post_filter is not None:
         setattr(settings, "post_filter" if settings.mode == 'XRAY' else "sheet_post_filter",
                 POST_FILTERS[args.post_filter])
-    for option in ("sheet_spacing", "samples_per_sheet", "opacity_cutoff", "stream_above", "shadows"):
-        if getattr(args, option) is not None:
-            setattr(settings, option, getattr(args, option))
-    if args.stride is not None:
-        settings.subgrid_stride = args.stride
-    if args.passband is not None:
-        settings.passband = PASSBANDS[args.passband]
-    if args.sheet_fill is not None:
-        settings.sheet_fill = SHEET_FILLS[args.sheet_fill]
     if args.gain == "auto":
         settings.use_auto_exposure = True
     elif args.gain is not None:
