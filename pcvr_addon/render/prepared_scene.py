@@ -195,6 +195,8 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         if cancelled():
             break
         warnings.extend(volume.warnings)
+        if not volume.has_grid:
+            continue
         reading(volume.name)
         try:
             grid = _grid(volume, stream_above)
@@ -209,7 +211,8 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
             errors.append(f"Volume object '{volume.name}': {ex}")
             continue
-        placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
+        placement = volume.placement((stream or grid).index_to_world)
+        placed = [None if g is None else g.with_index_to_world(placement @ g.index_to_world) for g in (grid, stream)]
         loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
         if volume.medium is not None and volume.medium.colour_grid:
             try:
