@@ -167,6 +167,10 @@ def _grid(volume, stream_above=None):
         raise OSError(volume.error)
     if volume.grid is not None:
         return volume.grid
+    if volume.value_map is not None:
+        # The attribute a fluid domain's material reads, computed per voxel from the grid's values as Cycles does.
+        grid = cache.grids.get(volume.filepath, volume.grid_name, read_grid)
+        return pcvr_native.AttenuationMap(*volume.value_map.points()).apply(grid)
     if stream_above is not None and value_bytes(volume.filepath, volume.grid_name) > stream_above:
         try:
             return cache.grids.get(volume.filepath, volume.grid_name, stream_grid, kind="stream")

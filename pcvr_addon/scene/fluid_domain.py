@@ -35,7 +35,6 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import volume_material
 
 # config/config_NNNN.uni, gzip (MANTA::writeConfiguration): active_fields, res[3], dx, dt, p0[3], p1[3], dp0[3],
 # shift[3], obj_shift_f[3], obmat[16] (column-major), base_res[3], res_min[3], res_max[3], active_color[3],
@@ -44,6 +43,24 @@ CONFIG = struct.Struct("<i3iff3f3f3f3i3f16f3i3i3i3fi")
 
 # Cycles' temperature attribute is 0 where the flame is at most this (rna_FluidModifier_temperature_grid_get).
 FLAME_THRESHOLD = 0.01
+
+
+@dataclass(frozen=True)
+class ValueMap:
+    """An attribute Cycles computes per voxel from a cache grid's value v: offset + scale v where v > threshold,
+    else 0 (a domain's temperature from its flame grid, its heat from the heat grid)."""
+    threshold: float
+    offset: float
+    scale: float
+
+    def points(self):
+        """(values, attributes) through which the map is linear, constant beyond its ends (as
+        pcvr_native.AttenuationMap takes them): values up to 10^4."""
+        far = 1e4
+        if math.isinf(self.threshold):
+            return [-far, far], [self.offset - self.scale * far, self.offset + self.scale * far]
+        above = float(np.nextafter(np.float32(self.threshold), np.float32(far)))
+        return [self.threshold, above, far], [0.0, self.offset + self.scale * above, self.offset + self.scale * far]
 
 
 @dataclass(frozen=True)
@@ -93,11 +110,9 @@ def cache_frame(settings, frame):
     return frame - offset if low <= frame <= high else None
 
 
-def cache_directory(obj, modifier):
+def cache_directory(obj, settings):
     """The absolute cache directory of a domain (Blender makes it absolute against the .blend or its library)."""
-    original = obj.original
-    path = original.modifiers[modifier.name].domain_settings.cache_directory
-    return os.path.normpath(bpy.path.abspath(path, library=original.library))
+    return os.path.normpath(bpy.path.abspath(settings.cache_directory, library=obj.original.library))
 
 
 def frame_file(directory, kind, name, frame, extension=".vdb"):
@@ -153,7 +168,7 @@ class DomainGrid:
     filepath: str
     grid: str
     index_to_object: tuple                     # 4 rows of 4
-    value_map: volume_material.ValueMap | None = None
+    value_map: ValueMap | None = None          # what Cycles makes of the grid's values (None: them)
 
 
 @dataclass(frozen=True)
@@ -168,11 +183,13 @@ def read_frame(obj, modifier, object_to_world, scene_frame):
     """DomainFrame of an evaluated gas domain at a scene frame. None when the scene frame is outside the cache's
     frames (Cycles renders nothing either); a DomainFrame without grids and a message when the cache cannot be
     read."""
-    settings = modifier.domain_settings
+    # The settings as the user set them (the evaluated copy's cache directory Blender may have made absolute);
+    # the resolution only the evaluated domain has.
+    settings = obj.original.modifiers[modifier.name].domain_settings
     frame = cache_frame(settings, scene_frame)
     if frame is None:
         return None
-    directory = cache_directory(obj, modifier)
+    directory = cache_directory(obj, settings)
     if settings.cache_data_format != 'OPENVDB':
         return DomainFrame({}, message=f"its cache in '{directory}' is in the {settings.cache_data_format} format: "
                                        "PCVR reads OpenVDB caches (Cache > Format: OpenVDB, then bake again)")
@@ -181,12 +198,12 @@ def read_frame(obj, modifier, object_to_world, scene_frame):
         return DomainFrame({}, message=f"no cache for frame {frame} in '{os.path.dirname(data)}' (bake the "
                                        "simulation, or point Cache > Directory at its cache)")
     try:
-        return _read_frame(obj, settings, object_to_world, directory, frame, data)
+        return _read_frame(obj, modifier, settings, object_to_world, directory, frame, data)
     except (OSError, ValueError) as ex:  # pcvr_native's VDBReadError is an OSError, its GridError a ValueError
         return DomainFrame({}, message=f"cannot read its cache frame {frame}: {ex}")
 
 
-def _read_frame(obj, settings, object_to_world, directory, frame, data):
+def _read_frame(obj, modifier, settings, object_to_world, directory, frame, data):
     import pcvr_native
 
     config_path = frame_file(directory, "config", "config", frame, ".uni")
@@ -198,7 +215,7 @@ def _read_frame(obj, settings, object_to_world, directory, frame, data):
         box = _adaptive_box(config, object_to_world)
     else:
         box = _texture_space(obj)
-    res = tuple(config.res) if config is not None else tuple(settings.domain_resolution)
+    res = tuple(config.res) if config is not None else tuple(modifier.domain_settings.domain_resolution)
     if min(res) < 1:
         return DomainFrame({}, message=f"no grid resolution for frame {frame} in '{directory}'")
     files = [(data, res, "")]
@@ -230,12 +247,12 @@ def _attributes(present, settings, suffix):
     if flame is not None:
         grids["flame"] = flame
         scale = settings.flame_max_temp - settings.flame_ignition
-        grids["temperature"] = DomainGrid(flame.filepath, flame.grid, flame.index_to_object, volume_material.ValueMap(
+        grids["temperature"] = DomainGrid(flame.filepath, flame.grid, flame.index_to_object, ValueMap(
             threshold=FLAME_THRESHOLD, offset=settings.flame_ignition, scale=scale))
     heat = present.get("temperature")  # Mantaflow's heat grid is called temperature in the file
     if heat is not None:
         grids["heat"] = DomainGrid(heat.filepath, heat.grid, heat.index_to_object,
-                                   volume_material.ValueMap(threshold=-math.inf, offset=0.0, scale=0.5))
+                                   ValueMap(threshold=-math.inf, offset=0.0, scale=0.5))
     return grids
 
 

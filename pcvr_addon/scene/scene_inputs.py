@@ -64,6 +64,9 @@ class VolumeInputs:
     # Where the file's index space lies in object space, instead of where its transform says (a fluid cache's
     # cells on its domain); None: the file's transform.
     index_to_object: tuple | None = None
+    # The attribute the grid's values stand for, mapped per voxel as Cycles does (a fluid domain's temperature from
+    # its flame grid): a fluid_domain.ValueMap, or None.
+    value_map: object = None
 
     @property
     def matrix(self):
@@ -242,6 +245,7 @@ def volume_inputs(source, mode, export_grid):
         clipping=clipped,
         grid=grid,
         index_to_object=source.index_to_object,
+        value_map=source.value_map,
         warnings=source.warnings,
     )
 

@@ -38,18 +38,6 @@ POINTS = 128
 
 
 @dataclass(frozen=True)
-class ValueMap:
-    """An attribute computed from a grid's value v: offset + scale v where v > threshold, else 0 (a fluid domain's
-    temperature from its flame grid, as Cycles computes it)."""
-    threshold: float
-    offset: float
-    scale: float
-
-    def __call__(self, values):
-        return np.where(values > self.threshold, self.offset + self.scale * values, 0.0)
-
-
-@dataclass(frozen=True)
 class GridMedium:
     """What one grid adds to the medium, per world unit, as a function of its value v (clipped below at 0)."""
     grid: str | None                           # grid name; None: the volume's own grid (its Grid setting)
@@ -63,16 +51,10 @@ class GridMedium:
     blackbody_tint: tuple = (1.0, 1.0, 1.0)
     blackbody_colour_strength: float = 0.0     # a Blackbody node's colour of T = v (kelvin) times this strength
     colour_grid: str | None = None             # a vector grid whose colour multiplies the albedo (Color Attribute)
-    value_map: ValueMap | None = None          # the attribute the grid's values stand for (None: the values)
-
-    def attribute(self, values):
-        """The attribute the material reads at each of the grid's `values` (1-D)."""
-        values = np.asarray(values, dtype=np.float64)
-        return values if self.value_map is None else self.value_map(values)
 
     def emission_at(self, values):
         """Emitted radiance (linear RGB) per world unit at each of `values` (1-D): shape (n, 3)."""
-        v = np.maximum(self.attribute(values), 0.0)[:, None]
+        v = np.maximum(np.asarray(values, dtype=np.float64), 0.0)[:, None]
         out = np.asarray(self.constant_emission) + v * np.asarray(self.emission)
         if self.kelvin > 0:
             t = self.kelvin * v[:, 0]
@@ -274,6 +256,6 @@ def media_transfer_function(medium, value_range, density_scale, unit_distance):
     low, high = (float(v) * density_scale for v in value_range)
     top = max(high, 1e-6)
     values = np.linspace(min(low, 0.0), top, POINTS)
-    opacity = -np.expm1(-medium.extinction * np.maximum(medium.attribute(values), 0.0) * unit_distance)
+    opacity = -np.expm1(-medium.extinction * np.maximum(values, 0.0) * unit_distance)
     rgba = np.column_stack([np.tile(medium.albedo, (POINTS, 1)), np.minimum(opacity, 1.0)])
     return values, rgba, medium.emission_at(values)

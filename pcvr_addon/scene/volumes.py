@@ -38,6 +38,7 @@ class VolumeSource:
     settings: object = None       # its PCVR settings (volume.pcvr)
     grid_names: frozenset = frozenset()  # the grids a material may name
     index_to_object: tuple | None = None  # where the file's index space lies (None: as the file's transform says)
+    value_map: object = None      # fluid_domain.ValueMap: what the grid's values stand for (None: themselves)
     warnings: tuple = ()
 
     @property
@@ -62,8 +63,8 @@ class DomainSource(VolumeSource):
             warnings = (f"Fluid domain '{self.name}': the Color Attribute '{medium.colour_grid}' is not read: the "
                         "Color alone colours it",)
         source = dataclasses.replace(self, filepath=grid.filepath, grid_name=grid.grid,
-                                     index_to_object=grid.index_to_object, warnings=warnings)
-        return source, dataclasses.replace(medium, value_map=grid.value_map, colour_grid=None)
+                                     index_to_object=grid.index_to_object, value_map=grid.value_map, warnings=warnings)
+        return source, dataclasses.replace(medium, colour_grid=None)
 
 
 def placement(object_to_world, index_to_object, file_index_to_world):
