@@ -19,7 +19,8 @@ blenkernel/intern/fluid.cc, makesrna/intern/rna_fluid.cc, intern/cycles/blender/
   the frame's config file), kept where it was simulated if the domain moved since.
 - attributes, as Cycles offers them to the material: density and flame as stored; temperature = flame ignition +
   flame x (maximum - ignition) where flame > 0.01, else 0 (Quick Fire's blackbody: 1500 K to 3000 K at its
-  Temperature of 1000); heat = the heat grid x 0.5. The Color attribute (a vector of the colour grids) is not read.
+  Temperature of 1000); heat = the heat grid x 0.5; both mapped per voxel before rendering, as Cycles maps them
+  (render/prepared_scene.py). The Color attribute (a vector of the colour grids) is not read.
 
 Its PCVR settings are the Volume settings' defaults with Source 'Material': the domain renders as its material says
 in shaded mode (Quick Smoke's grey smoke, Quick Fire's flames), its density grid in X-ray and MIP.
