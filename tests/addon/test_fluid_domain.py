@@ -47,6 +47,7 @@ def in_blender(tmp_path, scenario, **arguments):
     Returns what the scenario returned ({name: array or list of str})."""
     code = f"""
         import os, pathlib, sys
+        os.chdir({str(tmp_path)!r})  # Mantaflow writes its noise tile (waveletNoiseTile.bin, 24 MB) where it runs
         sys.path[:0] = {[str(ADDON_TESTS.parent.parent), str(ADDON_TESTS.parent), str(ADDON_TESTS)]!r}
         import bpy, numpy as np, pcvr_addon
         bpy.ops.wm.read_factory_settings(use_empty=True)
