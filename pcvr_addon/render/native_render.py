@@ -162,7 +162,8 @@ def sampling_estimate(depsgraph, settings):
         if grid is None:
             unread += 1
             continue
-        grid = grid.with_index_to_world(source.object_to_world @ grid.index_to_world)
+        placement = volumes.placement(source.object_to_world, source.index_to_object, grid.index_to_world)
+        grid = grid.with_index_to_world(placement @ grid.index_to_world)
         grid_low, grid_high = pcvr_native.effective_magnification(grid, native)
         if grid_high == 0:
             continue  # none of its blocks is in view after all

@@ -167,6 +167,10 @@ def _grid(volume, stream_above=None):
         raise OSError(volume.error)
     if volume.grid is not None:
         return volume.grid
+    if volume.value_map is not None:
+        # The attribute a fluid domain's material reads, computed per voxel from the grid's values as Cycles does.
+        grid = cache.grids.get(volume.filepath, volume.grid_name, read_grid)
+        return pcvr_native.AttenuationMap(*volume.value_map.points()).apply(grid)
     if stream_above is not None and value_bytes(volume.filepath, volume.grid_name) > stream_above:
         try:
             return cache.grids.get(volume.filepath, volume.grid_name, stream_grid, kind="stream")
@@ -195,6 +199,8 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         if cancelled():
             break
         warnings.extend(volume.warnings)
+        if not volume.has_grid:
+            continue
         reading(volume.name)
         try:
             grid = _grid(volume, stream_above)
@@ -209,7 +215,8 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
             errors.append(f"Volume object '{volume.name}': {ex}")
             continue
-        placed = [None if g is None else g.with_index_to_world(volume.matrix @ g.index_to_world) for g in (grid, stream)]
+        placement = volume.placement((stream or grid).index_to_world)
+        placed = [None if g is None else g.with_index_to_world(placement @ g.index_to_world) for g in (grid, stream)]
         loaded.append(LoadedVolume(index, volume, placed[0], placed[1], level))
         if volume.medium is not None and volume.medium.colour_grid:
             try:

@@ -61,10 +61,25 @@ class VolumeInputs:
     # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
     # a change).
     grid: object = None
+    # Where the file's index space lies in object space, instead of where its transform says (a fluid cache's
+    # cells on its domain); None: the file's transform.
+    index_to_object: tuple | None = None
+    # The attribute the grid's values stand for, mapped per voxel as Cycles does (a fluid domain's temperature from
+    # its flame grid): a fluid_domain.ValueMap, or None.
+    value_map: object = None
 
     @property
     def matrix(self):
         return np.array(self.object_to_world, dtype=np.float64)
+
+    @property
+    def has_grid(self):
+        """Whether there is a grid to read (a fluid domain without its cache frame has only a warning)."""
+        return bool(self.filepath or self.grid is not None or self.error)
+
+    def placement(self, file_index_to_world):
+        """The matrix taking its grid's index-to-world matrix to world space (volumes.placement)."""
+        return volumes.placement(self.matrix, self.index_to_object, file_index_to_world)
 
 
 @dataclass(frozen=True)
@@ -173,31 +188,30 @@ def material(settings):
 def material_volume_inputs(source, mode, export_grid):
     """The VolumeInputs of a VolumeSource: one per grid its material names that the volume has (shaded mode with
     the source 'MATERIAL'), else one rendered with the transfer function. The first carries the warnings."""
-    if mode != 'SHADED' or source.volume.pcvr.source != 'MATERIAL':
+    if mode != 'SHADED' or source.settings.source != 'MATERIAL' or not source.has_grids:
         return (volume_inputs(source, mode, export_grid),)
     media = volume_material.read(source.material)
-    present = {grid.name for grid in source.volume.grids}
+    present = source.grid_names
     parts = [medium for medium in media.grids if (medium.grid or source.grid_name or "density") in present]
-    warnings = tuple(f"Volume object '{source.name}': {w}" for w in media.warnings)
+    warnings = source.warnings + tuple(f"Volume object '{source.name}': {w}" for w in media.warnings)
     if not source.filepath and any(medium.colour_grid for medium in parts):
         warnings += (f"Volume object '{source.name}': the Color Attribute of a volume made by modifiers is not read: "
                      "the Color alone colours it",)
-    parts = [_with_colour_grid(medium, source, present) for medium in parts]
+    parts = [source.part(_with_colour_grid(medium, source, present)) for medium in parts]
     if media.grids and not parts:
         warnings += (f"Volume object '{source.name}': its material names no grid the volume has "
                      f"({', '.join(sorted(present))}): rendered with the transfer function",)
     if not parts:
         return (dataclasses.replace(volume_inputs(source, mode, export_grid), warnings=warnings),)
-    return tuple(dataclasses.replace(volume_inputs(dataclasses.replace(source, grid_name=medium.grid or source.grid_name),
-                                                   mode, export_grid),
-                                     medium=medium, warnings=warnings if index == 0 else ())
-                 for index, medium in enumerate(parts))
+    return tuple(dataclasses.replace(volume_inputs(part, mode, export_grid), medium=medium,
+                                     warnings=(warnings if index == 0 else ()) + part.warnings)
+                 for index, (part, medium) in enumerate(parts))
 
 
 def _with_colour_grid(medium, source, present):
     """A GridMedium whose Color Attribute names a vector grid of the volume's file; one naming no grid it has
     loses it, as Cycles leaves the Color alone when the attribute is missing."""
-    if medium.colour_grid is None:
+    if medium.colour_grid is None or source.volume is None:
         return medium
     grid = source.volume.grids.get(medium.colour_grid) if medium.colour_grid in present else None
     if grid is None or grid.data_type not in {'VECTOR_FLOAT', 'VECTOR_DOUBLE'} or not source.filepath:
@@ -207,13 +221,13 @@ def _with_colour_grid(medium, source, present):
 
 def volume_inputs(source, mode, export_grid):
     """VolumeInputs of a VolumeSource. `export_grid(source)` returns the grid of a procedural volume."""
-    settings = source.volume.pcvr
+    settings = source.settings
     grid, error, clipped = None, source.error, Clipping()
     try:
         clipped = volume_clipping(settings)
     except ClipError as ex:
         error = error or str(ex)
-    if not source.filepath and not error:
+    if not source.filepath and not error and source.volume is not None:
         try:
             grid = export_grid(source)
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
@@ -230,6 +244,9 @@ def volume_inputs(source, mode, export_grid):
         mu_water_per_cm=settings.mu_water if settings.xray_values == 'HOUNSFIELD' else None,
         clipping=clipped,
         grid=grid,
+        index_to_object=source.index_to_object,
+        value_map=source.value_map,
+        warnings=source.warnings,
     )
 
 
@@ -284,6 +301,6 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
         xray_gain=settings.xray_gain if mode == 'XRAY' else 1.0,
         auto_exposure=mode == 'XRAY' and settings.use_auto_exposure,
         mip_color=settings.mip_color if mode == 'MIP' else 'TRANSFER_FUNCTION',
-        ramps=tuple(ramp_inputs(source.volume.pcvr) for source in sources) if mode == 'MIP' else (),
+        ramps=tuple(ramp_inputs(source.settings) for source in sources) if mode == 'MIP' else (),
     )
     return inputs, display

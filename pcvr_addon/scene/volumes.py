@@ -5,9 +5,11 @@
 Every volume instance of the evaluated depsgraph counts (plain objects, collection instances,
 geometry-node instances). A volume that comes unchanged from a file is read from that file (Blender's
 `frame_filepath` already resolves sequences and frame offsets); one that modifiers or geometry nodes
-made or changed is exported to a temporary file first.
+made or changed is exported to a temporary file first. A fluid gas domain (a mesh) is read from its cache frame
+(fluid_domain.py).
 """
 
+import dataclasses
 import os
 import tempfile
 from contextlib import contextmanager
@@ -15,6 +17,8 @@ from dataclasses import dataclass
 
 import bpy
 import numpy as np
+
+from . import fluid_domain
 
 # Splat kernels reach this many voxels beyond a voxel centre (the Gaussians' radius).
 KERNEL_RADIUS_VOXELS = 2.0
@@ -24,13 +28,52 @@ KERNEL_RADIUS_VOXELS = 2.0
 class VolumeSource:
     """One volume instance to render."""
     name: str                     # object name, for messages
-    volume: bpy.types.Volume      # evaluated volume data
+    volume: bpy.types.Volume      # evaluated volume data (None: a fluid domain)
     filepath: str                 # absolute path of the unchanged file, or "" for a procedural volume
     grid_name: str | None         # None: 'density', or else the first float grid
     object_to_world: np.ndarray   # (4, 4)
     density_scale: float
     error: str                    # why Blender could not load the file, "" when it could
     material: object = None       # bpy.types.Material: the object's active material (volume.pcvr.source 'MATERIAL')
+    settings: object = None       # its PCVR settings (volume.pcvr)
+    grid_names: frozenset = frozenset()  # the grids a material may name
+    index_to_object: tuple | None = None  # where the file's index space lies (None: as the file's transform says)
+    value_map: object = None      # fluid_domain.ValueMap: what the grid's values stand for (None: themselves)
+    warnings: tuple = ()
+
+    @property
+    def has_grids(self):
+        """False for a fluid domain without its cache frame (only a warning)."""
+        return self.volume is not None or bool(self.filepath)
+
+    def part(self, medium):
+        """(VolumeSource, GridMedium) of one GridMedium of its material: the source of the grid it names."""
+        return dataclasses.replace(self, grid_name=medium.grid or self.grid_name), medium
+
+
+@dataclass
+class DomainSource(VolumeSource):
+    """A fluid gas domain's cache frame (fluid_domain.py): its density grid, and its material's others by name."""
+    grids: dict = dataclasses.field(default_factory=dict)  # attribute name -> fluid_domain.DomainGrid
+
+    def part(self, medium):
+        grid = self.grids[medium.grid or "density"]
+        warnings = ()
+        if medium.colour_grid:
+            warnings = (f"Fluid domain '{self.name}': the Color Attribute '{medium.colour_grid}' is not read: the "
+                        "Color alone colours it",)
+        source = dataclasses.replace(self, filepath=grid.filepath, grid_name=grid.grid,
+                                     index_to_object=grid.index_to_object, value_map=grid.value_map, warnings=warnings)
+        return source, dataclasses.replace(medium, colour_grid=None)
+
+
+def placement(object_to_world, index_to_object, file_index_to_world):
+    """The matrix that takes a grid's index-to-world matrix (its file's, or a coarser level's) to world space:
+    the object's matrix, and for a grid placed by `index_to_object`, the file's index space mapped there first."""
+    object_to_world = np.asarray(object_to_world, dtype=np.float64)
+    if index_to_object is None:
+        return object_to_world
+    return object_to_world @ np.asarray(index_to_object) @ np.linalg.inv(np.asarray(file_index_to_world))
 
 
 def _file_of(obj, volume):
@@ -70,7 +113,30 @@ def source_of(obj, matrix_world):
         density_scale=settings.density_scale,
         error=_load_error(volume),
         material=obj.active_material,
+        settings=settings,
+        grid_names=frozenset(grid.name for grid in volume.grids),
     )
+
+
+def domain_source(obj, modifier, matrix_world, frame):
+    """(DomainSource or None, world corners or None) of an evaluated gas domain at a scene frame: None outside its
+    cache's frames; a source without a file, only a warning, when its cache cannot be read."""
+    object_to_world = np.array(matrix_world, dtype=np.float64)
+    cached = fluid_domain.read_frame(obj, modifier, object_to_world, frame)
+    if cached is None:
+        return None, None
+    warnings = (f"Fluid domain '{obj.name}': {cached.message}",) if cached.message else ()
+    source = DomainSource(name=obj.name, volume=None, filepath="", grid_name=None, object_to_world=object_to_world,
+                          density_scale=1.0, error="", material=obj.active_material,
+                          settings=fluid_domain.default_settings(), warnings=warnings)
+    density = cached.grids.get("density")
+    if density is None:
+        return source, None
+    source = dataclasses.replace(source, filepath=density.filepath, grid_name=density.grid,
+                                 index_to_object=density.index_to_object, grid_names=frozenset(cached.grids),
+                                 grids=cached.grids)
+    return source, fluid_domain.world_corners(cached.box, density.index_to_object, object_to_world,
+                                              KERNEL_RADIUS_VOXELS)
 
 
 def _world_corners(obj, volume, object_to_world):
@@ -102,7 +168,13 @@ def in_view(depsgraph, view=None, in_viewport=False, space=None):
     """Every volume instance that shows (see _shown) and may reach `view` (a CameraView; None: anywhere)."""
     for instance in depsgraph.object_instances:
         obj = instance.object
-        if obj.type != 'VOLUME' or not _shown(instance, in_viewport, space):
+        domain = fluid_domain.gas_domain(obj) if obj.type == 'MESH' else None
+        if (obj.type != 'VOLUME' and domain is None) or not _shown(instance, in_viewport, space):
+            continue
+        if domain is not None:
+            source, corners = domain_source(obj, domain, instance.matrix_world, depsgraph.scene.frame_current)
+            if source is not None and (corners is None or view is None or view.sees_box(corners)):
+                yield source
             continue
         source = source_of(obj, instance.matrix_world)
         if len(source.volume.grids) == 0:
