@@ -6,6 +6,12 @@ Every volume instance of the evaluated depsgraph counts (plain objects, collecti
 geometry-node instances). A volume that comes unchanged from a file is read from that file (Blender's
 `frame_filepath` already resolves sequences and frame offsets); one that modifiers or geometry nodes
 made or changed is exported to a temporary file first.
+
+A volume's PCVR settings (volume.pcvr) and Volume > Render > Space come from the Volume datablock the user edits:
+the object's own (`obj.original.data`, as the depsgraph evaluated it, its objects evaluated), also where a Mesh to
+Volume or geometry-nodes modifier made the grids, whose evaluated volume is a new datablock holding the defaults.
+A volume that geometry nodes make on a mesh (or any object that is not a Volume) has no such datablock: it
+renders with the defaults.
 """
 
 import os
@@ -31,6 +37,12 @@ class VolumeSource:
     density_scale: float
     error: str                    # why Blender could not load the file, "" when it could
     material: object = None       # bpy.types.Material: the object's active material (volume.pcvr.source 'MATERIAL')
+    settings: object = None       # the PCVR settings that apply (settings_of); None: volume.pcvr
+    render_space: str = 'WORLD'   # Volume > Render > Space: 'OBJECT' or 'WORLD' (what a material's density is per)
+
+    def __post_init__(self):
+        if self.settings is None:
+            self.settings = self.volume.pcvr
 
 
 def _file_of(obj, volume):
@@ -57,10 +69,22 @@ def _load_error(volume):
     return f"cannot load {what}: {cause}"
 
 
-def source_of(obj, matrix_world):
-    """The source of the evaluated volume object `obj` placed at `matrix_world`."""
+def settings_datablock(obj, depsgraph=None):
+    """The Volume whose settings apply to the evaluated volume object `obj`: the user's datablock, the object's
+    original data evaluated in `depsgraph` (its crop and clip objects evaluated), where that is a Volume; else the
+    evaluated volume itself (a volume geometry nodes made on a mesh: the defaults)."""
+    original = obj.original.data
+    if not isinstance(original, bpy.types.Volume) or original == obj.data:
+        return obj.data
+    return original.evaluated_get(depsgraph) if depsgraph is not None else original
+
+
+def source_of(obj, matrix_world, depsgraph=None):
+    """The source of the evaluated volume object `obj` placed at `matrix_world` (`depsgraph`: the one that
+    evaluated it, where its settings' objects are read)."""
     volume = obj.data
-    settings = volume.pcvr
+    datablock = settings_datablock(obj, depsgraph)
+    settings = datablock.pcvr
     return VolumeSource(
         name=obj.name,
         volume=volume,
@@ -70,6 +94,8 @@ def source_of(obj, matrix_world):
         density_scale=settings.density_scale,
         error=_load_error(volume),
         material=obj.active_material,
+        settings=settings,
+        render_space=datablock.render.space,
     )
 
 
@@ -104,7 +130,7 @@ def in_view(depsgraph, view=None, in_viewport=False, space=None):
         obj = instance.object
         if obj.type != 'VOLUME' or not _shown(instance, in_viewport, space):
             continue
-        source = source_of(obj, instance.matrix_world)
+        source = source_of(obj, instance.matrix_world, depsgraph)
         if len(source.volume.grids) == 0:
             # Empty (e.g. a sequence outside its frame range), or failed to load: pass on the error.
             if source.error:
