@@ -131,13 +131,7 @@ def mesh_to_volume():
     """A Mesh to Volume volume of a unit cube spanning x, y in [0, 1], seen from above (48 px over 3 units)."""
     scene = bs.setup(48, 48)
     bs.add_camera(location=(0.0, 0.0, 5.0), ortho_scale=3.0)
-    cube = bs.add_cube(location=(0.5, 0.5, 0.0))
-    obj = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
-    scene.collection.objects.link(obj)
-    modifier = obj.modifiers.new("Mesh to Volume", 'MESH_TO_VOLUME')
-    modifier.object = cube
-    modifier.density = 2.0
-    return scene, obj
+    return scene, bs.add_mesh_to_volume((0.5, 0.5, 0.0), density=2.0)
 
 
 def test_a_crop_box_cuts_a_mesh_to_volume_volume(mesh_to_volume):
