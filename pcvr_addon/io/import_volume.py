@@ -7,7 +7,7 @@ whose grid holds LPS millimetres: the object's scale (Unit Scale) turns millimet
 the volume sits where the data says, the patient upright facing Blender's front view. With Apply Preset,
 a CT gets the 'CT Bone' transfer function and an MR 'MR Default'. A scan in Hounsfield units X-rays as a DRR
 (X-Ray Values: Hounsfield Units), in X-ray mode through the Standard view transform; with Add Light, one sun lights
-it from the camera's side (ui/first_image.py).
+it from the camera's side (scene/first_look.py).
 """
 
 import os
@@ -18,7 +18,7 @@ from bpy.types import Operator
 from bpy_extras.io_utils import ImportHelper
 
 from .. import volume_import
-from ..ui import first_image
+from ..scene import first_look
 
 MENU_LABEL = "PCVR Volume (DICOM, NIfTI, NRRD, MetaImage, TIFF)"
 PRESET_FOR_MODALITY = {"CT": "CT Bone", "MR": "MR Default"}
@@ -105,8 +105,8 @@ class PCVR_OT_import_volume(Operator, ImportHelper):
         if scan.units == "HU":
             obj.data.pcvr.xray_values = 'HOUNSFIELD'  # a DRR, not the integral of raw Hounsfield units
         if self.add_light:
-            first_image.aim_scan_light(context.scene)
-        first_image.show_xray_plainly(context.scene)
+            first_look.aim_scan_light(context.scene)
+        first_look.show_xray_plainly(context.scene)
         self.report({'INFO'}, f"Imported {scan.description()} from {vdb_path}")
         return {'FINISHED'}
 

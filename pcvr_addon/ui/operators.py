@@ -8,9 +8,9 @@ from bpy.types import Operator
 from mathutils import Matrix
 
 from ..render import prepared_scene
-from ..scene import camera, clipping, transfer_function
+from ..scene import camera, clipping, first_look, transfer_function
 from ..scene.volumes import KERNEL_RADIUS_VOXELS
-from . import first_image, presets
+from . import presets
 
 
 def volume_grid(operator, context, obj):
@@ -110,8 +110,8 @@ class PCVR_OT_frame_volume(Operator):
         placement = Matrix(rotation.tolist()).to_4x4()
         placement.translation = rotation @ eye
         camera_object.matrix_world = placement
-        first_image.aim_scan_light(scene, add=False)
-        first_image.show_xray_plainly(scene)
+        first_look.aim_scan_light(scene, add=False)
+        first_look.show_xray_plainly(scene)
         return {'FINISHED'}
 
 

@@ -14,8 +14,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from ..scene import defaults, transfer_function
-from . import first_image
+from ..scene import defaults, first_look, transfer_function
 
 enum_modes = (
     ('XRAY', "X-Ray", "Line integral of the density along each pixel's ray"),
@@ -102,7 +101,7 @@ def update_mode(self, context):
     update_render_passes(self, context)
     tag_changed(self, context)
     # X-ray images through the Standard view transform (AgX washes them out).
-    first_image.show_xray_plainly(self.id_data)
+    first_look.show_xray_plainly(self.id_data)
 
 
 def update_source(self, context):

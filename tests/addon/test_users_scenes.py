@@ -16,7 +16,7 @@ import material_scenes as ms
 import scan_files as sf
 from pcvr_addon.io import image_io
 from pcvr_addon.render import statistics
-from pcvr_addon.ui import first_image
+from pcvr_addon.scene import first_look
 from test_cli import check, pcvr
 
 AIR, FAT, WATER = -1000, -100, 0
@@ -55,8 +55,8 @@ def test_an_imported_ct_renders_as_a_drr_lit_and_shown_plainly(tmp_path):
     # One sun from the front (no camera yet: LPS puts the patient's anterior at -Y), a little above.
     (light,) = scan_lights(scene)
     shines = np.array(light.matrix_world.to_3x3()) @ (0.0, 0.0, -1.0)
-    np.testing.assert_allclose(shines, np.array([0.0, 1.0, -first_image.LIGHT_ELEVATION]) /
-                               math.hypot(1.0, first_image.LIGHT_ELEVATION), atol=1e-6)
+    np.testing.assert_allclose(shines, np.array([0.0, 1.0, -first_look.LIGHT_ELEVATION]) /
+                               math.hypot(1.0, first_look.LIGHT_ELEVATION), atol=1e-6)
 
     bpy.ops.pcvr.frame_volume()
     passes = bs.render(scene)
