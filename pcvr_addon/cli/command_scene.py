@@ -65,20 +65,37 @@ def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGN
     """Make `scene` (empty) show the .vdb `filepath` as the command line renders it: imported (grid `grid`, at
     frame `frame` or the file's number), framed at `magnification` from `view` (a camera.AXIS_VIEWS key; default
     from above) or along `view_direction`, lit by a sun travelling along `light_direction` and Blender's default
-    world. Returns the volume object; raises RuntimeError with the operator's report when the volume cannot be
-    read."""
+    world; a grid whose metadata says its units are HU (a CT) X-rayed as a DRR (xray_values 'HOUNSFIELD'). Returns
+    the volume object; raises RuntimeError with the operator's report when the volume cannot be read."""
     obj, file_frame = _import_vdb(filepath)
     if grid:
         obj.data.pcvr.grid = grid
+    if units_of(filepath, grid) == "HU":
+        # A CT's X-ray is a DRR unless --no-hounsfield says otherwise (apply_options).
+        obj.data.pcvr.xray_values = 'HOUNSFIELD'
     frame = frame if frame is not None else file_frame
     if frame is not None:
         scene.frame_set(frame)
     if view_direction is not None:
-        bpy.ops.pcvr.frame_volume(magnification=magnification, view='DIRECTION', direction=view_direction)
+        bpy.ops.pcvr.frame_volume(magnification=magnification, view='DIRECTION', direction=view_direction,
+                                  set_resolution=True)
     else:
-        bpy.ops.pcvr.frame_volume(magnification=magnification, view=view or 'TOP')
+        bpy.ops.pcvr.frame_volume(magnification=magnification, view=view or 'TOP', set_resolution=True)
     _light(scene, light_direction)
     return obj
+
+
+def units_of(filepath, grid=None):
+    """The units the grid `grid` of the .vdb `filepath` (None: 'density', else the first) says its values are in
+    (its `pcvr_units` metadata, "HU" for a CT that convert wrote), "" when it does not say."""
+    import pcvr_native
+
+    try:
+        grids = pcvr_native.list_grids(filepath)
+    except (OSError, RuntimeError, ValueError):
+        return ""
+    chosen = [g for g in grids if g["name"] == (grid or "density")] or grids[:1]
+    return chosen[0].get("metadata", {}).get("pcvr_units", "") if chosen else ""
 
 
 def _light(scene, direction):
@@ -153,7 +170,10 @@ def apply_options(scene, args):
     if args.preset is not None:
         for volume in bpy.data.volumes:
             volume.pcvr.apply_preset(args.preset)
-    if args.hounsfield is not None:
+    if args.hounsfield is False:  # --no-hounsfield
+        for volume in bpy.data.volumes:
+            volume.pcvr.xray_values = 'DENSITY'
+    elif args.hounsfield is not None:
         for volume in bpy.data.volumes:
             volume.pcvr.xray_values, volume.pcvr.mu_water = 'HOUNSFIELD', args.hounsfield
     if args.clip_box is not None or args.clip_plane:

@@ -10,7 +10,8 @@ brings its siblings along as a sequence, and --frame N picks file N), lit by a s
 and Blender's default grey world;
 a .blend renders with its own camera, lights and settings, overridden by the options given.
 --preset applies a transfer-function preset to every volume, --hounsfield makes the X-ray of a CT in
-Hounsfield units a DRR (it integrates the linear attenuation), --clip-box and --clip-plane cut every volume
+Hounsfield units a DRR (it integrates the linear attenuation; the default for a .vdb whose grid says its units are
+HU, --no-hounsfield integrates them as they are), --clip-box and --clip-plane cut every volume
 open. The image is read back from Blender's render result (after compositing) and written with OpenImageIO:
 .exr holds R, G, B, A, in shaded mode the Depth pass as Z, and the raw XRay integral; .png and .tif the
 Combined pass.
@@ -104,7 +105,11 @@ def make_parser():
                         help=".vdb only: the direction the camera looks along, world space")
     render.add_argument("--hounsfield", type=float, nargs="?", const=DEFAULT_MU_WATER, metavar="MU_WATER",
                         help="X-ray of a CT in Hounsfield units: integrate mu = MU_WATER (1 + HU / 1000), never "
-                             f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV)")
+                             f"below 0; MU_WATER per centimetre (default {DEFAULT_MU_WATER}, water near 70 keV). "
+                             "The default for a .vdb whose grid's metadata says pcvr_units = HU (what convert writes "
+                             "for a CT, and a scan's INPUT)")
+    render.add_argument("--no-hounsfield", dest="hounsfield", action="store_const", const=False,
+                        help="integrate the grid's values as they are, Hounsfield units too (raw densities)")
     render.add_argument("--clip-box", type=float, nargs=6, metavar=("CX", "CY", "CZ", "HX", "HY", "HZ"),
                         help="keep only the part of every volume inside the box centred at CX CY CZ with half-sizes "
                              "HX HY HZ (world units; a .blend's volumes keep their own crops too)")
@@ -142,7 +147,7 @@ def main(argv=None):
         parser.error("--view and --view-direction both say where the camera looks: give one")
     if args.view_direction is not None and not any(args.view_direction):
         parser.error("--view-direction needs a direction, not 0 0 0")
-    if args.hounsfield is not None and not args.hounsfield > 0:
+    if args.hounsfield not in (None, False) and not args.hounsfield > 0:
         parser.error(f"--hounsfield: the attenuation of water must be positive, not {args.hounsfield}")
     if extension == ".vdb" and args.resolution is not None:
         parser.error("--resolution applies to a .blend; a .vdb is sized by --magnification")

@@ -5,7 +5,9 @@
 The scan is converted to a .vdb (volume_import; reused while the scan is unchanged) and loaded as a Volume
 whose grid holds LPS millimetres: the object's scale (Unit Scale) turns millimetres into scene units, so
 the volume sits where the data says, the patient upright facing Blender's front view. With Apply Preset,
-a CT gets the 'CT Bone' transfer function and an MR 'MR Default'.
+a CT gets the 'CT Bone' transfer function and an MR 'MR Default'. A scan in Hounsfield units X-rays as a DRR
+(X-Ray Values: Hounsfield Units), in X-ray mode through the Standard view transform; with Add Light, one sun lights
+it from the camera's side (scene/first_look.py).
 """
 
 import os
@@ -16,6 +18,7 @@ from bpy.types import Operator
 from bpy_extras.io_utils import ImportHelper
 
 from .. import volume_import
+from ..scene import first_look
 
 MENU_LABEL = "PCVR Volume (DICOM, NIfTI, NRRD, MetaImage, TIFF)"
 PRESET_FOR_MODALITY = {"CT": "CT Bone", "MR": "MR Default"}
@@ -71,6 +74,11 @@ class PCVR_OT_import_volume(Operator, ImportHelper):
     frame: IntProperty(
         name="Frame", description="4-D NIfTI or TIFF time series: the volume to import (-1: the file has one)",
         default=-1, min=-1)
+    add_light: BoolProperty(
+        name="Add Light",
+        description="Light the scan from the camera's side (from the front without a camera) with a sun, the add-on's "
+                    "own: importing again aims it rather than adding another",
+        default=True)
     directory_for_vdb: StringProperty(
         name="VDB Folder", subtype='DIR_PATH',
         description="Where the converted .vdb is written (empty: a 'pcvr_volumes' folder beside the saved "
@@ -94,6 +102,11 @@ class PCVR_OT_import_volume(Operator, ImportHelper):
         preset = PRESET_FOR_MODALITY.get(scan.modality)
         if self.apply_preset and preset:
             obj.data.pcvr.apply_preset(preset)
+        if scan.units == "HU":
+            obj.data.pcvr.xray_values = 'HOUNSFIELD'  # a DRR, not the integral of raw Hounsfield units
+        if self.add_light:
+            first_look.aim_scan_light(context.scene)
+        first_look.show_xray_plainly(context.scene)
         self.report({'INFO'}, f"Imported {scan.description()} from {vdb_path}")
         return {'FINISHED'}
 

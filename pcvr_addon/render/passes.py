@@ -33,10 +33,10 @@ def pass_pixels(gain, film_transparent, integral):
     """The pixels of every pass from the line integral: {name: float32 (height, width, channels)}."""
     height, width = integral.shape
     combined = np.empty((height, width, 4), dtype=np.float32)
-    # A negative integral (raw Hounsfield units: air and fat below 0) gives a negative Combined, without
-    # bound: -inf where exp overflows, as it is, without a warning.
-    with np.errstate(over='ignore'):
-        combined[:, :, :3] = (-np.expm1(-gain * integral))[:, :, None]
+    # A negative integral (a field with negative values: raw Hounsfield units, air and fat below 0) attenuates
+    # nothing: 0, not a negative Combined that reaches -inf where exp overflows. The XRay pass keeps it as it is.
+    # (fmax: a NaN integral, too, shows 0.)
+    combined[:, :, :3] = (-np.expm1(-gain * np.fmax(integral, np.float32(0.0))))[:, :, None]
     combined[:, :, 3] = (integral != 0) if film_transparent else 1.0
     return {"Combined": combined, "XRay": integral[:, :, None]}
 

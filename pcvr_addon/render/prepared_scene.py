@@ -284,7 +284,7 @@ def native_transfer_function(volume):
     voxel = transfer_function.smallest_voxel_spacing(volume.grid.index_to_world) / 2 ** volume.level
     if volume.inputs.medium is not None:
         density, rgba, emission = volume_material.media_transfer_function(
-            volume.inputs.medium, volume.value_range, volume.inputs.density_scale, voxel)
+            volume.inputs.medium, volume.value_range, volume.inputs.density_scale, voxel, volume.inputs.medium_scale)
         return pcvr_native.TransferFunction(density, rgba, unit_distance=voxel, emission=emission)
     points = control_points(ramp, volume)
     unit_distance = voxel / ramp.opacity_scale
@@ -329,4 +329,4 @@ def _native_lighting(prepared):
 def object_grid(depsgraph, obj):
     """The world-space grid of the volume object `obj`, read through the cache."""
     obj_eval = obj.evaluated_get(depsgraph)
-    return load_grid(volumes.source_of(obj_eval, obj_eval.matrix_world))
+    return load_grid(volumes.source_of(obj_eval, obj_eval.matrix_world, depsgraph))

@@ -89,8 +89,16 @@ def format_sheet_stats(stats):
         return "No volume in view"
     culled = stats["blocks_outside"] + stats["blocks_transparent"]
     strides = format_strides(stats["strides"])
-    return (f"Voxels {stats['voxels']:,} | Culled blocks {culled:,} of {stats['blocks']:,} | "
+    return (f"{_drawn(stats)} | Culled blocks {culled:,} of {stats['blocks']:,} | "
             f"Sheets {stats['sheets']:,} | Stride {strides} | Time {stats['seconds']:.2f} s{_automatic_choices(stats)}")
+
+
+def _drawn(stats):
+    """What a shaded or MIP render drew from: the voxels it splatted, the values it sampled into the sheets
+    (low magnification), or both."""
+    voxels, samples = stats["voxels"], stats.get("sheet_samples", 0)
+    parts = ([f"Voxels {voxels:,}"] if voxels or not samples else []) + ([f"Samples {samples:,}"] if samples else [])
+    return " | ".join(parts)
 
 
 def _share(part, whole):

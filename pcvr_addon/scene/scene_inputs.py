@@ -57,6 +57,8 @@ class VolumeInputs:
     # Shaded mode with volume.pcvr.source 'MATERIAL': the part of the material this grid renders (None: the
     # transfer function), and what of the material was not followed.
     medium: volume_material.GridMedium | None = None
+    # The medium's units of length per world unit: Render > Space Object, the object's (along the view); World, 1.
+    medium_scale: float = 1.0
     warnings: tuple = ()
     # A procedural volume's grid, exported from Blender while reading (compares by identity: a new export is
     # a change).
@@ -185,9 +187,34 @@ def material(settings):
             bool(settings.ambient_occlusion))
 
 
-def material_volume_inputs(source, mode, export_grid):
+def object_units_per_world(object_to_world, direction=None):
+    """Units of the object's own space per world unit along the world `direction` (the view's), or, without one,
+    of its mean scale (the cube root of its volume's): what a material's density per object unit (Render > Space:
+    Object) is per world unit. The same along every direction for a uniform scale."""
+    linear = np.asarray(object_to_world, dtype=np.float64)[:3, :3]
+    with np.errstate(all="ignore"):
+        if direction is None:
+            scale = abs(np.linalg.det(linear)) ** (-1.0 / 3.0)
+        else:
+            along = np.asarray(direction, dtype=np.float64)
+            scale = np.linalg.norm(np.linalg.solve(linear, along / np.linalg.norm(along)))
+    return float(scale) if np.isfinite(scale) and scale > 0 else 1.0
+
+
+def view_direction(scene, view=None):
+    """The world direction a render looks along: its view's (a CameraView), else the scene camera's; None
+    without either."""
+    if view is not None:
+        return -np.asarray(view.world_to_camera, dtype=np.float64)[2, :3]  # the camera looks down its -Z
+    if scene.camera is not None:
+        return -np.asarray(scene.camera.matrix_world, dtype=np.float64)[:3, 2]
+    return None
+
+
+def material_volume_inputs(source, mode, export_grid, direction=None):
     """The VolumeInputs of a VolumeSource: one per grid its material names that the volume has (shaded mode with
-    the source 'MATERIAL'), else one rendered with the transfer function. The first carries the warnings."""
+    the source 'MATERIAL'), else one rendered with the transfer function. The first carries the warnings.
+    `direction`: the view's, in world space (see object_units_per_world)."""
     if mode != 'SHADED' or source.settings.source != 'MATERIAL' or not source.has_grids:
         return (volume_inputs(source, mode, export_grid),)
     media = volume_material.read(source.material)
@@ -203,7 +230,8 @@ def material_volume_inputs(source, mode, export_grid):
                      f"({', '.join(sorted(present))}): rendered with the transfer function",)
     if not parts:
         return (dataclasses.replace(volume_inputs(source, mode, export_grid), warnings=warnings),)
-    return tuple(dataclasses.replace(volume_inputs(part, mode, export_grid), medium=medium,
+    scale = object_units_per_world(source.object_to_world, direction) if source.render_space == 'OBJECT' else 1.0
+    return tuple(dataclasses.replace(volume_inputs(part, mode, export_grid), medium=medium, medium_scale=scale,
                                      warnings=(warnings if index == 0 else ()) + part.warnings)
                  for index, (part, medium) in enumerate(parts))
 
@@ -278,7 +306,9 @@ def read(depsgraph, export_grid, view=None, in_viewport=False, space=None):
     settings = scene.pcvr
     mode = settings.mode
     sources = list(volumes.in_view(depsgraph, view, in_viewport, space))
-    volume_list = tuple(part for source in sources for part in material_volume_inputs(source, mode, export_grid))
+    direction = view_direction(scene, view)
+    volume_list = tuple(part for source in sources
+                        for part in material_volume_inputs(source, mode, export_grid, direction))
     with_xray_pass = not in_viewport and depsgraph.view_layer.pcvr.use_pass_xray
     world = lighting.world_colour(scene.world)
     shaded = mode == 'SHADED'

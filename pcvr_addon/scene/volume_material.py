@@ -19,6 +19,11 @@ Volume (its SVM node) combines them so, per world unit, with D = Density x densi
 
 A node it cannot follow (a Mix Shader, a Math node into Density, ...) leaves the media empty with a warning naming
 the node: the volume then renders with its transfer function. Read on Blender's main thread (scene_inputs.read).
+
+Cycles' units of length are the volume's Render > Space: Object (Blender's default), per unit of the object's own
+space, so that scaling the object keeps its look; World, per world unit. PCVR does the same (media_transfer_function's
+`length_scale`): exact for a uniform scale; with a non-uniform one, the object's units per world unit along the
+camera's view (scene_inputs.object_units_per_world), where Cycles follows each ray in object space.
 """
 
 import dataclasses
@@ -250,12 +255,14 @@ def read(material):
     return VolumeMedia(grids=tuple(media))
 
 
-def media_transfer_function(medium, value_range, density_scale, unit_distance):
+def media_transfer_function(medium, value_range, density_scale, unit_distance, length_scale=1.0):
     """(density, rgba, emission) control points of a GridMedium over its grid's values (times the density
-    scale), for pcvr_native.TransferFunction with `unit_distance` (world units)."""
+    scale), for pcvr_native.TransferFunction with `unit_distance` (world units). `length_scale`: the medium's
+    units of length per world unit (Volume > Render > Space: Object, the object's units along the view; World,
+    1): its extinction and emission, per unit of its length, times that per world unit."""
     low, high = (float(v) * density_scale for v in value_range)
     top = max(high, 1e-6)
     values = np.linspace(min(low, 0.0), top, POINTS)
-    opacity = -np.expm1(-medium.extinction * np.maximum(values, 0.0) * unit_distance)
+    opacity = -np.expm1(-medium.extinction * length_scale * np.maximum(values, 0.0) * unit_distance)
     rgba = np.column_stack([np.tile(medium.albedo, (POINTS, 1)), np.minimum(opacity, 1.0)])
-    return values, rgba, medium.emission_at(values)
+    return values, rgba, length_scale * medium.emission_at(values)

@@ -7,6 +7,12 @@ geometry-node instances). A volume that comes unchanged from a file is read from
 `frame_filepath` already resolves sequences and frame offsets); one that modifiers or geometry nodes
 made or changed is exported to a temporary file first. A fluid gas domain (a mesh) is read from its cache frame
 (fluid_domain.py).
+
+A volume's PCVR settings (volume.pcvr) and Volume > Render > Space come from the Volume datablock the user edits:
+the object's own (`obj.original.data`, as the depsgraph evaluated it, its objects evaluated), also where a Mesh to
+Volume or geometry-nodes modifier made the grids, whose evaluated volume is a new datablock holding the defaults.
+A volume that geometry nodes make on a mesh (or any object that is not a Volume) has no such datablock: it
+renders with the defaults.
 """
 
 import dataclasses
@@ -40,6 +46,7 @@ class VolumeSource:
     index_to_object: tuple | None = None  # where the file's index space lies (None: as the file's transform says)
     value_map: object = None      # fluid_domain.ValueMap: what the grid's values stand for (None: themselves)
     warnings: tuple = ()
+    render_space: str = 'WORLD'   # Volume > Render > Space: 'OBJECT' or 'WORLD' (what a material's density is per)
 
     @property
     def has_grids(self):
@@ -100,10 +107,22 @@ def _load_error(volume):
     return f"cannot load {what}: {cause}"
 
 
-def source_of(obj, matrix_world):
-    """The source of the evaluated volume object `obj` placed at `matrix_world`."""
+def settings_datablock(obj, depsgraph=None):
+    """The Volume whose settings apply to the evaluated volume object `obj`: the user's datablock, the object's
+    original data evaluated in `depsgraph` (its crop and clip objects evaluated), where that is a Volume; else the
+    evaluated volume itself (a volume geometry nodes made on a mesh: the defaults)."""
+    original = obj.original.data
+    if not isinstance(original, bpy.types.Volume) or original == obj.data:
+        return obj.data
+    return original.evaluated_get(depsgraph) if depsgraph is not None else original
+
+
+def source_of(obj, matrix_world, depsgraph=None):
+    """The source of the evaluated volume object `obj` placed at `matrix_world` (`depsgraph`: the one that
+    evaluated it, where its settings' objects are read)."""
     volume = obj.data
-    settings = volume.pcvr
+    datablock = settings_datablock(obj, depsgraph)
+    settings = datablock.pcvr
     return VolumeSource(
         name=obj.name,
         volume=volume,
@@ -115,6 +134,7 @@ def source_of(obj, matrix_world):
         material=obj.active_material,
         settings=settings,
         grid_names=frozenset(grid.name for grid in volume.grids),
+        render_space=datablock.render.space,
     )
 
 
@@ -176,7 +196,7 @@ def in_view(depsgraph, view=None, in_viewport=False, space=None):
             if source is not None and (corners is None or view is None or view.sees_box(corners)):
                 yield source
             continue
-        source = source_of(obj, instance.matrix_world)
+        source = source_of(obj, instance.matrix_world, depsgraph)
         if len(source.volume.grids) == 0:
             # Empty (e.g. a sequence outside its frame range), or failed to load: pass on the error.
             if source.error:

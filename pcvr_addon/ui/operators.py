@@ -3,12 +3,12 @@
 import bpy
 import numpy as np
 from bl_operators.presets import AddPresetBase
-from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
 from ..render import prepared_scene
-from ..scene import camera, clipping, transfer_function
+from ..scene import camera, clipping, first_look, transfer_function
 from ..scene.volumes import KERNEL_RADIUS_VOXELS
 from . import presets
 
@@ -30,24 +30,31 @@ def volume_grid(operator, context, obj):
 
 
 class PCVR_OT_frame_volume(Operator):
-    """Point the scene camera at the active volume, orthographic, from one of Blender's axis views (straight down
-    by default), sized so that one voxel spans the given number of pixels"""
+    """Point the scene camera at the active volume, orthographic, from one of Blender's axis views (the front by
+    default), the whole volume in the image at the scene's resolution (or, with Set Resolution, the resolution
+    that gives one voxel the given number of pixels)"""
     bl_idname = "pcvr.frame_volume"
     bl_label = "Frame Volume"
     bl_options = {'REGISTER', 'UNDO'}
 
+    set_resolution: BoolProperty(
+        name="Set Resolution",
+        description="Change the scene's resolution so that one voxel spans Magnification pixels (off: keep the "
+                    "resolution and fit the volume in it)",
+        default=False,
+    )
     magnification: FloatProperty(
         name="Magnification",
-        description="Pixels per voxel",
+        description="Pixels per voxel (with Set Resolution)",
         min=0.01, soft_min=0.25, soft_max=32.0,
         default=4.0,
     )
     view: EnumProperty(
         name="View",
-        description="Where the camera looks from, as Blender's numpad views",
+        description="Where the camera looks from, as Blender's numpad views (a scan in LPS faces the front)",
         items=[(key, key.title() if key != 'ISO' else "Isometric", "") for key in camera.AXIS_VIEWS] +
               [('DIRECTION', "Direction", "Along View Direction")],
-        default='TOP',
+        default='FRONT',
     )
     direction: FloatVectorProperty(
         name="View Direction",
@@ -75,21 +82,25 @@ class PCVR_OT_frame_volume(Operator):
 
         # Room for the splat kernels of the outermost voxels on every side.
         margin = 2 * KERNEL_RADIUS_VOXELS * voxel_size
-        width = max(1, round((hi[0] - lo[0] + margin) / voxel_size * self.magnification))
-        height = max(1, round((hi[1] - lo[1] + margin) / voxel_size * self.magnification))
+        extent = hi[:2] - lo[:2] + margin
         depth = hi[2] - lo[2]
 
         scene = context.scene
         render = scene.render
-        render.resolution_x, render.resolution_y = width, height
-        render.resolution_percentage = 100
-        render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+        if self.set_resolution:
+            width, height = (max(1, round(size / voxel_size * self.magnification)) for size in extent)
+            render.resolution_x, render.resolution_y = width, height
+            render.resolution_percentage = 100
+            render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+            ortho_scale = max(width, height) / self.magnification * voxel_size
+        else:
+            ortho_scale = _fitting_ortho_scale(render, extent)
 
         camera_object = _scene_camera(context)
         cam = camera_object.data
         cam.type = 'ORTHO'
         cam.sensor_fit = 'AUTO'  # ortho_scale spans the larger side of the image
-        cam.ortho_scale = max(width, height) / self.magnification * voxel_size
+        cam.ortho_scale = ortho_scale
         cam.shift_x = cam.shift_y = 0.0
         # Every voxel centre must lie between the clip planes.
         cam.clip_start = margin
@@ -99,7 +110,16 @@ class PCVR_OT_frame_volume(Operator):
         placement = Matrix(rotation.tolist()).to_4x4()
         placement.translation = rotation @ eye
         camera_object.matrix_world = placement
+        first_look.aim_scan_light(scene, add=False)
+        first_look.show_xray_plainly(scene)
         return {'FINISHED'}
+
+
+def _fitting_ortho_scale(render, extent):
+    """The ortho_scale (sensor fit 'AUTO': it spans the larger side of the image, pixel aspect included) at which
+    `extent` (width, height in world units) just fits in the scene's image."""
+    sides = (render.resolution_x * render.pixel_aspect_x, render.resolution_y * render.pixel_aspect_y)
+    return max(size * max(sides) / side for size, side in zip(extent, sides))
 
 
 def _world_corners(index_to_world, index_min, index_max):

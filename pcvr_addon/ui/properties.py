@@ -14,7 +14,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from ..scene import defaults, transfer_function
+from ..scene import defaults, first_look, transfer_function
 
 enum_modes = (
     ('XRAY', "X-Ray", "Line integral of the density along each pixel's ray"),
@@ -99,6 +99,23 @@ def tag_changed(self, _context):
 
 def update_mode(self, context):
     update_render_passes(self, context)
+    tag_changed(self, context)
+    # X-ray images through the Standard view transform (AgX washes them out).
+    first_look.show_xray_plainly(self.id_data)
+
+
+def update_source(self, context):
+    """Until the user sets Ambient Occlusion, it follows the Source: on for a material, whose look in Cycles has
+    the world's light shadowed through the volume (without it material smoke shows paler), off for a transfer
+    function (its presets' look, and six light volumes fewer per render)."""
+    if not self.ambient_occlusion_set:
+        self.ambient_occlusion = self.source == 'MATERIAL'
+        self.ambient_occlusion_set = False  # set by the line above's update, not by the user
+    tag_changed(self, context)
+
+
+def update_ambient_occlusion(self, context):
+    self.ambient_occlusion_set = True
     tag_changed(self, context)
 
 
@@ -284,7 +301,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
                ('MATERIAL', "Material", "The object's material: its Principled Volume (density, colour, absorption, "
                 "emission, blackbody fire from the temperature grid), each grid it names rendered together")],
         default='TRANSFER_FUNCTION',
-        update=tag_changed,
+        update=update_source,
     )
     # What an X-ray integrates (X-ray mode and the XRay pass).
     xray_values: EnumProperty(
@@ -431,9 +448,16 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     ambient_occlusion: BoolProperty(
         name="Ambient Occlusion",
         description="Shadow the world's ambient light through the volumes, as Cycles does: each sample gets the mean "
-                    "of the light arriving from six directions (costs six light volumes per render)",
+                    "of the light arriving from six directions (costs six light volumes per render). Until set, "
+                    "on for Source: Material (as Cycles' look needs) and off for a transfer function",
         default=False,
-        update=tag_changed,
+        update=update_ambient_occlusion,
+    )
+    ambient_occlusion_set: BoolProperty(
+        name="Ambient Occlusion Set",
+        description="Ambient Occlusion was set (by the user, a preset or a script): changing Source leaves it",
+        default=False,
+        options={'HIDDEN'},
     )
 
     @property

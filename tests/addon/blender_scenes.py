@@ -82,6 +82,17 @@ def add_cube(name="Cube", size=1.0, location=(0, 0, 0)):
     return cube
 
 
+def add_mesh_to_volume(cube_location=(0.5, 0.5, 0.0), density=2.0):
+    """A Volume object whose Mesh to Volume modifier fills a unit mesh cube at `cube_location` with `density`."""
+    cube = add_cube(location=cube_location)
+    obj = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
+    bpy.context.scene.collection.objects.link(obj)
+    modifier = obj.modifiers.new("Mesh to Volume", 'MESH_TO_VOLUME')
+    modifier.object = cube
+    modifier.density = density
+    return obj
+
+
 def add_camera(location=(0, 0, 5), rotation=(0, 0, 0), ortho_scale=None, lens=None, shift=(0, 0)):
     """A scene camera; orthographic when ortho_scale is given."""
     data = bpy.data.cameras.new("Camera")

@@ -42,13 +42,7 @@ def test_sequence_renders_the_frames_file(scene, tmp_path):
 
 
 def test_mesh_to_volume_renders(scene, private_tempdir):
-    cube = bs.add_cube(location=(0.5, 0.5, 0.0))
-
-    obj = bpy.data.objects.new("CubeVolume", bpy.data.volumes.new("CubeVolume"))
-    scene.collection.objects.link(obj)
-    modifier = obj.modifiers.new("Mesh to Volume", 'MESH_TO_VOLUME')
-    modifier.object = cube
-    modifier.density = 2.0
+    bs.add_mesh_to_volume((0.5, 0.5, 0.0), density=2.0)
 
     image = bs.xray(bs.render(scene))
     # 48 px over 3 units: the cube covers x, y in [0, 1], pixels 24..40 across, rows 8..24 down.

@@ -40,7 +40,7 @@ def test_sampling_estimate_uses_cached_grids_only(tmp_path):
     scene = bs.setup(method='PCVR')
     obj = bs.add_volume("Box", bs.write_vdb(tmp_path / "box.vdb", bs.box()))
     bpy.context.view_layer.objects.active = obj
-    bpy.ops.pcvr.frame_volume(magnification=3.0)
+    bpy.ops.pcvr.frame_volume(magnification=3.0, set_resolution=True)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     cache.grids.clear()  # frame_volume read it
 
