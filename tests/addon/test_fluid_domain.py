@@ -136,6 +136,8 @@ def cells_volume(path, grids, domain, name="Cells"):
     pn.write_vdb(str(path), file_grids(grids, index_to_object))
     obj = bs.add_volume(name, path)
     obj.matrix_world = domain.matrix_world
+    # A domain is a mesh, whose material Cycles reads per world unit (a mesh has no Render > Space): so is this.
+    obj.data.render.space = 'WORLD'
     return obj
 
 
