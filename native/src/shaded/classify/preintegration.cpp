@@ -42,6 +42,10 @@ PreintegrationTable::PreintegrationTable(const TransferFunction& tf)
         v[0] = -std::log1p(-p[3]);  // extinction times unit_distance
         for (int c = 0; c < 3; ++c) v[c + 1] = v[0] * p[c];
     });
+    second_.resize(absorption_.size());
+    for (size_t e = 1; e < absorption_.size(); ++e)  // K is quadratic within an entry: its exact integral
+        second_[e] = second_[e - 1] + (absorption_[e - 1].integral[0] + absorption_[e].integral[0]) / 2 -
+                     (absorption_[e].value[0] - absorption_[e - 1].value[0]) / 12;
     if (tf.has_emission())
         emission_ = integrate<Entry<3>>(kEntries, [&](int e, double (&v)[3]) {
             for (int c = 0; c < 3; ++c) v[c] = at.emission[size_t(e)][c];
@@ -52,7 +56,7 @@ PreintegrationTable::PreintegrationTable(const TransferFunction& tf)
 uint64_t PreintegrationTable::tables_built() { return built_count.load(); }
 
 size_t PreintegrationTable::bytes() const {
-    return sizeof(*this) + absorption_.size() * sizeof(Entry<4>) + emission_.size() * sizeof(Entry<3>) +
+    return sizeof(*this) + absorption_.size() * sizeof(Entry<4>) + second_.size() * sizeof(double) + emission_.size() * sizeof(Entry<3>) +
            density_.size() * sizeof(double) + rgba_.size() * sizeof(rgba_[0]) + emission_points_.size() * sizeof(emission_points_[0]);
 }
 
@@ -91,6 +95,19 @@ void PreintegrationTable::integral_at(const std::vector<Entry<C>>& table, double
     for (int c = 0; c < C; ++c) out[c] = a.integral[c] + f * (a.value[c] + 0.5 * f * (b.value[c] - a.value[c]));
 }
 
+double PreintegrationTable::second_integral_at(double x) const {
+    if (x <= 0) return 0.5 * x * x * absorption_[0].value[0];
+    if (x >= kEntries) {
+        const double d = x - kEntries;
+        const Entry<4>& end = absorption_[size_t(kEntries)];
+        return second_[size_t(kEntries)] + d * end.integral[0] + 0.5 * d * d * end.value[0];
+    }
+    const size_t i = size_t(x);
+    const double f = x - double(i);
+    const Entry<4>&a = absorption_[i], &b = absorption_[i + 1];
+    return second_[i] + f * (a.integral[0] + f * (a.value[0] / 2 + f * (b.value[0] - a.value[0]) / 6));
+}
+
 template <int C>
 void PreintegrationTable::mean_over(const std::vector<Entry<C>>& table, double x0, double x1, double (&out)[C]) {
     double lo[C], hi[C];
@@ -104,7 +121,7 @@ PreintegrationTable::Slabs PreintegrationTable::operator()(const ClassificationT
                                                            int8x lanes) const {
     // Within one entry the functions are linear (up to one kink): the point table at the middle is the mean.
     const float8 middle = 0.5f * (front + back);
-    Slabs out{point(middle), {}};
+    Slabs out{point(middle), {}, broadcast8(0.5f)};
     if (has_emission()) out.glow = point.emission(middle);
     const float8 entries_apart = abs8(back - front) * float(scale_);
     const uint32_t wide = lane_mask(lanes & (entries_apart >= 1.0f));
@@ -116,6 +133,12 @@ PreintegrationTable::Slabs PreintegrationTable::operator()(const ClassificationT
         double m[4];
         mean_over(absorption_, x0, x1, m);
         const bool absorbs = m[0] > 0;
+        if (absorbs) {  // the extinction's first moment from the front, over (x1 - x0) times its integral m[0] (x1 - x0)
+            double k1[4];
+            integral_at(absorption_, x1, k1);
+            const double moment = (x1 - x0) * k1[0] - (second_integral_at(x1) - second_integral_at(x0));
+            out.centre[l] = float(std::clamp(moment / (m[0] * (x1 - x0) * (x1 - x0)), 0.0, 1.0));
+        }
         out.light.extinction[l] = float(std::min(m[0] * per_unit, 1e30));
         out.light.red[l] = absorbs ? float(m[1] / m[0]) : 0.0f;
         out.light.green[l] = absorbs ? float(m[2] / m[0]) : 0.0f;

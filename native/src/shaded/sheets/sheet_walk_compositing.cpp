@@ -112,6 +112,12 @@ struct AlongRay {
     }
     float8 at(const float8 (&v)[4], const float (&w)[4]) const { return w[0] * v[0] + w[1] * v[1] + w[2] * v[2] + w[3] * v[3]; }
     float8 value_at(const float8 (&v)[4]) const { return min8(max8(at(v, value), min8(v[1], v[2])), max8(v[1], v[2])); }
+    /// The slope at t per lane (pre-integrated stretches are lit where their extinction lies).
+    static float8 slope_at(const float8 (&v)[4], float8 t) {
+        const float8 t2 = t * t;
+        return 0.5f * ((-1.0f + 4.0f * t - 3.0f * t2) * v[0] + (9.0f * t2 - 10.0f * t) * v[1] + (1.0f + 8.0f * t - 9.0f * t2) * v[2] +
+                       (3.0f * t2 - 2.0f * t) * v[3]);
+    }
 };
 
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
@@ -119,7 +125,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
     // The sample lies t of the way from sheet s's middle to sheet s + 1's, and stands for 1 / samples of a slab.
     // Pre-integrated, it is the stretch from t to t + 1 / samples, classified from the densities at its two
-    // ends, and lit (and clipped, and placed) at its middle.
+    // ends, clipped and placed at its middle, and lit where its extinction lies (PreintegrationTable::Slabs::centre).
     const bool preintegrated = setup.preintegrated;
     const float middle = preintegrated ? t + 0.5f / float(samples) : t;
     const double u = setup.sheets.boundary(s) + (0.5 + double(middle)) * setup.sheets.spacing;
@@ -299,13 +305,15 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 // Density change per pixel right, per pixel down (interpolated linearly between the
                 // sheets) and per unit of the sheet parameter (the cubic's slope; on a sheet the central
                 // difference); common factors dropped: only the gradient's direction matters.
+                // Pre-integrated: at the centroid of the stretch's extinction.
                 const int L = g.halo;
                 const size_t pitch = g.pitch();
+                const float8 where = preintegrated ? t + slabs.centre * (1.0f / float(samples)) : broadcast8(t);
                 auto across = [&](const float* sheet, size_t step) { return load8(sheet + i + step) - load8(sheet + i - step); };
-                const float8 g1 = (across(src.here, L) + middle * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
+                const float8 g1 = (across(src.here, L) + where * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
                 const float8 g2 =
-                    (across(src.here, L * pitch) + middle * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
-                const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
+                    (across(src.here, L * pitch) + where * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
+                const float8 g3 = (preintegrated ? AlongRay::slope_at(v, where) : along.at(v, along.slope)) * (1.0f / spacing);
                 const Vec3x8 field_gradient = from_x * g1 + from_y * g2 + from_u * g3;
                 const bool gradient_opacity = src.classification->has_gradient_opacity();
                 const float8 magnitude = gradient_opacity || src.clip
