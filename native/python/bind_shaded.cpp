@@ -213,6 +213,9 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["seconds_post_convolution"] = s.seconds_post_convolution;
     stats["seconds_sampling"] = s.seconds_sampling;
     stats["seconds_shading"] = s.seconds_shading;
+    stats["classification"] = s.classification;
+    stats["preintegration_tables_built"] = s.preintegration_tables_built;
+    stats["preintegration_table_bytes"] = s.preintegration_table_bytes;
     stats["shadow_texels"] = s.shadow_texels;
     stats["seconds_shadows"] = s.seconds_shadows;
 }
@@ -234,7 +237,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
                             nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids,
-                            const std::string& sheet_fill) {
+                            const std::string& sheet_fill, const std::string& classification) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -275,6 +278,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     parts.params.depth = return_depth;
     parts.params.shadows = *flag_from_python(shadows, "render_shaded: shadows", false);
     parts.params.sheet_fill = sheet_fill_from_name(sheet_fill);
+    parts.params.classification = classification_from_name(classification);
     run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
     fill_stats(stats, s);
     if (!return_depth) return image_to_numpy(std::move(image), 4);
@@ -410,7 +414,7 @@ void bind_shaded(nb::module_& m) {
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
-          "sheet_fill"_a = "auto",
+          "sheet_fill"_a = "auto", "classification"_a = "auto",
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -430,7 +434,12 @@ void bind_shaded(nb::module_& m) {
           "sheet_fill: 'auto' samples a grid's sheets instead of splatting them where method 'pcvr' splats all of it\n"
           "at stride 1 (stats['grids_sampled'], stats['sheet_samples'], stats['seconds_sampling']); 'splat' never\n"
           "does; 'sample' does for every grid that fits (method 'pcvr' only). A sheet on which a voxel spans two\n"
-          "pixels or more is sampled at a subgrid of that stride and post-convolved (stats['sampled_strides']).");
+          "pixels or more is sampled at a subgrid of that stride and post-convolved (stats['sampled_strides']).\n"
+          "classification: 'point' classifies each sample by the transfer function at its density; 'preintegrated'\n"
+          "each stretch between consecutive samples by the transfer function's mean over its two ends' densities\n"
+          "(Engel, Kraus and Ertl 2001: no rings where a sharp transfer function meets the sheets), from a table\n"
+          "built once per TransferFunction and kept with it; 'auto' the measured better (stats['classification'],\n"
+          "stats['preintegration_tables_built'], stats['preintegration_table_bytes']). The ray caster samples points.");
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

@@ -63,6 +63,16 @@ enum class SheetFill {
 /// Parses "auto", "splat" or "sample"; throws InvalidArgument listing the names.
 SheetFill sheet_fill_from_name(const std::string& name);
 
+/// How the sheet renderers classify the density between consecutive samples along a ray.
+enum class Classification {
+    Automatic,      ///< the measured best (docs/how-it-works.md, "Pre-integrated classification")
+    Point,          ///< the transfer function at each sample, for its stretch of ray
+    Preintegrated,  ///< each stretch from the densities at its two ends (src/shaded/classify/preintegration.h)
+};
+
+/// Parses "auto", "point" or "preintegrated"; throws InvalidArgument listing the names.
+Classification classification_from_name(const std::string& name);
+
 struct ShadedParams {
     ShadedMethod method = ShadedMethod::Pcvr;
     std::string splat_kernel = "gauss1.4";
@@ -93,6 +103,8 @@ struct ShadedParams {
     bool shadows = false;
     /// Splat the sheets, or sample them where that costs less (SheetFill; ShadedStats::grids_sampled).
     SheetFill sheet_fill = SheetFill::Automatic;
+    /// Point-sampled or pre-integrated classification (the ray caster always samples points, finely).
+    Classification classification = Classification::Automatic;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -166,6 +178,12 @@ struct ShadedStats {
     double seconds_post_convolution = 0;
     double seconds_sampling = 0;      ///< sampled sheets' values
     double seconds_shading = 0;       ///< classification, shading and compositing
+    /// "point" or "preintegrated" (ShadedParams::classification as resolved; the ray caster's: "point"),
+    /// "none" for MIP; the pre-integration tables this render built (0 where each transfer function's
+    /// was kept from an earlier render) and the bytes of those it used.
+    std::string classification = "none";
+    uint64_t preintegration_tables_built = 0;
+    uint64_t preintegration_table_bytes = 0;
     uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
     double seconds_shadows = 0;       ///< building them (wall seconds)
 };

@@ -25,11 +25,22 @@
 #pragma once
 
 #include <array>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "pcvr/lanes.h"
 
 namespace pcvr {
+
+class PreintegrationTable;
+
+/// Tables derived from a transfer function once and kept with it: built by the first render that needs
+/// them, shared by the function's copies (a render copies the function it is given), freed with the last.
+struct TransferFunctionTables {
+    std::mutex mutex;
+    std::shared_ptr<const PreintegrationTable> preintegration;  ///< src/shaded/classify/preintegration.h
+};
 
 struct TransferFunction {
     std::vector<double> density;               ///< strictly increasing control points
@@ -38,6 +49,9 @@ struct TransferFunction {
     std::vector<double> gradient;              ///< strictly increasing |gradient| points (>= 0); empty: no modulation
     std::vector<double> gradient_opacity;      ///< opacity factor in [0, 1], one per gradient point
     std::vector<std::array<double, 3>> emission;  ///< radiance per world unit (linear RGB >= 0), one per point; empty: none
+
+    /// Where its derived tables are kept (null: built for each render).
+    std::shared_ptr<TransferFunctionTables> tables = std::make_shared<TransferFunctionTables>();
 
     bool has_gradient_opacity() const { return !gradient.empty(); }
     bool has_emission() const { return !emission.empty(); }
@@ -110,13 +124,23 @@ public:
         const float8 x = clamp8((density - first_) * scale_, 0.0f, float(kEntries));
         const int8x i = __builtin_convertvector(x, int8x);
         const float8 a = lerp_entries(opacity_, i, x - __builtin_convertvector(i, float8));
-        const float8 y = clamp8((magnitude - gradient_first_) * gradient_scale_, 0.0f, float(kGradientEntries));
-        const int8x j = __builtin_convertvector(y, int8x);
-        const float8 f = lerp_entries(gradient_factor_, j, y - __builtin_convertvector(j, float8));
+        const float8 f = gradient_factor(magnitude);
         // The table caps a at 1 - 1e-7, so the logarithm is finite.
         return min8(-log1p8(-a * f) * per_unit_distance_, broadcast8(1e30f));
     }
     float extinction(float density, float magnitude) const { return extinction(broadcast8(density), broadcast8(magnitude))[0]; }
+    /// The same for a stretch whose extinction without gradient opacity is `sigma` (a pre-integrated mean):
+    /// its opacity per unit distance a = 1 - exp(-sigma unit_distance) times the factor, -ln(1 - a f) /
+    /// unit_distance, which is extinction(density, magnitude) where sigma is the extinction at one density.
+    float8 extinction_of(float8 sigma, float8 magnitude) const {
+        const float8 x = sigma * (1.0f / per_unit_distance_);  // below 0.01 a series: 1 - exp(-x) in float lost its digits
+        const float8 a = min8(select8(x < 0.01f, x * (1.0f - x * (0.5f - x * (1.0f / 6.0f))), 1.0f - exp8(-x)),
+                              broadcast8(float(1.0 - 1e-7)));
+        const float8 f = gradient_factor(magnitude);
+        return min8(-log1p8(-a * f) * per_unit_distance_, broadcast8(1e30f));
+    }
+    /// 1 / unit_distance (capped at 1e30).
+    float per_unit_distance() const { return per_unit_distance_; }
     /// True when every density in [lo, hi] has zero opacity and emits nothing.
     bool transparent(double lo, double hi) const;
     /// Lanes whose density may be visible: inside the span between the first and the last density
@@ -128,6 +152,12 @@ public:
 private:
     static constexpr int kGradientEntries = 1024;
     static float8 lerp_entries(const std::vector<float>& table, int8x i, float8 f) { return lerp_pairs8(table.data(), i, f); }
+    /// The gradient opacity factor at these magnitudes.
+    float8 gradient_factor(float8 magnitude) const {
+        const float8 y = clamp8((magnitude - gradient_first_) * gradient_scale_, 0.0f, float(kGradientEntries));
+        const int8x j = __builtin_convertvector(y, int8x);
+        return lerp_entries(gradient_factor_, j, y - __builtin_convertvector(j, float8));
+    }
 
     float first_, scale_;  // entry index = (density - first) * scale
     // kEntries + 2 entries per channel: the last repeated, so interpolation at the end needs no branch.

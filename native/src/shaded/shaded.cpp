@@ -17,6 +17,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
+#include "shaded/classify/preintegration.h"
 #include "shaded/classify/shaded_levels.h"
 #include "shaded/classify/transparency_culling.h"
 #include "shaded/light/albedo_field.h"
@@ -47,9 +48,19 @@ SheetFill sheet_fill_from_name(const std::string& name) {
     throw InvalidArgument("unknown sheet_fill '" + name + "' (expected auto, splat or sample)");
 }
 
+Classification classification_from_name(const std::string& name) {
+    if (name == "auto") return Classification::Automatic;
+    if (name == "point") return Classification::Point;
+    if (name == "preintegrated") return Classification::Preintegrated;
+    throw InvalidArgument("unknown classification '" + name + "' (expected auto, point or preintegrated)");
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+/// What "auto" means: see docs/how-it-works.md, "Pre-integrated classification".
+bool preintegrates(Classification c) { return c == Classification::Preintegrated; }
 
 /// Tiles are squares of 128 to 256 pixels: several times a block's footprint, so that few voxels are
 /// splatted by more than one tile (a voxel near a tile's edge is splatted by each tile it reaches), and
@@ -259,6 +270,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     SheetWalkSetup setup;
     std::vector<std::unique_ptr<SlabView>> views;
     std::vector<std::unique_ptr<ClassificationTable>> classifications;
+    std::vector<std::shared_ptr<const PreintegrationTable>> preintegrations;
+    const bool preintegrated = !mip && preintegrates(params.classification);
+    stats.classification = mip ? "none" : preintegrated ? "preintegrated" : "point";
     std::vector<std::unique_ptr<Shader>> shaders;
     std::vector<std::unique_ptr<AlbedoField>> albedos;
     std::vector<std::unique_ptr<SampleClip>> sample_clips;
@@ -279,6 +293,13 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light(),
                                                        albedos.back().get(), shadows->occluders()));
             shader = shaders.back().get();
+            if (preintegrated) {
+                bool built = false;
+                preintegrations.push_back(PreintegrationTable::of(tf, &built));
+                stats.preintegration_tables_built += built ? 1 : 0;
+                if (std::count(preintegrations.begin(), preintegrations.end(), preintegrations.back()) == 1)
+                    stats.preintegration_table_bytes += preintegrations.back()->bytes();
+            }
         }
         const int finest = plan.by_stride.empty() ? 1 : int(plan.by_stride.begin()->first);
         const SampleClip* clip = nullptr;
@@ -286,7 +307,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             sample_clips.push_back(std::make_unique<SampleClip>(*volume.clip, geometry.origin0, smallest_voxel_spacing(grid)));
             clip = sample_clips.back().get();
         }
-        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale), clip});
+        setup.grids.push_back({classification, shader, finest, float(double(grid.background()) * volume.density_scale), clip,
+                               preintegrated ? preintegrations.back().get() : nullptr});
         stats.blocks_total += plan.blocks_total;
         stats.blocks_outside += plan.blocks_culled;
         stats.blocks_clipped += plan.blocks_clipped;
@@ -324,7 +346,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
 
             const CullingReach culling =
                 culling_reach(kernel, filter, post_convolved, sheets.spacing / depth_per_voxel(projections[g], grid, sheets),
-                              mip ? 1 : params.samples_per_sheet);
+                              mip ? 1 : preintegrated ? 2 * params.samples_per_sheet : params.samples_per_sheet);
             const Vec3& n = view.projection().depth_gradient();
             const double reach = kernel.radius() * length(n);  // in depth, for the clip planes
             const double span = VoxelBlock::kDim - 1;
@@ -380,6 +402,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     setup.mip = mip;
     setup.opacity_cutoff = float(params.opacity_cutoff);
     setup.samples_per_sheet = params.samples_per_sheet;
+    setup.preintegrated = preintegrated;
     setup.width = camera.width();
     setup.height = camera.height();
     setup.near_depth = float(near_depth);
@@ -466,6 +489,7 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
             std::fill(image.depth.begin(), image.depth.end(), INFINITY);
             depth = image.depth.data();
         }
+        s.classification = "point";  // the sheets' choice replaces it
         if (params.method == ShadedMethod::Raycast)
             raycast_shaded(levelled.volumes(), camera, lighting, params, control, image.pixels.data(), depth);
         else

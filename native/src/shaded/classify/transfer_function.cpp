@@ -5,13 +5,9 @@
 #include <string>
 
 #include "pcvr/errors.h"
+#include "shaded/classify/table_entries.h"
 
 namespace pcvr {
-
-namespace {
-/// Opacities this close to 1 are treated as opaque: the extinction stays finite (1 - 1e-7 per unit).
-constexpr double kMostOpacity = 1.0 - 1e-7;
-}  // namespace
 
 void TransferFunction::validate() const {
     const std::string what = "TransferFunction: ";
@@ -67,22 +63,17 @@ double gradient_factor_at(const TransferFunction& tf, double m) {
 }
 }  // namespace
 
-ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit_distance) {
-    tf.validate();
-    if (!(unit_distance > 0) || !std::isfinite(unit_distance))
-        throw InvalidArgument("TransferFunction: unit_distance must be positive");
+TableEntries table_entries(const TransferFunction& tf) {
+    TableEntries out;
+    const int n = ClassificationTable::kEntries;
     const double first = tf.density.front(), last = tf.density.back();
-    const double step = last > first ? (last - first) / kEntries : 1.0;
-    first_ = float(first);
-    scale_ = float(1.0 / step);
-
-    entries_.resize(4 * size_t(kEntries + 2));
-    extinction_.resize(kEntries + 2);
-    if (tf.has_emission())
-        for (auto* channel : {&emit_red_, &emit_green_, &emit_blue_}) channel->resize(kEntries + 2);
+    out.first = first;
+    out.step = last > first ? (last - first) / n : 1.0;
+    out.rgba.resize(n + 1);
+    if (tf.has_emission()) out.emission.resize(n + 1);
     size_t segment = 0;  // control points segment, [segment, segment + 1]
-    for (int e = 0; e <= kEntries; ++e) {
-        const double d = first + e * step;
+    for (int e = 0; e <= n; ++e) {
+        const double d = first + e * out.step;
         while (segment + 1 < tf.density.size() && tf.density[segment + 1] < d) ++segment;
         std::array<double, 4> v = tf.rgba[segment];
         std::array<double, 3> glow = tf.has_emission() ? tf.emission[segment] : std::array<double, 3>{};
@@ -92,12 +83,38 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
             if (tf.has_emission())
                 for (int c = 0; c < 3; ++c) glow[c] += t * (tf.emission[segment + 1][c] - glow[c]);
         }
-        const double opacity = std::min(v[3], kMostOpacity);
+        v[3] = std::min(v[3], kMostOpacity);
+        out.rgba[size_t(e)] = v;
+        if (tf.has_emission()) out.emission[size_t(e)] = glow;
+    }
+    return out;
+}
+
+ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit_distance) {
+    tf.validate();
+    if (!(unit_distance > 0) || !std::isfinite(unit_distance))
+        throw InvalidArgument("TransferFunction: unit_distance must be positive");
+    const TableEntries at = table_entries(tf);
+    const double first = at.first, step = at.step;
+    first_ = float(first);
+    scale_ = float(1.0 / step);
+    per_unit_distance_ = float(std::min(1.0 / unit_distance, 1e30));
+
+    entries_.resize(4 * size_t(kEntries + 2));
+    extinction_.resize(kEntries + 2);
+    if (tf.has_emission())
+        for (auto* channel : {&emit_red_, &emit_green_, &emit_blue_}) channel->resize(kEntries + 2);
+    for (int e = 0; e <= kEntries; ++e) {
+        const std::array<double, 4>& v = at.rgba[size_t(e)];
+        const double opacity = v[3];
         // Capped where a unit_distance of 1e-300 would make it infinite: opaque in any sample anyway.
         extinction_[e] = float(std::min(-std::log1p(-opacity) / unit_distance, 1e30));
         for (int c = 0; c < 3; ++c) entries_[4 * size_t(e) + c] = float(v[c]);
         entries_[4 * size_t(e) + 3] = extinction_[e];
-        if (tf.has_emission()) emit_red_[e] = float(glow[0]), emit_green_[e] = float(glow[1]), emit_blue_[e] = float(glow[2]);
+        if (tf.has_emission()) {
+            const std::array<double, 3>& glow = at.emission[size_t(e)];
+            emit_red_[e] = float(glow[0]), emit_green_[e] = float(glow[1]), emit_blue_[e] = float(glow[2]);
+        }
         if (tf.has_gradient_opacity()) opacity_.push_back(float(opacity));
     }
     for (auto* channel : {&extinction_, &emit_red_, &emit_green_, &emit_blue_})
@@ -105,7 +122,6 @@ ClassificationTable::ClassificationTable(const TransferFunction& tf, double unit
     std::copy_n(entries_.begin() + 4 * kEntries, 4, entries_.begin() + 4 * (kEntries + 1));
     if (tf.has_gradient_opacity()) {
         opacity_.push_back(opacity_.back());
-        per_unit_distance_ = float(std::min(1.0 / unit_distance, 1e30));
         const double g0 = tf.gradient.front(), g1 = tf.gradient.back();
         const double g_step = g1 > g0 ? (g1 - g0) / kGradientEntries : 1.0;
         gradient_first_ = float(g0);

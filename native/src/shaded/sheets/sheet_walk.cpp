@@ -184,7 +184,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
                 else
                     grids_[setup.layers[li].grid]->add_layer_sheet(t, *layers_[li], setup.layers[li].filter, scratch_);
             }
-            if (!mip && setup.samples_per_sheet > 1)  // only the first of several samples reads the cells
+            if (setup.between_sheets())  // only the first of several samples reads the cells
                 for (auto& g : grids_)
                     if (g && g->used) g->summarise(GridState::slot(t));
         }
@@ -195,7 +195,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
 
         // 3. Classify, shade and composite from sheet s towards s + 1 (MIP: take the maximum at s).
         bool any = false;
-        const bool between = !mip && setup.samples_per_sheet > 1;
+        const bool between = setup.between_sheets();
         for (const auto& g : grids_) any |= g && g->used && g->reaches(s, between);
         if (any) {
             ++stats.tile_sheets_composited;

@@ -23,6 +23,7 @@
 #include "pcvr/render_control.h"
 #include "pcvr/shading.h"
 #include "pcvr/transfer_function.h"
+#include "shaded/classify/preintegration.h"
 #include "shaded/classify/sample_clip.h"
 #include "shaded/sheets/compositing.h"
 #include "shaded/sheets/occlusion_map.h"
@@ -43,6 +44,8 @@ struct WalkGrid {
     int gradient_step;
     float background;  ///< added to the sheets' densities (SlabSplatParams::background), scaled
     const SampleClip* clip = nullptr;  ///< the grid's clip region, relative to SheetGeometry::origin0
+    /// Non-null: the stretches between samples are pre-integrated (classification's transfer function).
+    const PreintegrationTable* preintegration = nullptr;
 };
 
 /// The blocks of one grid splatted at one subgrid stride: a perspective view splats nearer blocks,
@@ -67,6 +70,11 @@ struct SheetWalkSetup {
     bool mip = false;  ///< maximum intensity projection: no classification, no shading
     float opacity_cutoff = 0.99f;
     int samples_per_sheet = 1;  ///< classified samples from one sheet to the next (1: at each sheet)
+    /// Each stretch between consecutive samples is classified from its two ends (WalkGrid::preintegration):
+    /// the stretches then lie between the samples, sheet s's middle to s + 1's in samples_per_sheet steps.
+    bool preintegrated = false;
+    /// Whether a sample reads sheets beyond s (s - 1 to s + 2): several per sheet, or pre-integrated stretches.
+    bool between_sheets() const { return !mip && (samples_per_sheet > 1 || preintegrated); }
     int width = 0, height = 0;
     float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
     float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)

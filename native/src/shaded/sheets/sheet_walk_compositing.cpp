@@ -112,13 +112,23 @@ struct AlongRay {
     }
     float8 at(const float8 (&v)[4], const float (&w)[4]) const { return w[0] * v[0] + w[1] * v[1] + w[2] * v[2] + w[3] * v[3]; }
     float8 value_at(const float8 (&v)[4]) const { return min8(max8(at(v, value), min8(v[1], v[2])), max8(v[1], v[2])); }
+    /// The slope at t per lane (pre-integrated stretches are lit where their extinction lies).
+    static float8 slope_at(const float8 (&v)[4], float8 t) {
+        const float8 t2 = t * t;
+        return 0.5f * ((-1.0f + 4.0f * t - 3.0f * t2) * v[0] + (9.0f * t2 - 10.0f * t) * v[1] + (1.0f + 8.0f * t - 9.0f * t2) * v[2] +
+                       (3.0f * t2 - 2.0f * t) * v[3]);
+    }
 };
 
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
     const SheetGeometry& geo = *setup.geometry;
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
     // The sample lies t of the way from sheet s's middle to sheet s + 1's, and stands for 1 / samples of a slab.
-    const double u = setup.sheets.boundary(s) + (0.5 + double(t)) * setup.sheets.spacing;
+    // Pre-integrated, it is the stretch from t to t + 1 / samples, classified from the densities at its two
+    // ends, clipped and placed at its middle, and lit where its extinction lies (PreintegrationTable::Slabs::centre).
+    const bool preintegrated = setup.preintegrated;
+    const float middle = preintegrated ? t + 0.5f / float(samples) : t;
+    const double u = setup.sheets.boundary(s) + (0.5 + double(middle)) * setup.sheets.spacing;
 
     // The grids with something at this sample, their sheets s - 1, s and s + 1, and the pixels where
     // any of them is not zero.
@@ -127,6 +137,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         const ClassificationTable* classification;
         const Shader* shader;
         const SampleClip* clip;
+        const PreintegrationTable* preintegration;
         float background;
         const float *before, *here, *after, *beyond;  // sheets s - 1 to s + 2
     };
@@ -134,7 +145,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     // With several samples, every one of them lies between sheets s and s + 1's values (AlongRay clamps
     // it there): the first (t = 0) marks the vectors where some source may be visible in that range,
     // and the others visit only those, over the same sources and box.
-    const bool between = samples > 1, marking = between && t == 0, marked = between && t > 0;
+    const bool between = samples > 1 || preintegrated, marking = between && t == 0, marked = between && t > 0;
     const float per_spacing = 1.0f / spacing;
     Source sources[64];
     int source_count = 0;
@@ -144,8 +155,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
         const GridState& g = *grids_[gi];
         if (!g.reaches(s, between)) continue;
         const WalkGrid& wg = setup.grids[gi];
-        sources[source_count++] = {&g,           wg.classification, wg.shader,       wg.clip,        wg.background,
-                                   g.sheet(s - 1), g.sheet(s),        g.sheet(s + 1), g.sheet(s + 2)};
+        sources[source_count++] = {&g,         wg.classification, wg.shader,     wg.clip,        wg.preintegration,
+                                   wg.background, g.sheet(s - 1),  g.sheet(s),    g.sheet(s + 1), g.sheet(s + 2)};
         box.include(tile_box(g.box(s), g.halo, rect));
         if (between)
             for (int64_t k : {s - 1, s + 1, s + 2}) box.include(tile_box(g.box(k), g.halo, rect));
@@ -200,7 +211,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
     // the frames are only needed where something is classified.
     const double half_extent = 0.5 * setup.sheets.spacing / samples;
     const bool whole = setup.within_clip_everywhere(u, half_extent);
-    const AlongRay along(t);
+    const AlongRay along(middle), front_end(t), back_end(t + 1.0f / float(samples));
 
     size_t newly_opaque = 0;
     for (int y = box.y0; y <= box.y1; ++y) {
@@ -218,7 +229,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
             // a density that may be visible. Sheets s and s + 1 bound the sample, so they decide most
             // vectors before the cubic's other two sheets are read (an opaque bone function leaves 97% of
             // the vectors at 2048^2 here).
-            float8 sheet_values[64][4], raws[64];
+            float8 sheet_values[64][4], raws[64], backs[64];  // backs: pre-integrated stretches' back ends
             bool any = false;
             for (int k = 0; k < source_count; ++k) {
                 const Source& src = sources[k];
@@ -226,12 +237,19 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const float8 here = load8(src.here + i), after = load8(src.after + i);
                 const float8 lo = min8(here, after) * per_spacing + src.background, hi = max8(here, after) * per_spacing + src.background;
                 if (!any8(open & ((here != 0) | (after != 0)) & src.classification->maybe_opaque_within(lo, hi))) {
-                    raws[k] = broadcast8(0.0f);  // nothing visible: zero, as where no voxel reaches
+                    raws[k] = backs[k] = broadcast8(0.0f);  // nothing visible: zero, as where no voxel reaches
                     continue;
                 }
                 if (marking) may_show_[vector] = 1;
                 sheet_values[k][0] = load8(src.before + i), sheet_values[k][1] = here, sheet_values[k][2] = after;
                 sheet_values[k][3] = load8(src.beyond + i);
+                if (preintegrated) {  // zero is no voxel: a stretch with one such end takes the other's density
+                    const float8 f = front_end.value_at(sheet_values[k]), b = back_end.value_at(sheet_values[k]);
+                    raws[k] = select8(f != 0, f, b), backs[k] = select8(b != 0, b, f);
+                    const float8 df = raws[k] * per_spacing + src.background, db = backs[k] * per_spacing + src.background;
+                    any = any || any8(open & (raws[k] != 0) & src.classification->maybe_opaque_within(min8(df, db), max8(df, db)));
+                    continue;
+                }
                 raws[k] = along.value_at(sheet_values[k]);
                 any = any || any8(open & (raws[k] != 0) & src.classification->maybe_opaque(raws[k] * per_spacing + src.background));
             }
@@ -262,16 +280,23 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 const size_t i = size_t(y + g.halo) * g.pitch() + size_t(x + g.halo);
                 const float8(&v)[4] = sheet_values[k];
                 const float8 raw = raws[k];
-                const float8 density = raw * per_spacing + src.background;
-                int8x valid = open & (raw != 0) & src.classification->maybe_opaque(density);  // zero: no voxel reaches
+                const float8 front = raw * per_spacing + src.background;
+                const float8 back = preintegrated ? backs[k] * per_spacing + src.background : front;
+                const float8 density = preintegrated ? 0.5f * (front + back) : front;
+                // zero: no voxel reaches
+                int8x valid = open & (raw != 0) &
+                              (preintegrated ? src.classification->maybe_opaque_within(min8(front, back), max8(front, back))
+                                             : src.classification->maybe_opaque(density));
                 if (!any8(valid)) continue;
                 // The share of the sample's stretch of ray inside the grid's clip region.
                 const float8 kept = src.clip ? src.clip->share<float8>(f.position, f.along * float(half_extent)) : broadcast8(1.0f);
                 valid &= kept > 0;
                 if (!any8(valid)) continue;
-                const ClassificationTable::Samples c = (*src.classification)(density);
+                PreintegrationTable::Slabs slabs;
+                if (preintegrated) slabs = (*src.preintegration)(*src.classification, front, back, valid);
+                const ClassificationTable::Samples c = preintegrated ? slabs.light : (*src.classification)(density);
                 if (src.classification->has_emission()) {  // emits whether or not it absorbs
-                    const ClassificationTable::Emissions e = src.classification->emission(density);
+                    const ClassificationTable::Emissions e = preintegrated ? slabs.glow : src.classification->emission(density);
                     glow = glow + Vec3x8{e.red, e.green, e.blue} * select8(valid, kept, broadcast8(0.0f));
                     glowing = true;
                 }
@@ -280,13 +305,15 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 // Density change per pixel right, per pixel down (interpolated linearly between the
                 // sheets) and per unit of the sheet parameter (the cubic's slope; on a sheet the central
                 // difference); common factors dropped: only the gradient's direction matters.
+                // Pre-integrated: at the centroid of the stretch's extinction.
                 const int L = g.halo;
                 const size_t pitch = g.pitch();
+                const float8 where = preintegrated ? t + slabs.centre * (1.0f / float(samples)) : broadcast8(t);
                 auto across = [&](const float* sheet, size_t step) { return load8(sheet + i + step) - load8(sheet + i - step); };
-                const float8 g1 = (across(src.here, L) + t * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
+                const float8 g1 = (across(src.here, L) + where * (across(src.after, L) - across(src.here, L))) * (0.5f / L);
                 const float8 g2 =
-                    (across(src.here, L * pitch) + t * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
-                const float8 g3 = along.at(v, along.slope) * (1.0f / spacing);
+                    (across(src.here, L * pitch) + where * (across(src.after, L * pitch) - across(src.here, L * pitch))) * (0.5f / L);
+                const float8 g3 = (preintegrated ? AlongRay::slope_at(v, where) : along.at(v, along.slope)) * (1.0f / spacing);
                 const Vec3x8 field_gradient = from_x * g1 + from_y * g2 + from_u * g3;
                 const bool gradient_opacity = src.classification->has_gradient_opacity();
                 const float8 magnitude = gradient_opacity || src.clip
@@ -294,7 +321,8 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                                              : broadcast8(0.0f);
                 float8 extinction = c.extinction;
                 if (gradient_opacity) {
-                    extinction = src.classification->extinction(density, magnitude);
+                    extinction = preintegrated ? src.classification->extinction_of(c.extinction, magnitude)
+                                               : src.classification->extinction(density, magnitude);
                     valid &= extinction > 0;
                     if (!any8(valid)) continue;
                 }
