@@ -119,6 +119,10 @@ private:
     /// Classifies, shades and composites the sample t of the way from sheet s to s + 1 into the tile;
     /// returns how many pixels became opaque.
     size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
+    /// composite_sample compiled for point-sampled or pre-integrated classification, so that the point path, the
+    /// default, carries none of the pre-integrated one's selects in its inner loop.
+    template <bool Preintegrated>
+    size_t composite_sample_as(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
     struct Active {
         size_t entry;  // into the tile's blocks

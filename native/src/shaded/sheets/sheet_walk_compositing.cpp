@@ -121,12 +121,18 @@ struct AlongRay {
 };
 
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
+    return setup.preintegrated ? composite_sample_as<true>(setup, rect, s, t, samples)
+                               : composite_sample_as<false>(setup, rect, s, t, samples);
+}
+
+template <bool Preintegrated>
+size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
     const SheetGeometry& geo = *setup.geometry;
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
     // The sample lies t of the way from sheet s's middle to sheet s + 1's, and stands for 1 / samples of a slab.
     // Pre-integrated, it is the stretch from t to t + 1 / samples, classified from the densities at its two
     // ends, clipped and placed at its middle, and lit where its extinction lies (PreintegrationTable::Slabs::centre).
-    const bool preintegrated = setup.preintegrated;
+    constexpr bool preintegrated = Preintegrated;
     const float middle = preintegrated ? t + 0.5f / float(samples) : t;
     const double u = setup.sheets.boundary(s) + (0.5 + double(middle)) * setup.sheets.spacing;
 
@@ -243,7 +249,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 if (marking) may_show_[vector] = 1;
                 sheet_values[k][0] = load8(src.before + i), sheet_values[k][1] = here, sheet_values[k][2] = after;
                 sheet_values[k][3] = load8(src.beyond + i);
-                if (preintegrated) {  // zero is no voxel: a stretch with one such end takes the other's density
+                if constexpr (preintegrated) {  // zero is no voxel: a stretch with one such end takes the other's density
                     const float8 f = front_end.value_at(sheet_values[k]), b = back_end.value_at(sheet_values[k]);
                     raws[k] = select8(f != 0, f, b), backs[k] = select8(b != 0, b, f);
                     const float8 df = raws[k] * per_spacing + src.background, db = backs[k] * per_spacing + src.background;
@@ -289,11 +295,11 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                                              : src.classification->maybe_opaque(density));
                 if (!any8(valid)) continue;
                 // The share of the sample's stretch of ray inside the grid's clip region.
-                const float8 kept = src.clip ? src.clip->share<float8>(f.position, f.along * float(half_extent)) : broadcast8(1.0f);
+                const float8 kept = src.clip ? src.clip->template share<float8>(f.position, f.along * float(half_extent)) : broadcast8(1.0f);
                 valid &= kept > 0;
                 if (!any8(valid)) continue;
                 PreintegrationTable::Slabs slabs;
-                if (preintegrated) slabs = (*src.preintegration)(*src.classification, front, back, valid);
+                if constexpr (preintegrated) slabs = (*src.preintegration)(*src.classification, front, back, valid);
                 const ClassificationTable::Samples c = preintegrated ? slabs.light : (*src.classification)(density);
                 if (src.classification->has_emission()) {  // emits whether or not it absorbs
                     const ClassificationTable::Emissions e = preintegrated ? slabs.glow : src.classification->emission(density);
@@ -328,7 +334,7 @@ size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRec
                 }
                 // A cut face is lit by the plane's normal (sample_clip.h); gradient opacity read the field's.
                 const Vec3x8 gradient =
-                    src.clip ? src.clip->face_gradient<float8>(f.position, field_gradient,
+                    src.clip ? src.clip->template face_gradient<float8>(f.position, field_gradient,
                                                                src.clip->weak_gradient(magnitude, density - src.background))
                              : field_gradient;
                 lit_colours[lit_count] = src.shader->shade({c.red, c.green, c.blue}, gradient, to_eye, f.position);
