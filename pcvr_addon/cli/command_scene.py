@@ -13,6 +13,7 @@ import bpy
 from mathutils import Matrix, Vector
 
 from ..io import image_io
+from ..volume_import import SCAN_WORLD
 from ..scene import clipping
 from ..scene.defaults import NATIVE_NAMES
 from ..ui import presets
@@ -65,14 +66,20 @@ def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGN
     """Make `scene` (empty) show the .vdb `filepath` as the command line renders it: imported (grid `grid`, at
     frame `frame` or the file's number), framed at `magnification` from `view` (a camera.AXIS_VIEWS key; default
     from above) or along `view_direction`, lit by a sun travelling along `light_direction` and Blender's default
-    world; a grid whose metadata says its units are HU (a CT) X-rayed as a DRR (xray_values 'HOUNSFIELD'). Returns
+    world; a grid whose metadata says its units are HU (a CT) X-rayed as a DRR (xray_values 'HOUNSFIELD'), and one
+    that convert placed in millimetres in a scene of one millimetre a unit. Returns
     the volume object; raises RuntimeError with the operator's report when the volume cannot be read."""
     obj, file_frame = _import_vdb(filepath)
     if grid:
         obj.data.pcvr.grid = grid
-    if units_of(filepath, grid) == "HU":
+    metadata = grid_metadata(filepath, grid)
+    if metadata.get("pcvr_units") == "HU":
         # A CT's X-ray is a DRR unless --no-hounsfield says otherwise (apply_options).
         obj.data.pcvr.xray_values = 'HOUNSFIELD'
+    if metadata.get("pcvr_world") == SCAN_WORLD:
+        # A converted scan: one unit a millimetre, so that a DRR's attenuation per centimetre counts it so (the
+        # default metre made a head 200 m deep, its DRR white).
+        scene.unit_settings.scale_length = 0.001
     frame = frame if frame is not None else file_frame
     if frame is not None:
         scene.frame_set(frame)
@@ -85,17 +92,17 @@ def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGN
     return obj
 
 
-def units_of(filepath, grid=None):
-    """The units the grid `grid` of the .vdb `filepath` (None: 'density', else the first) says its values are in
-    (its `pcvr_units` metadata, "HU" for a CT that convert wrote), "" when it does not say."""
+def grid_metadata(filepath, grid=None):
+    """The string metadata of the grid `grid` of the .vdb `filepath` (None: 'density', else the first): what convert
+    wrote of a scan among them (`pcvr_units`, "HU" for a CT; `pcvr_world`); {} where the file does not say."""
     import pcvr_native
 
     try:
         grids = pcvr_native.list_grids(filepath)
     except (OSError, RuntimeError, ValueError):
-        return ""
+        return {}
     chosen = [g for g in grids if g["name"] == (grid or "density")] or grids[:1]
-    return chosen[0].get("metadata", {}).get("pcvr_units", "") if chosen else ""
+    return chosen[0].get("metadata", {}) if chosen else {}
 
 
 def _light(scene, direction):

@@ -11,7 +11,7 @@ The format libraries (pydicom, nibabel, pynrrd, tifffile) are imported only when
 
 import os
 
-from .volume import ScanError, ScanVolume, held_warnings, quietly  # noqa: F401 (ScanVolume: a public name)
+from .volume import SCAN_WORLD, ScanError, ScanVolume, held_warnings, quietly  # noqa: F401 (SCAN_WORLD, ScanVolume: public names)
 from .vdb_writer import convert, to_grid, write_vdb  # noqa: F401
 
 # A folder of TIFF files is a stack of planes; any other folder is searched for DICOM series; a file is read

@@ -41,6 +41,9 @@ MILLIMETRES_PER_UNIT = {
 LPS_FROM_RAS = np.diag([-1.0, -1.0, 1.0, 1.0])
 
 
+# Where a converted scan lies: its grid's `pcvr_world` metadata.
+SCAN_WORLD = "LPS millimetres"
+
 class ScanError(Exception):
     """A scan that cannot be converted; the message names the file and the cause."""
 
@@ -74,7 +77,7 @@ class ScanVolume:
         """String metadata for the .vdb: nothing from the scan that could identify a patient."""
         meta = {
             "pcvr_source_format": self.source_format,
-            "pcvr_world": "LPS millimetres",
+            "pcvr_world": SCAN_WORLD,
             "pcvr_description": self.description(),
         }
         if self.modality:

@@ -123,6 +123,23 @@ def test_the_command_line_renders_a_vdb_in_hounsfield_units_as_a_drr(tmp_path):
     assert np.isfinite(raw).all() and raw[..., :3].min() == 0.0
 
 
+def test_the_command_line_renders_a_converted_scan_in_millimetres(tmp_path):
+    """A .vdb that convert wrote lies in millimetres: the command line's scene takes a unit for a millimetre, so a
+    DRR through 100 mm of water integrates mu_water x 10 cm (in metres it integrated 1000 times that: white)."""
+    from pcvr_addon import volume_import
+
+    values = np.full((10, 50, 16), AIR, dtype=np.int16)  # [slice (z), row (y), column (x)], 2 mm voxels
+    values[2:8, :, 4:12] = WATER  # 50 rows of 2 mm along y, the front view's axis
+    files = sf.dicom_series(str(tmp_path / "ct"), values + 1024, pixel_spacing=(2.0, 2.0), step=(0, 0, 2.0),
+                            intercept=-1024.0)
+    volume_import.convert(files[0], str(tmp_path / "water.vdb"))
+    check(pcvr(tmp_path / "water.vdb", "-o", tmp_path / "drr.exr", "--view", "front", "--magnification", 1))
+    drr = image_io.read_passes(str(tmp_path / "drr.exr"))[""]
+    centre = drr[drr.shape[0] // 2, drr.shape[1] // 2]
+    assert centre[4] == pytest.approx(0.193 * 10.0, rel=0.02)
+    assert 0.5 < centre[0] < 0.99  # the default gain shows it grey, not white
+
+
 # 2. Volumes made by modifiers render with their Volume's PCVR settings
 
 
