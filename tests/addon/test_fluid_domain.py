@@ -64,12 +64,17 @@ def in_blender(tmp_path, scenario, **arguments):
         return {name: result[name] for name in result.files}
 
 
+def fluid_modifier(obj):
+    """The object's Fluid modifier, by type: Quick Smoke names it "Fluid" in Blender 4.2 and 5, "FLUID" in 4.5."""
+    return next(modifier for modifier in obj.modifiers if modifier.type == 'FLUID')
+
+
 def quick_domain(directory, style='SMOKE'):
     """A flow cube and the domain quick_smoke makes around it, its cache in `directory` (Bake All): the domain."""
     bpy.ops.mesh.primitive_cube_add(size=1.0)
     bpy.ops.object.quick_smoke(style=style)
     domain = bpy.context.active_object
-    settings = domain.modifiers["Fluid"].domain_settings
+    settings = fluid_modifier(domain).domain_settings
     settings.resolution_max = 16
     settings.cache_type = 'ALL'
     settings.cache_directory = str(directory)
@@ -80,7 +85,7 @@ def base_resolution(domain):
     """The cells manta_set_domain_from_mesh gives the domain: the longest side resolution_max, the others in
     proportion (rounded, at least 4)."""
     size = np.array(domain.dimensions)
-    res_max = domain.modifiers["Fluid"].domain_settings.resolution_max
+    res_max = fluid_modifier(domain).domain_settings.resolution_max
     return tuple(res_max if s == size.max() else max(int(s * res_max / size.max() + 0.5), 4) for s in size)
 
 
@@ -166,7 +171,7 @@ def smoke_scenario(tmp_path):
     cells = cells_volume(tmp_path / "cells.vdb", {"density": grids["density"]}, domain)
     images = render_each(scene, [domain, cells], 'XRAY')
     return {"smoke": images[domain.name], "reference": images[cells.name],
-            "resolution": domain.evaluated_get(bpy.context.evaluated_depsgraph_get()).modifiers["Fluid"]
+            "resolution": fluid_modifier(domain.evaluated_get(bpy.context.evaluated_depsgraph_get()))
             .domain_settings.domain_resolution[:], "expected_resolution": base_resolution(domain)}
 
 
@@ -213,7 +218,7 @@ def noise_scenario(tmp_path):
     scene = bs.setup(SIZE, SIZE)
     side_camera()
     domain = quick_domain(tmp_path / "cache")
-    settings = domain.modifiers["Fluid"].domain_settings
+    settings = fluid_modifier(domain).domain_settings
     settings.use_noise, settings.noise_scale = True, 2
     res = base_resolution(domain)
     fine = plume(tuple(2 * r for r in res), seed=5)
@@ -236,7 +241,7 @@ def warnings_scenario(tmp_path, hidden=False, frame_end=250, frame_offset=0, fra
     was looked for."""
     bs.setup(SIZE, SIZE)
     domain = quick_domain(tmp_path / "cache")
-    settings = domain.modifiers["Fluid"].domain_settings
+    settings = fluid_modifier(domain).domain_settings
     settings.cache_frame_end, settings.cache_frame_offset = frame_end, frame_offset
     domain.hide_render = hidden
     looked_at = []
@@ -277,7 +282,7 @@ def test_frames_outside_the_cache_show_nothing_and_offsets_shift_them(tmp_path):
 
 def uni_scenario(tmp_path):
     domain = quick_domain(tmp_path / "cache")
-    modifier = domain.modifiers["Fluid"]
+    modifier = fluid_modifier(domain)
     modifier.domain_settings.cache_data_format = 'UNI'
     # Read from the settings, not rendered: Blender aborts evaluating this domain with a Uni cache here.
     return {"message": fluid_domain.read_frame(domain, modifier, np.array(domain.matrix_world), 1).message}
@@ -292,7 +297,7 @@ def adaptive_scenario(tmp_path):
     """An adaptive domain's cache frame 1 (cells res_min..res_max of its base resolution), the domain moved by 0.75
     along x since: what read_frame makes of it, read from the settings (module docstring)."""
     domain = quick_domain(tmp_path / "cache")
-    modifier = domain.modifiers["Fluid"]
+    modifier = fluid_modifier(domain)
     modifier.domain_settings.use_adaptive_domain = True
     base = base_resolution(domain)
     res = tuple(b - a for a, b in zip(ADAPTIVE_MIN, ADAPTIVE_MAX))
