@@ -13,12 +13,13 @@ import bpy
 from mathutils import Matrix, Vector
 
 from ..io import image_io
-from ..volume_import import SCAN_WORLD
+from ..render import prepared_scene
 from ..scene import clipping
 from ..scene.defaults import NATIVE_NAMES
 from ..ui import presets
 from ..ui.properties import (enum_methods, enum_modes, enum_passbands, enum_post_filters, enum_sheet_fills,
                              enum_splat_kernels)
+from ..volume_import import SCAN_WORLD
 
 DEFAULT_MAGNIFICATION = 4.0
 # The sun of a .vdb: from the upper left and in front, as seen by the camera above it; strength pi W/m^2 shows
@@ -95,14 +96,11 @@ def vdb_scene(scene, filepath, grid=None, frame=None, magnification=DEFAULT_MAGN
 def grid_metadata(filepath, grid=None):
     """The string metadata of the grid `grid` of the .vdb `filepath` (None: 'density', else the first): what convert
     wrote of a scan among them (`pcvr_units`, "HU" for a CT; `pcvr_world`); {} where the file does not say."""
-    import pcvr_native
-
     try:
-        grids = pcvr_native.list_grids(filepath)
+        entry = prepared_scene.grid_entry(filepath, grid)
     except (OSError, RuntimeError, ValueError):
         return {}
-    chosen = [g for g in grids if g["name"] == (grid or "density")] or grids[:1]
-    return chosen[0].get("metadata", {}) if chosen else {}
+    return entry.get("metadata", {}) if entry else {}
 
 
 def _light(scene, direction):

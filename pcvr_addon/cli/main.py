@@ -147,7 +147,7 @@ def main(argv=None):
         parser.error("--view and --view-direction both say where the camera looks: give one")
     if args.view_direction is not None and not any(args.view_direction):
         parser.error("--view-direction needs a direction, not 0 0 0")
-    if args.hounsfield not in (None, False) and not args.hounsfield > 0:
+    if args.hounsfield is not None and args.hounsfield is not False and not args.hounsfield > 0:  # 0.0 == False
         parser.error(f"--hounsfield: the attenuation of water must be positive, not {args.hounsfield}")
     if extension == ".vdb" and args.resolution is not None:
         parser.error("--resolution applies to a .blend; a .vdb is sized by --magnification")

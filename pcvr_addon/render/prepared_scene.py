@@ -38,14 +38,21 @@ def stream_threshold(stream_above_mib):
     return stream_above_mib * MiB if stream_above_mib > 0 else pcvr_native.default_memory_limit() // 4
 
 
-def value_bytes(filepath, grid_name):
-    """The bytes a file's grid takes read whole, from its metadata (read_vdb's choice when `grid_name` is
-    None); 0 when the file does not say."""
+def grid_entry(filepath, grid_name):
+    """pcvr_native.list_grids' entry of the grid read_vdb reads (`grid_name`, or None: 'density', else the first);
+    None for a file without grids."""
     import pcvr_native
 
     grids = pcvr_native.list_grids(filepath)
     chosen = [g for g in grids if g["name"] == (grid_name or "density")] or grids[:1]
-    return 4 * chosen[0]["active_voxels"] if chosen else 0
+    return chosen[0] if chosen else None
+
+
+def value_bytes(filepath, grid_name):
+    """The bytes a file's grid takes read whole, from its metadata (read_vdb's choice when `grid_name` is
+    None); 0 when the file does not say."""
+    entry = grid_entry(filepath, grid_name)
+    return 4 * entry["active_voxels"] if entry else 0
 
 
 def export_grid(source):

@@ -26,6 +26,7 @@ Its PCVR settings are the Volume settings' defaults with Source 'Material': the 
 in shaded mode (Quick Smoke's grey smoke, Quick Fire's flames), its density grid in X-ray and MIP.
 """
 
+import functools
 import gzip
 import math
 import os
@@ -91,6 +92,24 @@ def read_config(path):
                        res_min=v[40:43], res_max=v[43:46])
 
 
+def _stamp(path):
+    """What tells a cache file's versions apart: its modification time and size."""
+    status = os.stat(path)
+    return status.st_mtime_ns, status.st_size
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_config(path, _stamp):
+    return read_config(path)
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_grid_names(path, _stamp):
+    import pcvr_native
+
+    return tuple(entry["name"] for entry in pcvr_native.list_grids(path))
+
+
 def gas_domain(obj):
     """The Fluid modifier of an evaluated object that is a gas domain enabled for renders, or None."""
     if obj.type != 'MESH':
@@ -121,9 +140,11 @@ def frame_file(directory, kind, name, frame, extension=".vdb"):
     return os.path.join(directory, kind, f"{name}_{number}{extension}")
 
 
+@functools.lru_cache(maxsize=1)
 def default_settings():
     """The PCVR settings of an object without a Volume datablock: the Volume settings' defaults (read from their
-    properties), Source 'Material'."""
+    properties, once), Source 'Material' with its ambient occlusion, as a Volume switched to Material has it.
+    Shared: read it, never change it."""
     values = {}
     for prop in bpy.types.Volume.bl_rna.properties["pcvr"].fixed_type.properties:
         if prop.identifier == "rna_type":
@@ -136,7 +157,8 @@ def default_settings():
             values[prop.identifier] = tuple(prop.default_array)
         else:
             values[prop.identifier] = prop.default
-    return types.SimpleNamespace(**{**values, "source": 'MATERIAL', "ramp": None, "gradient_ramp": None})
+    return types.SimpleNamespace(**{**values, "source": 'MATERIAL', "ambient_occlusion": True, "ramp": None,
+                                     "gradient_ramp": None})
 
 
 def cells_to_object(low, high, res):
@@ -205,10 +227,9 @@ def read_frame(obj, modifier, object_to_world, scene_frame):
 
 
 def _read_frame(obj, modifier, settings, object_to_world, directory, frame, data):
-    import pcvr_native
-
     config_path = frame_file(directory, "config", "config", frame, ".uni")
-    config = read_config(config_path) if os.path.isfile(config_path) else None
+    # Cached by file version: the interface's panels find the volumes in view at every redraw.
+    config = _cached_config(config_path, _stamp(config_path)) if os.path.isfile(config_path) else None
     if settings.use_adaptive_domain:
         if config is None:
             return DomainFrame({}, message=f"an adaptive domain's cache frame needs its config file: "
@@ -231,8 +252,8 @@ def _read_frame(obj, modifier, settings, object_to_world, directory, frame, data
     present = {}
     for path, file_res, suffix in files:
         placement = tuple(map(tuple, cells_to_object(*box, file_res)))
-        for entry in pcvr_native.list_grids(path):
-            present.setdefault(entry["name"], DomainGrid(path, entry["name"], placement))
+        for name in _cached_grid_names(path, _stamp(path)):
+            present.setdefault(name, DomainGrid(path, name, placement))
     grids = _attributes(present, settings, "_noise" if len(files) == 2 else "")
     if "density" not in grids:
         messages.append(f"cache frame '{data}' has no density grid")

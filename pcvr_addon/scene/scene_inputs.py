@@ -219,7 +219,7 @@ def material_volume_inputs(source, mode, export_grid, direction=None):
         return (volume_inputs(source, mode, export_grid),)
     media = volume_material.read(source.material)
     present = source.grid_names
-    parts = [medium for medium in media.grids if (medium.grid or source.grid_name or "density") in present]
+    parts = [medium for medium in media.grids if source.attribute(medium) in present]
     warnings = source.warnings + tuple(f"Volume object '{source.name}': {w}" for w in media.warnings)
     if not source.filepath and any(medium.colour_grid for medium in parts):
         warnings += (f"Volume object '{source.name}': the Color Attribute of a volume made by modifiers is not read: "

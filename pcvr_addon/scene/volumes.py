@@ -53,6 +53,10 @@ class VolumeSource:
         """False for a fluid domain without its cache frame (only a warning)."""
         return self.volume is not None or bool(self.filepath)
 
+    def attribute(self, medium):
+        """The grid a GridMedium of its material reads: the one it names, else the volume's own."""
+        return medium.grid or self.grid_name or "density"
+
     def part(self, medium):
         """(VolumeSource, GridMedium) of one GridMedium of its material: the source of the grid it names."""
         return dataclasses.replace(self, grid_name=medium.grid or self.grid_name), medium
@@ -63,8 +67,12 @@ class DomainSource(VolumeSource):
     """A fluid gas domain's cache frame (fluid_domain.py): its density grid, and its material's others by name."""
     grids: dict = dataclasses.field(default_factory=dict)  # attribute name -> fluid_domain.DomainGrid
 
+    def attribute(self, medium):
+        # By attribute name: its grid_name is a file's grid ('density_noise' with Noise), not an attribute.
+        return medium.grid or "density"
+
     def part(self, medium):
-        grid = self.grids[medium.grid or "density"]
+        grid = self.grids[self.attribute(medium)]
         warnings = ()
         if medium.colour_grid:
             warnings = (f"Fluid domain '{self.name}': the Color Attribute '{medium.colour_grid}' is not read: the "
