@@ -329,3 +329,21 @@ def test_an_adaptive_domain_places_the_cells_of_its_cache_frame(tmp_path):
     first = result["moved"] @ result["index_to_object"] @ [0, 0, 0, 1]
     np.testing.assert_allclose(first[:3], (result["baked_at"] @ [*(low - shift + cell / 2), 1])[:3], atol=1e-6)
     assert "no cache for frame 2" in str(result["without_config"])
+
+
+def test_a_medium_naming_no_grid_reads_a_noise_domains_density():
+    """With Noise, a domain's grid is the file's 'density_noise'; a medium that names no attribute (a Volume Scatter
+    without one) still reads the domain's density attribute, not a grid of that file name."""
+    from pcvr_addon.scene.volume_material import GridMedium
+
+    noise = fluid_domain.DomainGrid("fluid_noise_0001.vdb", "density_noise", tuple(map(tuple, np.eye(4))))
+    domain = volumes.DomainSource(name="Smoke Domain", volume=None, filepath=noise.filepath, grid_name=noise.grid,
+                                  object_to_world=np.eye(4), density_scale=1.0, error="",
+                                  grid_names=frozenset({"density"}), grids={"density": noise})
+    medium = GridMedium(grid=None, extinction=5.0)
+    assert domain.attribute(medium) in domain.grid_names
+    part, _ = domain.part(medium)
+    assert (part.filepath, part.grid_name) == (noise.filepath, "density_noise")
+    plain = volumes.VolumeSource(name="Smoke", volume=None, filepath="smoke.vdb", grid_name="smoke",
+                                 object_to_world=np.eye(4), density_scale=1.0, error="")
+    assert plain.attribute(medium) == "smoke" and plain.attribute(GridMedium(grid="flame")) == "flame"
