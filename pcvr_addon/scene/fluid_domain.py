@@ -276,11 +276,3 @@ def _attributes(present, settings, suffix):
         grids["heat"] = DomainGrid(heat.filepath, heat.grid, heat.index_to_object,
                                    ValueMap(threshold=-math.inf, offset=0.0, scale=0.5))
     return grids
-
-
-def world_corners(box, index_to_object, object_to_world, margin_cells):
-    """The corners of an object-space box grown by `margin_cells` cells, in world space."""
-    margin = margin_cells * np.abs(np.diag(np.asarray(index_to_object))[:3])
-    low, high = np.asarray(box[0]) - margin, np.asarray(box[1]) + margin
-    corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
-    return (object_to_world[:3, :3] @ corners.T).T + object_to_world[:3, 3]

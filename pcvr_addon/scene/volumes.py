@@ -163,8 +163,9 @@ def domain_source(obj, modifier, matrix_world, frame):
     source = dataclasses.replace(source, filepath=density.filepath, grid_name=density.grid,
                                  index_to_object=density.index_to_object, grid_names=frozenset(cached.grids),
                                  grids=cached.grids)
-    return source, fluid_domain.world_corners(cached.box, density.index_to_object, object_to_world,
-                                              KERNEL_RADIUS_VOXELS)
+    # The domain's cells are axis-aligned in object space: a kernel reaches its radius times a cell's size.
+    margin = KERNEL_RADIUS_VOXELS * np.abs(np.diag(np.asarray(density.index_to_object))[:3])
+    return source, grown_box_corners(cached.box[0], cached.box[1], margin, object_to_world)
 
 
 def _world_corners(obj, volume, object_to_world):
@@ -174,7 +175,12 @@ def _world_corners(obj, volume, object_to_world):
     # the radius times the length of that row of the index-to-object matrix.
     row_lengths = [np.linalg.norm(np.array(grid.matrix_object)[:3, :3], axis=1) for grid in volume.grids]
     margin = KERNEL_RADIUS_VOXELS * np.max(row_lengths, axis=0)
-    lo, hi = corners.min(axis=0) - margin, corners.max(axis=0) + margin
+    return grown_box_corners(corners.min(axis=0), corners.max(axis=0), margin, object_to_world)
+
+
+def grown_box_corners(low, high, margin, object_to_world):
+    """The corners of the object-space box `low`..`high` grown by `margin` (per object axis), in world space."""
+    lo, hi = np.asarray(low) - margin, np.asarray(high) + margin
     box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     return (object_to_world[:3, :3] @ box.T).T + object_to_world[:3, 3]
 

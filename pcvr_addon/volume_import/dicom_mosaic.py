@@ -10,7 +10,7 @@ normal (its sign from the CSA header's SliceNormalVector) by SpacingBetweenSlice
 
 import numpy as np
 
-from .dicom_values import header_number, physical_pixels
+from .dicom_values import header_number, orientation_of, physical_pixels, pixel_spacing, slice_thickness
 from .volume import ScanError, ScanVolume, affine_from_axes
 
 
@@ -39,8 +39,6 @@ def _csa(file):
 
 
 def open_mosaic(file, header, units):
-    from .dicom_series import orientation_of, pixel_spacing, slice_thickness
-
     count, csa_normal = _csa(file)
     rows, columns = (header_number(file, header, key, None, int) for key in ("Rows", "Columns"))
     tiles = int(np.ceil(np.sqrt(count)))

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import dicom_mosaic
-from .dicom_values import header_number, physical_pixels, sop_class
+from .dicom_values import (header_number, orientation_of, physical_pixels, pixel_spacing, slice_thickness,
+                           sop_class)
 from .identify import SUPPORTED
 from .volume import ScanError, ScanVolume, affine_from_axes
 
@@ -201,21 +202,6 @@ def _volume(path, series):
                       modality=modality, units=units, notes=notes)
 
 
-def orientation_of(file, header):
-    """The unit directions along a row and down a column (ImageOrientationPatient's two halves)."""
-    orientation = np.array(header_number(file, header, "ImageOrientationPatient", count=6))
-    along_row, along_column = orientation[:3], orientation[3:]
-    lengths = np.linalg.norm(along_row), np.linalg.norm(along_column)
-    if min(lengths) < 1e-6:
-        raise ScanError(f"{file}: a malformed DICOM header: ImageOrientationPatient has a zero direction")
-    return along_row / lengths[0], along_column / lengths[1]
-
-
-def pixel_spacing(file, header):
-    """(row spacing, column spacing) in millimetres: PixelSpacing, 1 mm when absent."""
-    return tuple(header_number(file, header, "PixelSpacing", [1.0, 1.0], count=2))
-
-
 def _check_same(headers, name, value, same):
     reference_file, reference = headers[0][0], value(*headers[0])
     for file, header in headers[1:]:
@@ -270,12 +256,6 @@ def _slice_step(files, positions, normal, first):
     if tilt > TILT_TOLERANCE_DEGREES:
         notes["gantry_tilt_degrees"] = f"{tilt:.3f}"
     return step, notes
-
-
-def slice_thickness(file, header):
-    """SpacingBetweenSlices, else SliceThickness, else 1 mm."""
-    return (header_number(file, header, "SpacingBetweenSlices") or header_number(file, header, "SliceThickness")
-            or 1.0)
 
 
 def _check_decoder(headers):

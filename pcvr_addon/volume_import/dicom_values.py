@@ -3,7 +3,8 @@
 """DICOM values the converter reads, checked: numeric header fields (a malformed one is a ScanError naming
 the file, the field and its text; header text of fields we do not read never reaches a message), and a
 file's pixels in the modality's physical units, as DICOM defines them: stored * RescaleSlope +
-RescaleIntercept, and for RT dose stored * DoseGridScaling (grays, or relative dose)."""
+RescaleIntercept, and for RT dose stored * DoseGridScaling (grays, or relative dose); and the geometry a slice's
+header gives (orientation, pixel spacing, slice spacing), which series and mosaics both place by."""
 
 import numpy as np
 
@@ -53,3 +54,24 @@ def physical_pixels(file):
     dose_scaling = header_number(file, dataset, "DoseGridScaling", 1.0) or 1.0
     # In double: integer stored values and integer rescales (CT's) give exact Hounsfield units.
     return (stored.astype(np.float64) * slope + intercept) * dose_scaling, dataset
+
+
+def orientation_of(file, header):
+    """The unit directions along a row and down a column (ImageOrientationPatient's two halves)."""
+    orientation = np.array(header_number(file, header, "ImageOrientationPatient", count=6))
+    along_row, along_column = orientation[:3], orientation[3:]
+    lengths = np.linalg.norm(along_row), np.linalg.norm(along_column)
+    if min(lengths) < 1e-6:
+        raise ScanError(f"{file}: a malformed DICOM header: ImageOrientationPatient has a zero direction")
+    return along_row / lengths[0], along_column / lengths[1]
+
+
+def pixel_spacing(file, header):
+    """(row spacing, column spacing) in millimetres: PixelSpacing, 1 mm when absent."""
+    return tuple(header_number(file, header, "PixelSpacing", [1.0, 1.0], count=2))
+
+
+def slice_thickness(file, header):
+    """SpacingBetweenSlices, else SliceThickness, else 1 mm."""
+    return (header_number(file, header, "SpacingBetweenSlices") or header_number(file, header, "SliceThickness")
+            or 1.0)
