@@ -104,21 +104,6 @@ def update_mode(self, context):
     first_look.show_xray_plainly(self.id_data)
 
 
-def update_source(self, context):
-    """Until the user sets Ambient Occlusion, it follows the Source: on for a material, whose look in Cycles has
-    the world's light shadowed through the volume (without it material smoke shows paler), off for a transfer
-    function (its presets' look, and six light volumes fewer per render)."""
-    if not self.ambient_occlusion_set:
-        self.ambient_occlusion = self.source == 'MATERIAL'
-        self.ambient_occlusion_set = False  # set by the line above's update, not by the user
-    tag_changed(self, context)
-
-
-def update_ambient_occlusion(self, context):
-    self.ambient_occlusion_set = True
-    tag_changed(self, context)
-
-
 class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     owner = bpy.types.Scene
     label = "Render"
@@ -301,7 +286,7 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
                ('MATERIAL', "Material", "The object's material: its Principled Volume (density, colour, absorption, "
                 "emission, blackbody fire from the temperature grid), each grid it names rendered together")],
         default='TRANSFER_FUNCTION',
-        update=update_source,
+        update=tag_changed,
     )
     # What an X-ray integrates (X-ray mode and the XRay pass).
     xray_values: EnumProperty(
@@ -448,16 +433,9 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
     ambient_occlusion: BoolProperty(
         name="Ambient Occlusion",
         description="Shadow the world's ambient light through the volumes, as Cycles does: each sample gets the mean "
-                    "of the light arriving from six directions (costs six light volumes per render). Until set, "
-                    "on for Source: Material (as Cycles' look needs) and off for a transfer function",
+                    "of the light arriving from six directions (costs six light volumes per render)",
         default=False,
-        update=update_ambient_occlusion,
-    )
-    ambient_occlusion_set: BoolProperty(
-        name="Ambient Occlusion Set",
-        description="Ambient Occlusion was set (by the user, a preset or a script): changing Source leaves it",
-        default=False,
-        options={'HIDDEN'},
+        update=tag_changed,
     )
 
     @property
