@@ -3,7 +3,7 @@
 import bpy
 import numpy as np
 from bl_operators.presets import AddPresetBase
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty
 from bpy.types import Operator
 from mathutils import Matrix
 
@@ -113,6 +113,95 @@ class PCVR_OT_frame_volume(Operator):
         first_look.aim_scan_light(scene, add=False)
         first_look.show_xray_plainly(scene)
         return {'FINISHED'}
+
+
+class PCVR_OT_c_arm_view(Operator):
+    """Make the scene camera a C-arm's: a cone-beam radiograph (DRR) of the active volume from an X-ray source at
+    Source to Isocentre from the volume's centre, on a flat detector at Source to Detector from the source
+    (pcvr_native.cameras.cone_beam's geometry; lengths in millimetres, angles in degrees)"""
+    bl_idname = "pcvr.c_arm_view"
+    bl_label = "C-Arm View"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    sad: FloatProperty(name="Source to Isocentre", description="Distance from the X-ray source to the isocentre, "
+                       "millimetres (SAD)", min=1e-3, soft_max=2000.0, default=1000.0)
+    sid: FloatProperty(name="Source to Detector", description="Distance from the X-ray source to the detector, "
+                       "millimetres (SID), more than Source to Isocentre", min=1e-3, soft_max=3000.0, default=1500.0)
+    detector_cols: IntProperty(name="Detector Columns", description="Pixels across the detector (the image's width)",
+                               min=1, max=1 << 16, soft_max=4096, default=512)
+    detector_rows: IntProperty(name="Detector Rows", description="Pixels down the detector (the image's height)",
+                               min=1, max=1 << 16, soft_max=4096, default=512)
+    pixel_spacing: FloatVectorProperty(name="Pixel Spacing", description="A detector pixel's width and height, "
+                                       "millimetres", size=2, min=1e-6, soft_max=5.0, default=(0.8, 0.8))
+    gantry: FloatProperty(name="Gantry Angle", description="Degrees about the world's Z axis: 0 puts the source in "
+                          "front (-Y, anterior for a scan in LPS), 90 at +X (the patient's left)", default=0.0)
+    tilt: FloatProperty(name="Tilt", description="Degrees the source turns towards +Z out of the gantry's plane",
+                        default=0.0)
+    detector_offset: FloatVectorProperty(name="Detector Offset", description="The detector's centre moved right and "
+                                         "up in the image, millimetres", size=2, default=(0.0, 0.0))
+    use_isocentre: BoolProperty(name="Set Isocentre", description="Aim at Isocentre instead of the active volume's "
+                                "centre", default=False)
+    isocentre: FloatVectorProperty(name="Isocentre", description="World position the central ray passes through, "
+                                   "millimetres (with Set Isocentre)", size=3, default=(0.0, 0.0, 0.0))
+
+    def execute(self, context):
+        from pcvr_native.cameras import cone_beam
+
+        scene = context.scene
+        # World units per millimetre: one metre per unit, times the scene's Unit Scale (0.001: a unit a millimetre).
+        unit = 0.001 / scene.unit_settings.scale_length
+        if self.use_isocentre:
+            isocentre = np.asarray(self.isocentre)
+        else:
+            grid = volume_grid(self, context, context.active_object)
+            if grid is None:
+                return {'CANCELLED'}
+            lo, hi = np.asarray(grid.index_bbox, dtype=np.float64)
+            isocentre = (grid.index_to_world @ np.append((lo + hi) / 2, 1.0))[:3] / unit
+        du, dv = self.pixel_spacing
+        try:  # in millimetres, so that its errors say what the user typed
+            cone = cone_beam(self.sad, self.sid, (self.detector_cols, self.detector_rows), (du, dv), isocentre,
+                             self.gantry, self.tilt, self.detector_offset)
+        except ValueError as ex:
+            self.report({'ERROR'}, f"C-Arm View: {ex}")
+            return {'CANCELLED'}
+        if not max(du, dv) <= 200 * min(du, dv):
+            self.report({'ERROR'}, f"C-Arm View: Blender's pixel aspect goes to 200, not {du} x {dv} mm pixels")
+            return {'CANCELLED'}
+        render = scene.render
+        render.resolution_x, render.resolution_y = self.detector_cols, self.detector_rows
+        render.resolution_percentage = 100
+        render.pixel_aspect_x, render.pixel_aspect_y = du / min(du, dv), dv / min(du, dv)
+        camera_object = _scene_camera(context)
+        _c_arm_lens(camera_object.data, self.sid, (self.detector_cols * du, self.detector_rows * dv),
+                    self.detector_offset)
+        # cone_beam's clip range, in which every voxel from the source's side to past the detector is imaged.
+        camera_object.data.clip_start, camera_object.data.clip_end = 0.01 * self.sad * unit, 100.0 * self.sid * unit
+        placement = np.linalg.inv(cone.world_to_camera)
+        placement[:3, 3] *= unit
+        camera_object.matrix_world = Matrix(placement.tolist())
+        first_look.aim_scan_light(scene, add=False)
+        first_look.show_xray_plainly(scene)
+        return {'FINISHED'}
+
+
+def _c_arm_lens(cam, sid, detector_size, detector_offset):
+    """A perspective camera whose focal length and sensor (the side the detector's aspect fits) are the source to
+    detector distance and the detector's size (millimetres: only their ratio counts), shifted by the offset."""
+    width, height = detector_size
+    fit_width = width >= height
+    # Blender keeps the focal length and sensor at 1 mm or more.
+    scale = max(1.0, 1.0 / min(sid, width if fit_width else height))
+    cam.type = 'PERSP'
+    cam.lens_unit = 'MILLIMETERS'
+    cam.lens = sid * scale
+    cam.sensor_fit = 'HORIZONTAL' if fit_width else 'VERTICAL'
+    if fit_width:
+        cam.sensor_width = width * scale
+    else:
+        cam.sensor_height = height * scale
+    # Shifts count in the fitted side.
+    cam.shift_x, cam.shift_y = (offset / (width if fit_width else height) for offset in detector_offset)
 
 
 def _fitting_ortho_scale(render, extent):
@@ -315,6 +404,7 @@ class PCVR_OT_remove_clip_plane(VolumeOperator, Operator):
 
 classes = (
     PCVR_OT_frame_volume,
+    PCVR_OT_c_arm_view,
     PCVR_OT_transfer_function_new,
     PCVR_OT_transfer_function_range_from_grid,
     PCVR_OT_transfer_function_preset_add,

@@ -186,6 +186,7 @@ class PCVR_DATA_PT_volume(VolumePanel, Panel):
             if settings.xray_values == 'HOUNSFIELD':
                 layout.prop(settings, "mu_water")
         layout.operator("pcvr.frame_volume", icon='CAMERA_DATA')
+        layout.operator("pcvr.c_arm_view", icon='VIEW_PERSPECTIVE')
 
 
 class PCVR_UL_clip_planes(UIList):

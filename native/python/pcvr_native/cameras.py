@@ -12,7 +12,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["ortho", "frustum", "perspective", "look_at", "cone_beam", "cone_beam_view"]
+__all__ = ["ortho", "frustum", "perspective", "look_at", "cone_beam"]
 
 
 def ortho(left, right, bottom, top, near, far) -> np.ndarray:
@@ -63,7 +63,7 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     return m
 
 
-def cone_beam_view(sad, isocentre=(0.0, 0.0, 0.0), gantry=0.0, tilt=0.0) -> np.ndarray:
+def _source_view(sad, isocentre=(0.0, 0.0, 0.0), gantry=0.0, tilt=0.0) -> np.ndarray:
     """world_to_camera of a C-arm's X-ray source (see cone_beam): at isocentre + sad * d, looking at the
     isocentre, image up +z tilted with the source, image right the camera's right seen from the source."""
     sad = _positive("sad", sad)
@@ -103,7 +103,7 @@ def cone_beam(sad, sid, detector, pixel_spacing, isocentre=(0.0, 0.0, 0.0), gant
     from . import Camera
 
     sid = _positive("sid", sid)
-    view = cone_beam_view(sad, isocentre, gantry, tilt)
+    view = _source_view(sad, isocentre, gantry, tilt)
     if not sid > sad:
         raise ValueError(f"cone_beam: the source to detector distance (sid {sid}) must exceed the source to "
                          f"isocentre distance (sad {sad})")
