@@ -27,7 +27,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from .. import register, unregister
-from ..cli import command_scene
+from ..cli import command_scene, drr
 from ..render import prepared_scene
 from ..scene import camera, scene_inputs
 from .jobs import Job
@@ -96,7 +96,15 @@ def _plan_scene(indexed_jobs, defaults, stream_above_mib):
     command_scene.apply_options(scene, args)
     if scene.camera is None:
         raise PlanError(f"'{first.input}': the scene has no camera")
-    orbit = _Orbit(scene) if any(job.angle is not None for _index, job in indexed_jobs) else None
+    sweep = any(job.angle is not None for _index, job in indexed_jobs)
+    if args.cone_beam is not None:
+        try:
+            drr.c_arm_view(scene, vars(args))
+        except RuntimeError as ex:
+            raise PlanError(f"'{first.input}': {ex}") from None
+        orbit = _GantrySweep(scene, vars(args)) if sweep else None
+    else:
+        orbit = _Orbit(scene) if sweep else None
     is_vdb = path.lower().endswith(".vdb")
     read_at = {}  # a .vdb's inputs by angle, read at its scene's own frame
     planned = []
@@ -173,3 +181,13 @@ class _Orbit:
         about_centre = (Matrix.Translation(self.centre) @ Matrix.Rotation(math.radians(degrees), 4, self.axis)
                         @ Matrix.Translation(-self.centre))
         self.camera.matrix_world = about_centre @ self.start
+
+
+class _GantrySweep:
+    """Turns a C-arm's gantry (--cone-beam): the angle is the gantry's, in degrees (cli.drr.c_arm_view)."""
+
+    def __init__(self, scene, options):
+        self.scene, self.options = scene, options
+
+    def turn(self, degrees):
+        drr.c_arm_view(self.scene, self.options, gantry=degrees)

@@ -19,6 +19,7 @@ import socket
 import time
 from dataclasses import dataclass, field
 
+from ..cli import drr
 from ..io import image_io
 from ..render import native_render, passes, prepared_scene
 
@@ -41,15 +42,19 @@ def run_description(run_id, index):
 def render_task(planned_jobs, run_id, progress=None):
     """Render and write each PlannedJob; JobResult of each. `progress(result)` is told of each as it is done."""
     results = []
+    # A task's jobs with the same inputs (a sweep of views of one volume) share one prepared scene: the grid placed,
+    # and mapped to attenuation where it holds Hounsfield units, once. Never kept past the task, whose files may
+    # change before the next.
+    prepare = prepared_scene.Preparer()
     for planned in planned_jobs:
-        result = render_job(planned, run_id)
+        result = render_job(planned, run_id, prepare)
         results.append(result)
         if progress is not None:
             progress(result)
     return results
 
 
-def render_job(planned, run_id):
+def render_job(planned, run_id, prepare=prepared_scene.prepare):
     import pcvr_native
 
     description = run_description(run_id, planned.index)
@@ -59,7 +64,7 @@ def render_job(planned, run_id):
         return JobResult(planned.index, output, "kept", worker=worker)
     start = time.perf_counter()
     try:
-        prepared = prepared_scene.prepare(planned.inputs)
+        prepared = prepare(planned.inputs)
         if prepared.errors:
             # Unlike F12, which shows the volumes it could read, a batch writes no image without them:
             # --skip-existing then renders it again once its files are there.
@@ -70,7 +75,10 @@ def render_job(planned, run_id):
         pixels = passes.finish(prepared, planned.display, raw)
         directory = os.path.dirname(os.path.abspath(output))
         os.makedirs(directory, exist_ok=True)
-        image_io.write_passes(output, pixels, description=description)
+        if planned.job.options.get("cone_beam") is not None:
+            drr.write(output, pixels["XRay"][:, :, 0], planned.job.options.get("intensity"), description=description)
+        else:
+            image_io.write_passes(output, pixels, description=description)
     except (OSError, ValueError, RuntimeError, MemoryError, pcvr_native.RenderCancelled) as ex:
         return JobResult(planned.index, output, "failed", time.perf_counter() - start, errors=[str(ex)],
                          worker=worker)

@@ -13,7 +13,7 @@ import sys
 import time
 import uuid
 
-from ..cli import command_scene
+from ..cli import command_scene, drr
 from ..io import image_io
 from . import jobs as batch_jobs
 from . import manifest
@@ -55,7 +55,8 @@ def run(args, parser):
         if os.path.splitext(job.output)[1].lower() not in image_io.FORMATS:
             parser.error(f"'{job.output}': OUTPUT must end in one of {', '.join(image_io.FORMATS)}")
         command_scene.check_preset(parser, job.options.get("preset"))
-        problem = command_scene.clipping_problem(job.options.get("clip_box"), job.options.get("clip_plane"))
+        problem = (command_scene.clipping_problem(job.options.get("clip_box"), job.options.get("clip_plane"))
+                   or drr.problem(job.options, job.input, job.output))
         if problem:
             parser.error(f"'{job.output}': {problem}")
     if not command_scene.can_write_images():
@@ -85,6 +86,8 @@ def _jobs(args, parser):
     defaults = vars(_render_defaults(parser))
     options = {name: value for name, value in vars(args).items()
                if name not in NOT_RENDER_OPTIONS and value != defaults.get(name)}
+    if args.angles and args.cone_beam is not None and args.gantry is not None:
+        raise ValueError("--angles sweeps the C-arm's gantry: no --gantry with it")
     frames = batch_jobs.parse_frames(args.frames) if args.frames else None
     angles = batch_jobs.parse_angles(args.angles) if args.angles else None
     jobs = batch_jobs.expand(args.input, args.output, frames, angles, options)
@@ -108,7 +111,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
 
     stream = stream or sys.stderr
     run_id = run_id or uuid.uuid4().hex[:12]
-    started = time.time()
+    started = rendering = time.time()
     todo = [job for job in jobs if not (skip_existing and os.path.exists(job.output))]
     entries = {job.output: manifest.job_entry(job, status="skipped") for job in jobs}
     document = {"run_id": run_id, "scheduler": None if client is None else client.scheduler.address}
@@ -136,6 +139,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
         for p in planned:
             entries[p.job.output] = manifest.job_entry(p, status="not rendered")
         progress = ProgressBar(len(planned), stream)
+        rendering = time.time()  # planned: the images' own time from here
         tasks = batch_jobs.in_groups(planned, dask_runner.task_size(len(planned), worker_total),
                                      key=lambda p: p.job.scene_key)
         if client is None:
@@ -153,12 +157,15 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
         seconds = time.time() - started
         statuses = [entry["status"] for entry in entries.values()]
         counts = {status: statuses.count(status) for status in sorted(set(statuses))}
+        rate = counts.get("rendered", 0) / max(time.time() - rendering, 1e-9)
         document.update(started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(started)),
-                        seconds=round(seconds, 3), counts=counts, jobs=list(entries.values()))
+                        seconds=round(seconds, 3), images_per_second=round(rate, 3), counts=counts,
+                        jobs=list(entries.values()))
         manifest.write(manifest_file, document)
         _remove_leftovers(todo)
-    print(f"pcvr: {len(jobs)} images: {', '.join(f'{n} {s}' for s, n in counts.items())} in {seconds:.1f} s; "
-          f"manifest {manifest_file}", file=stream)
+    kind = "DRRs" if any(job.options.get("cone_beam") is not None for job in jobs) else "images"
+    print(f"pcvr: {len(jobs)} images: {', '.join(f'{n} {s}' for s, n in counts.items())} in {seconds:.1f} s "
+          f"({rate:.1f} {kind} per second after planning); manifest {manifest_file}", file=stream)
     return 0 if set(counts) <= {"rendered", "kept", "skipped"} else 1
 
 

@@ -28,7 +28,7 @@ from ..batch import run as batch_run
 from ..io import image_io
 from ..render import statistics
 from ..scene import camera
-from . import command_scene, convert_command
+from . import command_scene, convert_command, drr
 from .command_scene import (DEFAULT_LIGHT_DIRECTION, DEFAULT_MAGNIFICATION, METHODS, MODES, PASSBANDS, POST_FILTERS,
                             SPLAT_KERNELS)
 
@@ -116,6 +116,7 @@ def make_parser():
     render.add_argument("--clip-plane", type=float, nargs=4, action="append", metavar=("A", "B", "C", "D"),
                         help="keep only the part of every volume where A x + B y + C z + D >= 0 (world space); "
                              "repeat for more planes")
+    drr.add_arguments(render, _resolution)
     convert_command.add_scan_options(render)
     convert_command.add_parser(commands)
     batch_run.add_arguments(render)
@@ -127,10 +128,11 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.command == "convert":
         return convert_command.main(args)
+    # A scan renders from its .vdb, in a batch too (a job file names its own inputs).
+    if not args.input.lower().endswith(".json") and convert_command.render_input(args):
+        return 1
     if batch_run.wants_batch(args):
         return batch_run.run(args, parser)
-    if convert_command.render_input(args):  # a scan: rendered from its .vdb
-        return 1
 
     extension = os.path.splitext(args.input)[1].lower()
     if extension not in {".vdb", ".blend"}:
@@ -154,7 +156,8 @@ def main(argv=None):
     if args.light_direction is not None and not any(args.light_direction):
         parser.error("--light-direction needs a direction, not 0 0 0")
     command_scene.check_preset(parser, args.preset)
-    problem = command_scene.clipping_problem(args.clip_box, args.clip_plane)
+    problem = (command_scene.clipping_problem(args.clip_box, args.clip_plane)
+               or drr.problem(vars(args), args.input, args.output))
     if problem:
         parser.error(problem)
     if not command_scene.can_write_images():
@@ -180,6 +183,12 @@ def render(args):
                 print(f"pcvr: {ex}", file=sys.stderr)
                 return 1
         command_scene.apply_options(scene, args)
+        if args.cone_beam is not None:
+            try:
+                drr.c_arm_view(scene, vars(args))
+            except RuntimeError as ex:
+                print(f"pcvr: {ex}", file=sys.stderr)
+                return 1
 
         status = 0
         try:
@@ -189,7 +198,7 @@ def render(args):
             print(f"pcvr: {ex}", file=sys.stderr)
             status = 1
         try:
-            _write_output(scene, bpy.context.view_layer, args.output)
+            _write_output(scene, bpy.context.view_layer, args)
         except RuntimeError as ex:
             print(f"pcvr: nothing to write: {ex}", file=sys.stderr)
             return 1
@@ -202,8 +211,12 @@ def render(args):
         unregister()
 
 
-def _write_output(scene, view_layer, filepath):
+def _write_output(scene, view_layer, args):
     passes = image_io.render_result_passes(scene)
+    if args.cone_beam is not None:
+        drr.write(args.output, passes[f"{view_layer.name}.XRay"][:, :, 0], args.intensity)
+        return
+    filepath = args.output
     combined = passes.get("Composite.Combined", passes[f"{view_layer.name}.Combined"])
     extra = {name: passes[f"{view_layer.name}.{name}"] for name in ("Depth", "XRay")
              if f"{view_layer.name}.{name}" in passes}

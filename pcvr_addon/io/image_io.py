@@ -90,6 +90,26 @@ def write_image(filepath, pixels, channel_names=None, description=None):
     if description is not None:
         spec.attribute("ImageDescription", description)
 
+    _write_atomically(filepath, spec, pixels)
+
+
+def write_values(filepath, values, pixel_type, channel_name="Y", description=None):
+    """Write `values` (height, width), row 0 on top, as one channel stored as they are: `pixel_type` "float"
+    (32-bit), or "uint16" (values already whole numbers in 0..65535), whatever the extension's usual type."""
+    oiio = openimageio()
+    values = np.asarray(values)
+    height, width = values.shape
+    spec = oiio.ImageSpec(width, height, 1, pixel_type)
+    spec.channelnames = (channel_name,)
+    if description is not None:
+        spec.attribute("ImageDescription", description)
+    _write_atomically(filepath, spec, values.astype(np.float32 if pixel_type == "float" else np.uint16)[:, :, None])
+
+
+def _write_atomically(filepath, spec, pixels):
+    """Write `pixels` under `spec` beside `filepath` and rename the file into place."""
+    oiio = openimageio()
+    extension = os.path.splitext(filepath)[1].lower()
     # Beside the destination, so the rename cannot cross file systems; the extension tells
     # OpenImageIO the format.
     directory, name = os.path.split(os.path.abspath(filepath))
