@@ -75,11 +75,11 @@ def test_skip_existing_after_an_interruption(tmp_path, sequence, monkeypatch):
     render_job = render_task.render_job
     calls = []
 
-    def interrupted(planned, run_id):
+    def interrupted(planned, run_id, *prepare):
         calls.append(planned.job.output)
         if len(calls) == 3:
             raise KeyboardInterrupt
-        return render_job(planned, run_id)
+        return render_job(planned, run_id, *prepare)
 
     monkeypatch.setattr(render_task, "render_job", interrupted)
     status, printed = bh.render(sequence / "smoke_####.vdb", output, range(1, 5))
