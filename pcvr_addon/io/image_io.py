@@ -8,7 +8,8 @@
 | .png          | 8-bit, colour divided by alpha (straight alpha) and sRGB-encoded             |
 | .tif / .tiff  | 16-bit, colour divided by alpha (straight alpha) and sRGB-encoded            |
 
-Pixels come in as Blender's render results hold them: linear, colour premultiplied by alpha. Files
+Pixels come in as Blender's render results hold them: linear, colour premultiplied by alpha (write_values
+stores one channel as it is instead, float or 16-bit, whatever the extension: DRRs). Files
 are written next to their destination and renamed into place, so a reader never sees a
 half-written image.
 """
