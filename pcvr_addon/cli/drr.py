@@ -66,7 +66,7 @@ def problem(options, input_path, output_path):
         return f"--cone-beam: the source to detector distance SID ({sid:g}) must exceed SAD ({sad:g}) > 0"
     if input_path.lower().endswith(".blend"):
         return "--cone-beam places a C-arm about a .vdb or a scan; a .blend renders with its own camera"
-    if options.get("mode") not in (None, 'XRAY'):
+    if str(options.get("mode") or "XRAY").upper() != 'XRAY':
         return "--cone-beam renders DRRs: X-ray mode only"
     framing = [name for name in FRAMING_OPTIONS if given(name)]
     if framing:

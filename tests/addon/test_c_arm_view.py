@@ -15,15 +15,17 @@ C_ARM = dict(sad=300.0, sid=500.0, detector_cols=48, detector_rows=40, pixel_spa
 VOXEL_MM = 2.0
 
 
-def _c_arm_camera(isocentre_mm, unit):
-    """cone_beam of C_ARM in world units of `unit` per millimetre."""
-    return cone_beam(C_ARM["sad"] * unit, C_ARM["sid"] * unit, (C_ARM["detector_cols"], C_ARM["detector_rows"]),
-                     np.multiply(C_ARM["pixel_spacing"], unit), np.multiply(isocentre_mm, unit), C_ARM["gantry"],
-                     C_ARM["tilt"], np.multiply(C_ARM["detector_offset"], unit))
+def _c_arm_camera(c_arm, isocentre_mm, unit):
+    """cone_beam of the operator's settings `c_arm` in world units of `unit` per millimetre."""
+    return cone_beam(c_arm["sad"] * unit, c_arm["sid"] * unit, (c_arm["detector_cols"], c_arm["detector_rows"]),
+                     np.multiply(c_arm["pixel_spacing"], unit), np.multiply(isocentre_mm, unit), c_arm["gantry"],
+                     c_arm["tilt"], np.multiply(c_arm["detector_offset"], unit))
 
 
-@pytest.mark.parametrize("scale_length, object_scale", [(0.001, 1.0), (1.0, 0.001)])
-def test_f12_renders_the_cone_beam_view(tmp_path, scale_length, object_scale):
+# A wide detector (Blender's sensor fit horizontal) in a scene of a millimetre a unit, and a tall one (vertical fit)
+# in a scene of a metre a unit.
+@pytest.mark.parametrize("scale_length, object_scale, detector", [(0.001, 1.0, (48, 40)), (1.0, 0.001, (30, 44))])
+def test_f12_renders_the_cone_beam_view(tmp_path, scale_length, object_scale, detector):
     # A lumpy volume of 2 mm voxels whose active voxels centre at (10, -5, 20) mm: as the command line places a scan
     # (a unit a millimetre) and as File > Import does (a metre a unit, the object scaled by 0.001).
     path = bs.write_vdb(tmp_path / "blob.vdb", bs.blob(np.random.default_rng(3)), bs.centred(VOXEL_MM))
@@ -32,17 +34,18 @@ def test_f12_renders_the_cone_beam_view(tmp_path, scale_length, object_scale):
     bpy.context.view_layer.objects.active = obj
     scene = bs.setup(method='PCVR', passband='COMPENSATED')
     scene.unit_settings.scale_length = scale_length
-    assert 'FINISHED' in bpy.ops.pcvr.c_arm_view(**C_ARM)
+    c_arm = dict(C_ARM, detector_cols=detector[0], detector_rows=detector[1])
+    assert 'FINISHED' in bpy.ops.pcvr.c_arm_view(**c_arm)
 
     camera = scene.camera
     assert camera.data.type == 'PERSP'
-    assert (scene.render.resolution_x, scene.render.resolution_y) == (48, 40)
+    assert (scene.render.resolution_x, scene.render.resolution_y) == detector
     unit = 0.001 / scale_length  # world units per millimetre
     grid = bs.world_grid(obj)
     lo, hi = np.asarray(grid.index_bbox, dtype=np.float64)
     isocentre_mm = (grid.index_to_world @ np.append((lo + hi) / 2, 1.0))[:3] / unit
     np.testing.assert_allclose(isocentre_mm, (10.0, -5.0, 20.0), atol=1e-3)
-    expected = pn.render_xray(grid, _c_arm_camera(isocentre_mm, unit))
+    expected = pn.render_xray(grid, _c_arm_camera(c_arm, isocentre_mm, unit))
     # Blender's camera matrices are single precision: measured 6e-5 and 7e-5 of the peak apart.
     bs.assert_matches(bs.xray(bs.render(scene)), expected, tolerance=1e-3)
 
