@@ -150,7 +150,7 @@ def test_panels_of_each_mode(tmp_path, mode):
     # What the X-ray integrates, where an X-ray is rendered (every mode here: bs.setup turns the XRay pass on).
     # Shaded mode also says what gives the volume its colour: the transfer function or the material.
     assert draw(ui.PCVR_DATA_PT_volume, context) == ["grid", "density_scale"] + (["source"] if mode == 'SHADED' else []) + [
-        "xray_values", "pcvr.frame_volume"]
+        "xray_values", "pcvr.frame_volume", "pcvr.c_arm_view"]
     obj.data.pcvr.xray_values = 'HOUNSFIELD'
     assert "mu_water" in draw(ui.PCVR_DATA_PT_volume, context)
     obj.data.pcvr.xray_values = 'DENSITY'
