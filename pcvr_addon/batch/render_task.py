@@ -39,13 +39,15 @@ def run_description(run_id, index):
     return f"PCVR batch {run_id} job {index}"
 
 
-def render_task(planned_jobs, run_id, progress=None):
-    """Render and write each PlannedJob; JobResult of each. `progress(result)` is told of each as it is done."""
+def render_task(planned_jobs, run_id, progress=None, prepare=None):
+    """Render and write each PlannedJob; JobResult of each. `progress(result)` is told of each as it is done.
+    `prepare`: a render.prepared_scene.Preparer to share with the batch's other tasks in this process (None: the
+    task's own)."""
     results = []
-    # A task's jobs with the same inputs (a sweep of views of one volume) share one prepared scene: the grid placed,
-    # and mapped to attenuation where it holds Hounsfield units, once. Never kept past the task, whose files may
-    # change before the next.
-    prepare = prepared_scene.Preparer()
+    # Jobs with the same inputs (a sweep of views of one volume) share one prepared scene: the grid placed, and mapped
+    # to attenuation where it holds Hounsfield units, once. A Dask worker's is never kept past the task, whose files
+    # may change before the next run's.
+    prepare = prepare or prepared_scene.Preparer()
     for planned in planned_jobs:
         result = render_job(planned, run_id, prepare)
         results.append(result)

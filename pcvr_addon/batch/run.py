@@ -106,6 +106,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
     """Render `jobs` (batch_jobs.Job) in this process, or on the Dask cluster of `client`, and write the
     manifest to `manifest_file`. `defaults`: the render options the jobs do not set (cli's). Returns the exit
     status: 0 when every image is there, 1 when one failed, 130 when interrupted."""
+    from ..render import prepared_scene
     from . import dask_runner, plan, render_task
     from .progress import ProgressBar
 
@@ -143,8 +144,9 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
         tasks = batch_jobs.in_groups(planned, dask_runner.task_size(len(planned), worker_total),
                                      key=lambda p: p.job.scene_key)
         if client is None:
+            prepare = prepared_scene.Preparer()  # shared by the tasks of this run, all in this process
             for task in tasks:
-                render_task.render_task(task, run_id, progress=lambda result: record([result]))
+                render_task.render_task(task, run_id, progress=lambda result: record([result]), prepare=prepare)
         else:
             dask_runner.run_tasks(client, tasks, run_id, record)
     except (plan.PlanError, OSError) as ex:  # OSError: a cluster without workers
