@@ -337,7 +337,7 @@ def section(res: dict | None) -> list[str]:
     for size, rec in res["sizes"].items():
         methods = rec["methods"]
         exact = methods.get("plastimatch exact")
-        lines += [f"### {size} x {size} (reference: one pixel in {rec["reference_step"]} each way)", "",
+        lines += [f"### {size} x {size} (reference: one pixel in {rec['reference_step']} each way)", "",
                   "| method | s per DRR | DRRs/s (sweep) | error vs reference | plastimatch exact time / this |",
                   "|---|---|---|---|---|"]
         for method, r in methods.items():
