@@ -12,7 +12,7 @@ DRRs per second over a sweep, and error against a fine-step trilinear ray march.
 |           | volume's centre, tilt 10 degrees, gantry 0, 30, 90, 150 (cone_beam_reference.geometry; PCVR     |
 |           | through pcvr_native.cameras.cone_beam, the peers as drr_peers.py says)                          |
 | check     | before timing, every method's full 128^2 image at each gantry angle against the reference: the  |
-|           | detector shift and mirror of least mean absolute difference, and the least-squares scale; a peer |
+|           | detector shift and mirror of least mean absolute difference, and the scale (ratio of sums); a peer|
 |           | whose shift passes half a pixel, mirrored or off in scale by 10% is not timed                    |
 | reference | cone_beam_reference.march at 0.25 mm steps on every REFERENCE_STEP-th pixel (about 100^2 rays)   |
 | error     | relative RMSE over the sampled pixels: sqrt(mean((image - reference)^2)) / sqrt(mean(reference^2))|
@@ -118,18 +118,20 @@ FLIPS = {"none": (1, 1), "left-right": (1, -1), "up-down": (-1, 1), "both": (-1,
 
 
 def alignment(image, reference_image, reach: int = CHECK_REACH) -> dict:
-    """How a method's full image lines up with the reference's: the mirror and detector shift (columns, rows;
-    sub-pixel by a parabola through the least mean absolute difference and its neighbours) that best align
-    them, that difference relative to the reference's mean (aligned, and as rendered), and the least-squares
-    scale image / reference (1 where both integrate the same mu in the same units)."""
+    """How a method's full image lines up with the reference's: the scale, the ratio of their sums (1 where both
+    integrate the same mu in the same units; a shift or mirror leaves it); then, the scale divided out, the mirror and the shift of
+    the image's content against the reference's (pixels right, down; sub-pixel by a parabola through the least
+    mean absolute difference and its neighbours) that best align them; and that difference relative to the
+    reference's mean, aligned and as rendered (neither scaled nor moved)."""
     image = np.asarray(image, dtype=np.float64)
     ref = np.asarray(reference_image, dtype=np.float64)
+    scale = float(image.sum() / ref.sum())
     rows, cols = ref.shape
     inner = ref[reach:rows - reach, reach:cols - reach]
     span = range(-reach, reach + 1)
     tables = {}
     for name, (flip_r, flip_c) in FLIPS.items():
-        flipped = image[::flip_r, ::flip_c]
+        flipped = image[::flip_r, ::flip_c] / (scale if scale > 0 else 1.0)
         tables[name] = np.array([[np.abs(flipped[reach + dr:rows - reach + dr, reach + dc:cols - reach + dc] - inner).mean()
                                   for dc in span] for dr in span])
     flip = min(tables, key=lambda name: tables[name].min())
@@ -143,9 +145,9 @@ def alignment(image, reference_image, reach: int = CHECK_REACH) -> dict:
     sub_r = vertex(table[r - 1, c], table[r, c], table[r + 1, c]) if 0 < r < 2 * reach else 0.0
     sub_c = vertex(table[r, c - 1], table[r, c], table[r, c + 1]) if 0 < c < 2 * reach else 0.0
     mean = inner.mean()
+    as_rendered = np.abs(image[reach:rows - reach, reach:cols - reach] - inner).mean()
     return {"flip": flip, "shift_px": [float(c - reach + sub_c), float(r - reach + sub_r)],
-            "mad_aligned": float(table.min() / mean), "mad_as_rendered": float(tables["none"][reach, reach] / mean),
-            "scale": float(np.sum(image * ref) / np.sum(ref * ref))}
+            "mad_aligned": float(table.min() / mean), "mad_as_rendered": float(as_rendered / mean), "scale": scale}
 
 
 def geometry_agrees(check: dict) -> str | None:
@@ -361,7 +363,7 @@ def section(res: dict | None) -> list[str]:
               f"Each method's full {CHECK_SIZE} x {CHECK_SIZE} image at every gantry angle against the reference's: "
               "the detector shift of least mean absolute difference (columns, rows; in pixels of "
               f"{DETECTOR_MM / CHECK_SIZE:.2f} mm, worst over the angles), no mirror, that difference relative to the "
-              "reference's mean as rendered and aligned, and the least-squares scale of the image on the reference "
+              "reference's mean as rendered and aligned, and the scale, the ratio of the image's sum to the reference's "
               "(1: the same mu integrated in the same units). Versions: "
               + "; ".join(f"{LABELS[m]}: {v}" for m, v in res["versions"].items()) + ".", "",
               "| method | worst shift (px) | mirror | difference as rendered | aligned | scale | timed |",
