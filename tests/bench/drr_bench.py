@@ -14,7 +14,7 @@ DRRs per second over a sweep, and error against a fine-step trilinear ray march.
 | check     | before timing, every method's full 128^2 image at each gantry angle against the reference: the  |
 |           | detector shift and mirror of least mean absolute difference, and the scale (ratio of sums); a peer|
 |           | whose shift passes half a pixel, mirrored or off in scale by 10% is not timed                    |
-| reference | cone_beam_reference.march at 0.25 mm steps on every REFERENCE_STEP-th pixel (about 100^2 rays)   |
+| reference | cone_beam_reference.march at 0.25 mm steps on one pixel in n each way (n odd, about 100^2 rays) |
 | error     | relative RMSE over the sampled pixels: sqrt(mean((image - reference)^2)) / sqrt(mean(reference^2))|
 | timing    | ROUNDS rounds over the views, the methods in an order rotated each time; the median per DRR.      |
 |           | Sweep: SWEEP_VIEWS gantry angles round a circular orbit (tilt 0) of one prepared volume: PCVR in |
