@@ -27,7 +27,6 @@ DRRs per second over a sweep, and error against a fine-step trilinear ray march.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import statistics
 import sys
@@ -230,7 +229,7 @@ def check_geometry(renderers, mu, index_to_world, isocentre, gantries, log) -> d
     return out
 
 
-def time_views(renderers, methods, views, references, steps, rounds, log) -> dict:
+def time_views(renderers, methods, views, references, step, rounds) -> dict:
     """{method: {"seconds": [...], "errors": [per view]}}: rounds over the views, methods in rotated order."""
     out = {m: {"seconds": [], "errors": [None] * len(views)} for m in methods}
     slow = set()
@@ -245,7 +244,7 @@ def time_views(renderers, methods, views, references, steps, rounds, log) -> dic
                 if seconds > SLOW_S:
                     slow.add(method)
                 if out[method]["errors"][v] is None:
-                    sl = sampled_geometry(view.geometry(), steps)[1]
+                    sl = sampled_geometry(view.geometry(), step)[1]
                     out[method]["errors"][v] = relative_rmse(np.asarray(image)[sl], references[v])
     return out
 
@@ -298,8 +297,8 @@ def run(quick: bool, log) -> dict:
             t0 = time.perf_counter()
             references = [reference(mu, index_to_world, view, step) for view in views]
             log(f"  drr {size}^2: references ({references[0].shape[0]}^2 rays each) in {time.perf_counter() - t0:.1f} s")
-            timing = time_views(renderers, methods, views, references, step, rounds, log)
-            pcvr_stats = dict(renderers["pcvr"].stats)
+            timing = time_views(renderers, methods, views, references, step, rounds)
+            pcvr_stats = getattr(renderers["pcvr"], "stats", None)
             swept = sweep(renderers, peers, methods, size, isocentre, sweep_views)
             rec = out["sizes"][str(size)] = {"reference_step": step, "methods": {}, "pcvr_stats": pcvr_stats}
             for method in methods:
