@@ -381,6 +381,11 @@ def section(res: dict | None) -> list[str]:
     if sweeps:
         lines += ["", "Sweeps: each peer's images against PCVR's at the same angles, worst relative RMSE: "
                   + ", ".join(f"{LABELS[m]} {a:.2%} ({s}^2)" for s, m, a in sweeps) + "."]
+    loading = [(size, m, r["wall_with_loading"]) for size, rec in res["sizes"].items()
+               for m, r in rec["methods"].items() if "wall_with_loading" in r]
+    if loading:
+        lines += ["", f"plastimatch's whole sweep process ({res['sweep_views']} DRRs), loading the volume and writing the "
+                  "images included: " + ", ".join(f"{LABELS[m]} {w:.1f} s ({s}^2)" for s, m, w in loading) + "."]
     return lines + [""]
 
 
