@@ -16,7 +16,8 @@ DRRs per second over a sweep, and error against a fine-step trilinear ray march.
 |           | whose shift passes half a pixel, mirrored or off in scale by 10% is not timed                    |
 | reference | cone_beam_reference.march at 0.25 mm steps on one pixel in n each way (n odd, about 100^2 rays) |
 | error     | relative RMSE over the sampled pixels: sqrt(mean((image - reference)^2)) / sqrt(mean(reference^2))|
-| timing    | ROUNDS rounds over the views, the methods in an order rotated each time; the median per DRR.      |
+| timing    | ROUNDS rounds over the views, the methods in an order rotated each time; the median per DRR, wall |
+|           | and CPU seconds (drr_peers.py says whose)                                                         |
 |           | Sweep: SWEEP_VIEWS gantry angles round a circular orbit (tilt 0) of one prepared volume: PCVR in |
 |           | a loop over cameras, plastimatch in one process (`-a`), RTK in one projection stack              |
 | threads   | 2 for all: PCVR threads=2, plastimatch OMP_NUM_THREADS=2, ITK's global default threads 2          |
@@ -168,7 +169,7 @@ def load_volume(log):
 
 
 def make_renderers(hu, index_to_world, workdir: Path, log):
-    """({method: render(view) -> (image, seconds)}, {"plastimatch" / "rtk": the peer}, {method: version or why it
+    """({method: render(view) -> (image, seconds, CPU seconds)}, {"plastimatch" / "rtk": the peer}, {method: version or why it
     is missing}, mu): every method integrates the same mu, PCVR's grid mapped once (as the add-on keeps it), the
     peers the mapped array."""
     import pcvr_native as pn
@@ -178,11 +179,11 @@ def make_renderers(hu, index_to_world, workdir: Path, log):
 
     def pcvr(view: View):
         stats: dict = {}
-        t0 = time.perf_counter()
+        cpu0, t0 = drr_peers.cpu_seconds(), time.perf_counter()
         image = pn.render_xray(mapped, view.camera(), threads=THREADS, stats=stats)
-        seconds = time.perf_counter() - t0
+        seconds, cpu = time.perf_counter() - t0, drr_peers.cpu_seconds() - cpu0
         pcvr.stats = {k: stats.get(k) for k in PCVR_STATS}   # what the last render chose
-        return image, seconds
+        return image, seconds, cpu
 
     renderers, peers = {"pcvr": pcvr}, {}
     versions = {"pcvr": f"pcvr_native {getattr(pn, '__version__', '?')}"}
@@ -217,7 +218,7 @@ def check_geometry(renderers, mu, index_to_world, isocentre, gantries, log) -> d
         view = View(CHECK_SIZE, gantry, TILT_DEG, isocentre)
         ref = reference(mu, index_to_world, view, 1)
         for method in out:
-            image, _ = renderers[method](view)
+            image = renderers[method](view)[0]
             check = alignment(image, ref)
             out[method]["views"].append({"gantry": gantry, **check})
             out[method]["failed"] = out[method]["failed"] or geometry_agrees(check)
@@ -230,8 +231,9 @@ def check_geometry(renderers, mu, index_to_world, isocentre, gantries, log) -> d
 
 
 def time_views(renderers, methods, views, references, step, rounds) -> dict:
-    """{method: {"seconds": [...], "errors": [per view]}}: rounds over the views, methods in rotated order."""
-    out = {m: {"seconds": [], "errors": [None] * len(views)} for m in methods}
+    """{method: {"seconds": [...], "cpu": [...], "errors": [per view]}}: rounds over the views, methods in rotated
+    order."""
+    out = {m: {"seconds": [], "cpu": [], "errors": [None] * len(views)} for m in methods}
     slow = set()
     for r in range(rounds):
         for v, view in enumerate(views):
@@ -239,8 +241,9 @@ def time_views(renderers, methods, views, references, step, rounds) -> dict:
             for method in order:
                 if r > 0 and method in slow:
                     continue
-                image, seconds = renderers[method](view)
+                image, seconds, cpu = renderers[method](view)
                 out[method]["seconds"].append(seconds)
+                out[method]["cpu"].append(cpu)
                 if seconds > SLOW_S:
                     slow.add(method)
                 if out[method]["errors"][v] is None:
@@ -289,6 +292,8 @@ def run(quick: bool, log) -> dict:
            "load_before": os.getloadavg(), "sizes": {}}
     with tempfile.TemporaryDirectory(prefix="drr-bench-") as tmp:
         renderers, peers, out["versions"], mu = make_renderers(hu, index_to_world, Path(tmp), log)
+        if "plastimatch" in peers:
+            out["plastimatch_load_cpu_s"] = peers["plastimatch"].load_cpu
         out["check"] = check_geometry(renderers, mu, index_to_world, isocentre, gantries, log)
         methods = [m for m in METHODS if m in out["check"] and not out["check"][m]["failed"]]
         for size in sizes:
@@ -304,6 +309,7 @@ def run(quick: bool, log) -> dict:
             for method in methods:
                 seconds = timing[method]["seconds"]
                 rec["methods"][method] = {"median_s": statistics.median(seconds), "renders": len(seconds),
+                                          "median_cpu_s": statistics.median(timing[method]["cpu"]),
                                           "errors": timing[method]["errors"], **swept.get(method, {})}
             log(f"  drr {size}^2: " + ", ".join(
                 f"{m} {r['median_s']:.3f} s ({statistics.mean(r['errors']):.2%}, {r['drrs_per_s']:.2f}/s)"
@@ -330,7 +336,9 @@ def section(res: dict | None) -> list[str]:
         f"a {res['detector_mm']:g} mm square detector, isocentre the volume's centre, tilt {res['tilt']:g} degrees, gantry "
         f"{gantries}. {res['threads']} threads each. *s per DRR*: the median over those views and {res['rounds']} "
         f"alternating round(s) (slow methods once per view); plastimatch's own render time (its total less "
-        f"writing images, without loading the volume), RTK's projector update. *DRRs/s*: a sweep of "
+        f"writing images, without loading the volume), RTK's projector update. *CPU s*: user and system seconds of all "
+        f"threads in the same renders (plastimatch's process less one that loads the volume and draws a pixel), the "
+        f"work done whatever else the machine runs, busy-waiting threads included. *DRRs/s*: a sweep of "
         f"{res['sweep_views']} views round a circular orbit (tilt 0) of one prepared volume. *Error*: relative RMSE "
         f"against `tests/cone_beam_reference.py`'s trilinear ray march at 0.25 mm steps on every n-th pixel, mean over "
         f"the gantry angles (worst). Load average {res['load_before'][0]:.1f} before, {res['load_after'][0]:.1f} after "
@@ -339,11 +347,11 @@ def section(res: dict | None) -> list[str]:
         methods = rec["methods"]
         exact = methods.get("plastimatch exact")
         lines += [f"### {size} x {size} (reference: one pixel in {rec['reference_step']} each way)", "",
-                  "| method | s per DRR | DRRs/s (sweep) | error vs reference | plastimatch exact time / this |",
-                  "|---|---|---|---|---|"]
+                  "| method | s per DRR | CPU s per DRR | DRRs/s (sweep) | error vs reference | plastimatch exact time / this |",
+                  "|---|---|---|---|---|---|"]
         for method, r in methods.items():
             ratio = f"{exact['median_s'] / r['median_s']:.1f}" if exact else "-"
-            lines.append(f"| {LABELS[method]} | {_ms(r['median_s'])} | {r['drrs_per_s']:.2f} | "
+            lines.append(f"| {LABELS[method]} | {_ms(r['median_s'])} | {_ms(r['median_cpu_s'])} | {r['drrs_per_s']:.2f} | "
                          f"{statistics.mean(r['errors']):.2%} ({max(r['errors']):.2%}) | {ratio} |")
         pcvr = methods.get("pcvr")
         if pcvr and exact:
@@ -365,7 +373,7 @@ def section(res: dict | None) -> list[str]:
               "reference's mean as rendered and aligned, and the scale, the ratio of the image's sum to the reference's "
               "(1: the same mu integrated in the same units). Versions: "
               + "; ".join(f"{LABELS[m]}: {v}" for m, v in res["versions"].items()) + ".", "",
-              "| method | worst shift (px) | mirror | difference as rendered | aligned | scale | timed |",
+              "| method | worst shift (px) | mirror | difference as rendered | aligned, scale divided out | scale | timed |",
               "|---|---|---|---|---|---|---|"]
     for method, rec in res["check"].items():
         views = rec["views"]

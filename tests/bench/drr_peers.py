@@ -16,7 +16,9 @@ grid) and no conversion of its own, so that all integrate the same field:
 |              | origin                                                        |                           |                    |
 
 Times are the peers' own: plastimatch's printed "Total time" less its "I/O time" (the render, without loading the
-volume or writing images), RTK's filter update (the projection stack's allocation included).
+volume or writing images), RTK's filter update (the projection stack's allocation included). CPU seconds (user and
+system, all threads) go with them, less robust to a busy machine's waits: plastimatch's are its process's less those
+of the same process drawing one pixel (loading the volume), the least of LOAD_RUNS.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import resource
 import shutil
 import subprocess
 import tempfile
@@ -33,6 +36,12 @@ from pathlib import Path
 import numpy as np
 
 PLASTIMATCH_MM_PER_UNIT = 10.0   # plastimatch reports mu x cm ("Translate from mm pixels to cm*gm")
+LOAD_RUNS = 3
+
+
+def cpu_seconds(who=resource.RUSAGE_SELF) -> float:
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
 
 
 class PeerUnavailable(RuntimeError):
@@ -65,30 +74,39 @@ class Plastimatch:
         self.workdir = Path(tempfile.mkdtemp(prefix="plastimatch-", dir=workdir))
         self.volume = self.workdir / "mu.mha"
         write_metaimage(self.volume, values, index_to_world)
+        self.load_cpu = 0.0
+        self.load_cpu = min(self._run("exact", None, None, [], pixel=True)[2] for _ in range(LOAD_RUNS))
 
     def version(self) -> str:
         out = subprocess.run([self.executable, "--version"], capture_output=True, text=True)
         return (out.stdout.strip() or out.stderr.strip()).splitlines()[-1]
 
-    def _run(self, algorithm: str, geom, isocentre, orientation: list[str]) -> tuple[list[np.ndarray], float, float]:
-        """(images, render seconds, wall seconds of the whole process)."""
-        cols, rows = geom.detector
-        du, dv = geom.pixel_spacing
-        if cols != rows or du != dv:
-            raise ValueError("the bench's plastimatch runs take square detectors with square pixels")
-        sid = float(np.linalg.norm(geom.detector_centre - geom.source))
-        sad = float(np.linalg.norm(np.asarray(isocentre) - geom.source))
+    def _run(self, algorithm: str, geom, isocentre, orientation: list[str], pixel=False):
+        """(images, render seconds, CPU seconds less loading's, wall seconds of the whole process); `pixel`: one
+        pixel of the default view, to measure loading."""
+        if pixel:
+            cols = rows = 1
+            du = dv = 1.0
+            placement = []
+        else:
+            cols, rows = geom.detector
+            du, dv = geom.pixel_spacing
+            if cols != rows or du != dv:
+                raise ValueError("the bench's plastimatch runs take square detectors with square pixels")
+            sid = float(np.linalg.norm(geom.detector_centre - geom.source))
+            sad = float(np.linalg.norm(np.asarray(isocentre) - geom.source))
+            placement = ["--sad", repr(sad), "--sid", repr(sid),
+                         "-o", " ".join(map(repr, np.asarray(isocentre, dtype=float).tolist()))]
         out = self.workdir / "drr_"
         for old in self.workdir.glob("drr_*"):
             old.unlink()
-        command = [self.executable, "drr", "-A", "cpu", "-i", algorithm, "-P", "none", "-t", "raw",
-                   "--sad", repr(sad), "--sid", repr(sid), "-r", f"{rows} {cols}", "-z", f"{rows * dv} {cols * du}",
-                   "-o", " ".join(map(repr, np.asarray(isocentre, dtype=float).tolist())), *orientation,
+        command = [self.executable, "drr", "-A", "cpu", "-i", algorithm, "-P", "none", "-t", "raw", *placement,
+                   "-r", f"{rows} {cols}", "-z", f"{rows * dv} {cols * du}", *orientation,
                    "-O", str(out), "-I", str(self.volume)]
         env = dict(os.environ, OMP_NUM_THREADS=str(self.threads))
-        t0 = time.perf_counter()
+        cpu0, t0 = cpu_seconds(resource.RUSAGE_CHILDREN), time.perf_counter()
         proc = subprocess.run(command, capture_output=True, text=True, env=env)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, cpu_seconds(resource.RUSAGE_CHILDREN) - cpu0 - self.load_cpu
         if proc.returncode != 0:
             raise RuntimeError(f"plastimatch drr failed ({proc.returncode}): {proc.stderr.strip()[-400:]}")
         total = re.findall(r"Total time:\s*([0-9.eE+-]+)", proc.stdout)
@@ -97,16 +115,16 @@ class Plastimatch:
             raise RuntimeError(f"plastimatch drr printed no total time: {proc.stdout.strip()[-400:]}")
         images = [np.fromfile(path, dtype="<f4").reshape(rows, cols) * PLASTIMATCH_MM_PER_UNIT
                   for path in sorted(self.workdir.glob("drr_*.raw"))]
-        return images, float(total[-1]) - io, wall
+        return images, float(total[-1]) - io, cpu, wall
 
-    def render(self, algorithm: str, geom, isocentre) -> tuple[np.ndarray, float]:
-        """One DRR of the view `geom` (a cone_beam_reference.ConeBeamGeometry): (image, render seconds)."""
+    def render(self, algorithm: str, geom, isocentre) -> tuple[np.ndarray, float, float]:
+        """One DRR of the view `geom` (a cone_beam_reference.ConeBeamGeometry): (image, seconds, CPU seconds)."""
         towards_source = geom.source - np.asarray(isocentre, dtype=np.float64)
         towards_source /= np.linalg.norm(towards_source)
-        images, seconds, _ = self._run(algorithm, geom, isocentre,
-                                       ["-n", " ".join(map(repr, towards_source.tolist())),
-                                        "--vup", " ".join(map(repr, geom.up.tolist()))])
-        return images[0], seconds
+        images, seconds, cpu, _ = self._run(algorithm, geom, isocentre,
+                                            ["-n", " ".join(map(repr, towards_source.tolist())),
+                                             "--vup", " ".join(map(repr, geom.up.tolist()))])
+        return images[0], seconds, cpu
 
     def sweep(self, algorithm: str, geom, isocentre, gantries) -> tuple[list[np.ndarray], float, float]:
         """A circular orbit (tilt 0) in one process: (images, render seconds, wall seconds with loading)."""
@@ -116,8 +134,8 @@ class Plastimatch:
         # plastimatch's source sits at (cos a, -sin a, 0): a = 90 - gantry, so its angles grow as ours fall.
         # Its -N is in degrees, but 1.9.4 takes -y's start angle in radians (its help says degrees).
         start = math.radians((90.0 - gantries[-1]) % 360.0)
-        images, seconds, wall = self._run(algorithm, geom, isocentre, ["-y", repr(start), "-a", str(len(gantries)),
-                                                                       "-N", repr(step)])
+        images, seconds, _, wall = self._run(algorithm, geom, isocentre, ["-y", repr(start), "-a", str(len(gantries)),
+                                                                          "-N", repr(step)])
         return images[::-1], seconds, wall
 
 
@@ -156,12 +174,12 @@ class RtkJoseph:
                 raise RuntimeError("RTK refused the projection geometry")
         return geometry
 
-    def _project(self, views) -> tuple[np.ndarray, float]:
+    def _project(self, views) -> tuple[np.ndarray, float, float]:
         itk, rtk = self.itk, self.rtk
         cols, rows = views[0].detector
         du, dv = views[0].pixel_spacing
         image_type = itk.Image[itk.F, 3]
-        t0 = time.perf_counter()
+        cpu0, t0 = cpu_seconds(), time.perf_counter()
         stack = rtk.ConstantImageSource[image_type].New()
         stack.SetOrigin([-(cols - 1) / 2.0 * du, -(rows - 1) / 2.0 * dv, 0.0])
         stack.SetSpacing([du, dv, 1.0])
@@ -172,13 +190,14 @@ class RtkJoseph:
         projector.SetInput(1, self.volume)
         projector.SetGeometry(self._geometry(views))
         projector.Update()
-        seconds = time.perf_counter() - t0
-        return itk.array_from_image(projector.GetOutput()), seconds   # [view, row (down), column]
+        seconds, cpu = time.perf_counter() - t0, cpu_seconds() - cpu0
+        return itk.array_from_image(projector.GetOutput()), seconds, cpu   # [view, row (down), column]
 
-    def render(self, geom) -> tuple[np.ndarray, float]:
-        images, seconds = self._project([geom])
-        return images[0], seconds
+    def render(self, geom) -> tuple[np.ndarray, float, float]:
+        """(image, seconds, CPU seconds)."""
+        images, seconds, cpu = self._project([geom])
+        return images[0], seconds, cpu
 
     def sweep(self, views) -> tuple[list[np.ndarray], float]:
-        images, seconds = self._project(list(views))
+        images, seconds, _ = self._project(list(views))
         return list(images), seconds
