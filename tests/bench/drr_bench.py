@@ -323,11 +323,10 @@ def _ms(seconds: float) -> str:
 
 
 def section(res: dict | None) -> list[str]:
-    if not res:
-        return []
-    lines = ["## DRRs beside plastimatch and RTK", ""]
-    if "error" in res:
-        return lines + [f"Not measured: {res['error']}.", ""]
+    title = "## DRRs beside plastimatch and RTK"
+    if not res or "error" in res:
+        return [title, "", f"Not measured: {res['error']}.", ""] if res else []
+    lines = [title, ""]
     gantries = ", ".join(f"{g:g}" for g in res["gantries"])
     lines += [
         f"Volume: {res['source']} ({' x '.join(map(str, res['shape']))} voxels of "
