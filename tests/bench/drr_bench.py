@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -186,7 +187,7 @@ def make_renderers(hu, index_to_world, workdir: Path, log):
         return image, seconds, cpu
 
     renderers, peers = {"pcvr": pcvr}, {}
-    versions = {"pcvr": f"pcvr_native {getattr(pn, '__version__', '?')}"}
+    versions = {"pcvr": pcvr_version()}
     try:
         plastimatch = peers["plastimatch"] = drr_peers.Plastimatch(mu, index_to_world, THREADS, workdir)
         versions["plastimatch exact"] = versions["plastimatch uniform"] = plastimatch.version()
@@ -204,6 +205,17 @@ def make_renderers(hu, index_to_world, workdir: Path, log):
         log(f"drr: {e}")
         versions["rtk joseph"] = f"missing: {e}"
     return renderers, peers, versions, mu
+
+
+def pcvr_version() -> str:
+    """The native module's version and the commit of the checkout that runs the bench (whose build it should be)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        built = version("pcvr_native")
+    except PackageNotFoundError:
+        built = "?"
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True)
+    return f"pcvr_native {built}, checkout {commit.stdout.strip() or '?'}"
 
 
 def volume_centre(shape, index_to_world) -> tuple:
