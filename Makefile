@@ -136,10 +136,10 @@ $(EXTENSION_ZIP): $(VENV)/.native-stamp $(WHEEL_STAMPS) blender_manifest.toml ex
 	$(PY) tools/build_extension.py
 
 # The benchmark's own packages: the peers (VTK's wheel renders offscreen through EGL; EEVEE needs an
-# OpenGL context, which Mesa's EGL gives without a display) and the analysis (scipy, matplotlib).
-# QUICK=1: small volumes and budgets, about 3 minutes.
-BENCH_PIP := "vtk>=9.4" scipy matplotlib
-BENCH_APT := libegl1 libegl-mesa0 libgl1-mesa-dri
+# OpenGL context, which Mesa's EGL gives without a display; DRRs beside plastimatch and RTK's Joseph
+# projector) and the analysis (scipy, matplotlib). QUICK=1: small volumes and budgets, about 3 minutes.
+BENCH_PIP := "vtk>=9.4" scipy matplotlib itk-rtk
+BENCH_APT := libegl1 libegl-mesa0 libgl1-mesa-dri plastimatch
 bench: $(VENV)/.native-stamp
 	@missing=""; for p in $(BENCH_APT); do \
 	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$p"; \

@@ -16,6 +16,7 @@ import batch_bench
 import big_volume_bench
 import clipping_bench
 import ct_head
+import drr_bench
 import evidence_report
 import magnification_curve
 import materials_bench
@@ -442,6 +443,7 @@ def write(results: dict, output: Path) -> None:
     lines += shaded_report.section(results, output.parent, fig_dir)
     lines += ct_head.section(results.get("ct_head"))
     lines += clipping_bench.section(results.get("clipping"))
+    lines += drr_bench.section(results.get("drr"))
     lines += shadows_bench.section(results.get("shadows"))
     lines += materials_bench.section(results.get("materials"))
     lines += viewport_bench.section(results.get("viewport"))

@@ -21,6 +21,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |
 | CT head     | ct_head.py       | shaded rendering of a real CT head (Debian's invesalius-examples) against VTK |
 | cut open    | clipping_bench.py | X-ray and shaded time and error of the CT head whole, cropped to half, cut by a plane |
+| DRR         | drr_bench.py     | cone-beam DRRs of the CT head beside plastimatch and RTK: time, DRRs/s, error against a ray march |
 | shadows     | shadows_bench.py | shaded time with and without shadows, CT phantom and CT head, against the ray caster's shadow rays |
 | materials   | materials_bench.py | smoke, fire (Quick Smoke / Quick Fire) and a shadowed CT head by PCVR and Cycles in Blender: time, PSNR |
 
@@ -96,6 +97,7 @@ STANDALONE_PARTS = [
     ("batch", "batch_bench", "batches over Dask"),
     ("ct_head", "ct_head", "shaded rendering of a real CT head against VTK"),
     ("clipping", "clipping_bench", "cut open: crop boxes and clip planes"),
+    ("drr", "drr_bench", "DRRs beside plastimatch and RTK"),
     ("shadows", "shadows_bench", "shadows: cost and accuracy"),
     ("materials", "materials_bench", "Blender's volume materials beside Cycles"),
 ]
@@ -482,6 +484,8 @@ def parse_args(argv=None):
                    help="skip the real CT head against VTK")
     p.add_argument("--no-clipping", dest="clipping", action="store_false",
                    help="skip the CT head whole, cropped and cut by a plane")
+    p.add_argument("--no-drr", dest="drr", action="store_false",
+                   help="skip cone-beam DRRs beside plastimatch and RTK")
     p.add_argument("--no-shadows", dest="shadows", action="store_false",
                    help="skip the cost and accuracy of shadows")
     p.add_argument("--no-materials", dest="materials", action="store_false",
