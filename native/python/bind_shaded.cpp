@@ -204,6 +204,8 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["grids_sampled"] = s.grids_sampled;
     stats["sheet_samples"] = s.sheet_samples;
     stats["sheet_samples_skipped"] = s.sheet_samples_skipped;
+    stats["brick_visibility_built"] = s.brick_visibility_built;
+    stats["brick_visibility_reused"] = s.brick_visibility_reused;
     stats["strides"] = strides;
     stats["sampled_strides"] = sampled_strides;
     stats["level"] = s.level;

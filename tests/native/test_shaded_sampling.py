@@ -135,3 +135,27 @@ def test_two_grids_are_sampled_each_from_its_own_lattice():
     splatted = pn.render_shaded([a, b], cam, bone_tf(), lights=[SUN], sheet_fill="splat")
     assert stats["grids_sampled"] == 2
     assert psnr(sampled, splatted) >= 32.4
+
+
+def test_brick_visibility_is_made_once_per_visible_span_and_kept_with_the_lattice():
+    # Which lattice bricks may show depends on the transfer function's visible span, not on the view or the lights:
+    # the first render of a span makes it, later ones take it from the grid's lattice (viewport redraws, camera
+    # paths, light sweeps) and render exactly as a grid that makes it afresh.
+    grid = ct_volume(64)
+    persp, ortho = camera(grid, "persp", 1.5), camera(grid, "ortho", 1.0)
+    other_sun = pn.Light.sun(direction=(0.3, 0.5, -0.8))
+
+    def render(volume, cam, tf, light=SUN):
+        stats = {}
+        image = pn.render_shaded(volume, cam, tf, lights=[light], stats=stats)
+        assert stats["grids_sampled"] == 1
+        return image, (stats["brick_visibility_built"], stats["brick_visibility_reused"])
+
+    assert render(grid, persp, bone_tf())[1] == (1, 0)
+    for cam, light in ((persp, SUN), (ortho, SUN), (persp, other_sun)):
+        image, made = render(grid, cam, bone_tf(), light)
+        fresh, made_fresh = render(ct_volume(64), cam, bone_tf(), light)
+        assert made == (0, 1) and made_fresh == (1, 0)
+        assert np.array_equal(image, fresh)
+    assert render(grid, persp, translucent())[1] == (1, 0)  # another span: made, and kept beside the first
+    assert render(grid, persp, bone_tf())[1] == (0, 1)

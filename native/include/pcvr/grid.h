@@ -76,6 +76,8 @@ struct VoxelValueRanges {
     double value(int level) const { return lowest + level * step; }
 };
 
+class BrickVisibilityCache;  // src/volume/brick_visibility.h
+
 /// The grid on a dense lattice for sampling rather than splatting (sheets filled by sampling): every
 /// voxel's value less the background (0 where inactive or not finite) over the active bounding box and
 /// a margin of kMargin, blurred along each axis by the three taps (w, 1 - 2w, w). Trilinear interpolation
@@ -102,6 +104,9 @@ struct PrefilteredLattice {
     /// low byte), level q standing for range_lowest + q range_step, low ends rounded down and high ends up.
     std::vector<uint16_t> ranges;
     double range_lowest = 0, range_step = 1;
+    /// Which bricks may be visible, per transfer function's visible span (src/volume/brick_visibility.h): made on
+    /// first use of each span and kept with the lattice.
+    std::shared_ptr<BrickVisibilityCache> visibility;
 
     size_t stride_i() const { return size_t(shape[1]) * size_t(shape[2]); }
     size_t stride_j() const { return size_t(shape[2]); }

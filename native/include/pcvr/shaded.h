@@ -166,6 +166,9 @@ struct ShadedStats {
     uint64_t grids_sampled = 0;
     uint64_t sheet_samples = 0;
     uint64_t sheet_samples_skipped = 0;
+    /// Sampled layers whose lattice brick visibility this render made, and those that took it from their
+    /// lattice, made by an earlier render with the same transfer function's visible span (BrickVisibilityCache).
+    uint64_t brick_visibility_built = 0, brick_visibility_reused = 0;
     /// The subgrid strides sampled sheets took, an automatic choice per sheet: 1 where the values are the
     /// pixels, L where a lattice element spans L pixels or more and the sheet was sampled at its stride-L
     /// subgrid and post-convolved.

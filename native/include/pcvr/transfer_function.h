@@ -27,6 +27,7 @@
 #include <array>
 #include <memory>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "pcvr/lanes.h"
@@ -148,6 +149,8 @@ public:
     int8x maybe_opaque(float8 density) const { return (density > opaque_from_) & (density < opaque_to_); }
     /// Lanes where some density in [lo, hi] may be visible.
     int8x maybe_opaque_within(float8 lo, float8 hi) const { return (hi > opaque_from_) & (lo < opaque_to_); }
+    /// The open span (from, to) outside which no density absorbs or emits: all that maybe_opaque reads.
+    std::pair<float, float> visible_span() const { return {opaque_from_, opaque_to_}; }
 
 private:
     static constexpr int kGradientEntries = 1024;

@@ -340,6 +340,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
                                                                   float(volume.density_scale), span, cull_transparent ? classification : nullptr,
                                                                   setup.grids[g].background, finest, post_shape));
                 sampler = samplers.back().get();
+                if (sampler->classification) ++(sampler->visibility_built ? stats.brick_visibility_built : stats.brick_visibility_reused);
             }
             setup.layers.push_back({&view, uint32_t(g), filter, post_convolved, sampler});
             if (std::find(stats.strides.begin(), stats.strides.end(), stride) == stats.strides.end()) stats.strides.push_back(stride);

@@ -7,6 +7,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "volume/brick_visibility.h"
 #include "volume/value_levels.h"
 
 namespace pcvr {
@@ -106,6 +107,7 @@ PrefilteredLattice build_prefiltered_lattice(const std::vector<VoxelBlock>& bloc
     constexpr int M = PrefilteredLattice::kMargin;
     PrefilteredLattice lattice;
     lattice.blur = blur;
+    lattice.visibility = std::make_shared<BrickVisibilityCache>();
     for (int a = 0; a < 3; ++a) {
         lattice.origin[a] = box[a] - M;
         lattice.shape[a] = box[a + 3] - box[a] + 1 + 2 * M;

@@ -26,18 +26,24 @@ SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_wor
     dir_dy = to_index.transform_vector(geometry.dir_dy);
     if (!classification) return;
     // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
-    const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
-    visible_bricks_.assign(bricks / 32 + 1, 0u);
-    const float lowest = float(l.range_lowest), level = float(l.range_step);
-    const float8 zero = broadcast8(0.0f);
-    for (size_t b = 0; b < bricks; b += 8) {
-        int8x levels{};
-        for (size_t e = 0; e < 8 && b + e < bricks; ++e) levels[e] = l.ranges[b + e];
-        const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * level, zero) * density_scale + background;
-        const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * level, zero) * density_scale + background;
-        // b is a multiple of 8: its eight bits share a word.
-        visible_bricks_[b / 32] |= lane_mask(classification->maybe_opaque_within(lo, hi)) << (b % 32);
-    }
+    // Which bricks may show depends on the classification only through its visible span: kept per span with the lattice.
+    const auto [visible_from, visible_to] = classification->visible_span();
+    const BrickVisibilityCache::Key key{visible_from, visible_to, scale, background_density};
+    visible_bricks_ = l.visibility->get(key, [&] {
+        const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
+        BrickVisibilityCache::Bits visible(bricks / 32 + 1, 0u);
+        const float lowest = float(l.range_lowest), level = float(l.range_step);
+        const float8 zero = broadcast8(0.0f);
+        for (size_t b = 0; b < bricks; b += 8) {
+            int8x levels{};
+            for (size_t e = 0; e < 8 && b + e < bricks; ++e) levels[e] = l.ranges[b + e];
+            const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * level, zero) * scale + background_density;
+            const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * level, zero) * scale + background_density;
+            // b is a multiple of 8: its eight bits share a word.
+            visible[b / 32] |= lane_mask(classification->maybe_opaque_within(lo, hi)) << (b % 32);
+        }
+        return visible;
+    }, visibility_built);
 }
 
 namespace {
@@ -163,7 +169,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
             const int8x b = __builtin_convertvector(select8(in, p.x * per_brick, zero), int8x) * bi +
                             __builtin_convertvector(select8(in, p.y * per_brick, zero), int8x) * bj +
                             __builtin_convertvector(select8(in, p.z * per_brick, zero), int8x);
-            if (!any8(in & bit_set8(visible_bricks_.data(), b))) continue;
+            if (!any8(in & bit_set8(visible_bricks_->data(), b))) continue;
         }
         const float8 value = (density(p - along * offset) + density(p + along * offset)) * (0.5f * spacing * density_scale);
         float* to = out + 8 * q;

@@ -21,8 +21,10 @@
 #include "pcvr/transfer_function.h"
 #include "shaded/sheets/sheet_geometry.h"
 #include "splat/post_convolution.h"
+#include "volume/brick_visibility.h"
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace pcvr {
@@ -47,6 +49,8 @@ struct SheetSampler {
     const ClassificationTable* classification = nullptr;
     float background = 0;
     int gradient_step = 1;
+    /// Whether this sampler made its brick visibility bits (false: the lattice had them for this transfer function).
+    bool visibility_built = false;
 
     SheetSampler() = default;
     SheetSampler(const PrefilteredLattice& lattice, const Mat4& index_to_world, const SheetGeometry& geometry, float density_scale,
@@ -82,10 +86,10 @@ private:
     /// World displacements as lattice (index) displacements, eight at a time.
     Vec3x8 in_index(const Vec3x8& v) const;
     /// One bit per lattice brick (PrefilteredLattice::bricks, bk fastest), set where its range, 0 included,
-    /// may be visible under `classification`: decided once per render, so the per-vector test is a
-    /// lookup in a table small enough to stay in cache (a bit a brick: 118 KB for the CT head, where
-    /// the ranges are 1.9 MB).
-    std::vector<uint32_t> visible_bricks_;
+    /// may be visible under `classification`: decided once per visible span and kept with the lattice
+    /// (BrickVisibilityCache), so the per-vector test is a lookup in a table small enough to stay in cache
+    /// (a bit a brick: 118 KB for the CT head, where the ranges are 1.9 MB). Null without a classification.
+    std::shared_ptr<const BrickVisibilityCache::Bits> visible_bricks_;
     std::vector<PostFilter> post_filters_;  // strides 1 .. kMostStride
 };
 

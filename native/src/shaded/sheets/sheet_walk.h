@@ -116,12 +116,14 @@ public:
 private:
     struct GridState;
     struct LayerState;
+    static constexpr int kMostSources = 64;  ///< grids composited at one sample; more are left out
     /// Classifies, shades and composites the sample t of the way from sheet s to s + 1 into the tile;
     /// returns how many pixels became opaque.
     size_t composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     /// composite_sample compiled for point-sampled or pre-integrated classification, so that the point path, the
-    /// default, carries none of the pre-integrated one's selects in its inner loop.
-    template <bool Preintegrated>
+    /// default, carries none of the pre-integrated one's selects in its inner loop; and for at most `MostSources`
+    /// grids at a sample: with one, its per-source arrays are single values the compiler keeps in registers.
+    template <bool Preintegrated, int MostSources>
     size_t composite_sample_as(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
     struct Active {
@@ -147,7 +149,7 @@ private:
     size_t row_pitch_ = 0;
     std::vector<float> red_, green_, blue_, alpha_, depth_;
     std::vector<float> maximum_;
-    std::vector<uint8_t> cell_shows_[64];  // composite_sample: per source, per cell of its grid, whether a value there may be visible
+    std::vector<uint8_t> cell_shows_[kMostSources];  // composite_sample: per source, per cell of its grid, whether a value there may be visible
     OpenPixels open_pixels_;  // the tile's pixels not yet opaque, for every layer's occlusion map
     std::vector<uint8_t> sample_cells_;  // sample_sheet: per cell of the grid's slot, whether to sample it
     std::vector<uint8_t> node_wanted_;   // sample_subgrid: per node of the sheet's subgrid, whether a wanted pixel reads it

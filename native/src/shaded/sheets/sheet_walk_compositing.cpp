@@ -121,11 +121,16 @@ struct AlongRay {
 };
 
 size_t SheetWalker::composite_sample(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
-    return setup.preintegrated ? composite_sample_as<true>(setup, rect, s, t, samples)
-                               : composite_sample_as<false>(setup, rect, s, t, samples);
+    // One grid, the common case, without the loops over sources: their arrays (sheets, samples, lit colours)
+    // had lived on the stack, and the inner loop stored and reloaded them.
+    if (setup.grids.size() == 1)
+        return setup.preintegrated ? composite_sample_as<true, 1>(setup, rect, s, t, samples)
+                                   : composite_sample_as<false, 1>(setup, rect, s, t, samples);
+    return setup.preintegrated ? composite_sample_as<true, kMostSources>(setup, rect, s, t, samples)
+                               : composite_sample_as<false, kMostSources>(setup, rect, s, t, samples);
 }
 
-template <bool Preintegrated>
+template <bool Preintegrated, int MostSources>
 size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples) {
     const SheetGeometry& geo = *setup.geometry;
     const float spacing = float(setup.sheets.spacing), cutoff = setup.opacity_cutoff;
@@ -153,10 +158,10 @@ size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const Pixel
     // and the others visit only those, over the same sources and box.
     const bool between = samples > 1 || preintegrated, marking = between && t == 0, marked = between && t > 0;
     const float per_spacing = 1.0f / spacing;
-    Source sources[64];
+    Source sources[MostSources];
     int source_count = 0;
     Box box;
-    for (size_t gi = 0; gi < grids_.size() && source_count < 64; ++gi) {
+    for (size_t gi = 0; gi < grids_.size() && source_count < MostSources; ++gi) {
         if (!grids_[gi] || !grids_[gi]->used) continue;
         const GridState& g = *grids_[gi];
         if (!g.reaches(s, between)) continue;
@@ -189,7 +194,7 @@ size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const Pixel
         }
     // Per row of the box, which of its vectors meet a cell that may show: made from the cells once
     // per row of cells (kCell pixel rows), so that a skipped vector costs a byte's test.
-    int cached_cell_rows[64];
+    int cached_cell_rows[MostSources];
     std::fill_n(cached_cell_rows, source_count, INT32_MIN);
     auto update_row = [&](int y) {
         bool same = true;
@@ -235,7 +240,7 @@ size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const Pixel
             // a density that may be visible. Sheets s and s + 1 bound the sample, so they decide most
             // vectors before the cubic's other two sheets are read (an opaque bone function leaves 97% of
             // the vectors at 2048^2 here).
-            float8 sheet_values[64][4], raws[64], backs[64];  // backs: pre-integrated stretches' back ends
+            float8 sheet_values[MostSources][4], raws[MostSources], backs[MostSources];  // backs: pre-integrated stretches' back ends
             bool any = false;
             for (int k = 0; k < source_count; ++k) {
                 const Source& src = sources[k];
@@ -277,8 +282,8 @@ size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const Pixel
             float8 sigma_sum = broadcast8(0.0f);
             Vec3x8 glow{broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)};  // emitted radiance per world unit
             bool glowing = false;
-            Vec3x8 lit_colours[64];
-            float8 extinctions[64];
+            Vec3x8 lit_colours[MostSources];
+            float8 extinctions[MostSources];
             int lit_count = 0;
             for (int k = 0; k < source_count; ++k) {
                 const Source& src = sources[k];
