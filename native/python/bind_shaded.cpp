@@ -166,10 +166,18 @@ CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* 
                      double opacity_cutoff, int threads, int tile_size, int pixel_step, int samples_per_sheet, bool cull_transparent,
                      nb::handle level) {
     CallParts parts;
-    if (nb::isinstance<GridStream>(grid_arg))
-        parts.stream = nb::cast<std::shared_ptr<GridStream>>(grid_arg);
-    else
+    nb::handle only = grid_arg;
+    if (!nb::isinstance<GridStream>(grid_arg) && !nb::isinstance<Grid>(grid_arg) && nb::hasattr(grid_arg, "__len__") &&
+        nb::len(grid_arg) == 1)
+        only = grid_arg[0];  // [stream]
+    if (nb::isinstance<GridStream>(only)) {
+        parts.stream = nb::cast<std::shared_ptr<GridStream>>(only);
+    } else {
+        for (nb::handle item : grid_sequence(grid_arg, function))
+            if (nb::isinstance<GridStream>(item))
+                throw nb::type_error((std::string(function) + ": a GridStream renders alone, in bricks, not with other grids").c_str());
         parts.grids = grids_from_python(grid_arg, function);
+    }
     parts.scales = scales_from_python(density_scale, parts.count(), function);
     ShadedParams& p = parts.params;
     p.method = shaded_method_from_name(method);

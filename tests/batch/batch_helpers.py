@@ -16,12 +16,12 @@ def defaults():
 
 
 def render(input_path, output, frames=None, angles=None, options=None, client=None, skip_existing=False,
-           run_id=None):
+           run_id=None, split=1):
     """Render a batch; (exit status, what it printed)."""
     batch = jobs.expand(str(input_path), str(output), frames, angles, options)
     printed = io.StringIO()
     status = run.render_batch(batch, manifest_file(output), defaults(), client, skip_existing, stream=printed,
-                              run_id=run_id)
+                              run_id=run_id, split=split)
     return status, printed.getvalue()
 
 
