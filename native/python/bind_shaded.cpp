@@ -172,10 +172,12 @@ CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* 
         only = grid_arg[0];  // [stream]
     if (nb::isinstance<GridStream>(only)) {
         parts.stream = nb::cast<std::shared_ptr<GridStream>>(only);
-    } else {
+    } else if (!nb::isinstance<Grid>(grid_arg)) {
         for (nb::handle item : grid_sequence(grid_arg, function))
             if (nb::isinstance<GridStream>(item))
                 throw nb::type_error((std::string(function) + ": a GridStream renders alone, in bricks, not with other grids").c_str());
+        parts.grids = grids_from_python(grid_arg, function);
+    } else {
         parts.grids = grids_from_python(grid_arg, function);
     }
     parts.scales = scales_from_python(density_scale, parts.count(), function);

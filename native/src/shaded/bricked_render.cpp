@@ -19,6 +19,7 @@
 
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
+#include "pcvr/memory_budget.h"
 #include "shaded/classify/shaded_levels.h"
 
 namespace pcvr {
@@ -46,16 +47,18 @@ void refuse_whole_grid_features(const GridStream& stream, const ShadedVolume& vo
         throw InvalidArgument(streamed + "ambient occlusion needs a transmittance volume through the whole grid" + instead);
 }
 
-/// Voxels beyond a brick's faces whose splats reach a sample the brick owns: the kernel's radius, two
-/// sheets along the ray (a sample between sheets s and s + 1 reads s - 1 to s + 2), and in the sheet the
-/// post filter's two nodes, the gradient's one and a node of rounding, a node being a voxel or the stride's
-/// pixels where voxels project smaller; one more for the sampled lattice's blur.
-int brick_margin(const GridStream& stream, const Camera& camera, const ShadedParams& params) {
+/// Voxels beyond a brick's faces whose splats reach a sample the brick owns: the kernel's radius, the sheets
+/// a sample reads beyond its own along the ray (shaded: s - 1 to s + 2 between sheets s and s + 1; MIP: s - 1
+/// to s + 1), and in the sheet the post filter's two nodes and the shaded gradient's one, a node being a voxel or
+/// the stride's pixels where voxels project smaller (tests/native/test_bricked_render.py's splatted images stay
+/// exact with these; MIP's margin three voxels less, 2, was not).
+int brick_margin(const GridStream& stream, const Camera& camera, const ShadedParams& params, bool mip) {
     const double radius = Kernel::from_name(params.splat_kernel).radius();
     const auto magnification = corner_pixels_per_voxel(stream.index_bbox(), stream.index_to_world(), camera);
     const double least = magnification ? std::max(magnification->first, 1e-3) : 1.0;
     const double node = std::max(1.0, std::max(params.stride, 1) / least);
-    return int(std::ceil(radius + 2.0 * std::max(1.0, params.sheet_spacing) + 4.0 * node + 1.0));
+    const double sheets = (mip ? 1.0 : 2.0) * std::max(1.0, params.sheet_spacing);
+    return int(std::ceil(radius + sheets + (mip ? 2.0 : 3.0) * node));
 }
 
 /// `part`'s counts added into `total`.
@@ -129,13 +132,19 @@ void render_bricks(const GridStream& stream, const ShadedVolume& volume, const C
     const std::string function = lighting ? "render_shaded" : "render_mip";
     uint64_t budget = bricked.memory_limit > 0 ? bricked.memory_limit / 2 : GridStream::kDefaultBatchBytes;
     if (stream.batch_bytes() > 0) budget = std::min(budget, stream.batch_bytes());
-    const int margin = brick_margin(stream, camera, params);
+    const int margin = brick_margin(stream, camera, params, lighting == nullptr);
     const std::vector<std::array<int32_t, 6>> boxes = stream.value_boxes();
     const int side = brick_side(boxes, margin, budget);
     if (side == 0)
         throw InvalidArgument(function + ": " + named(stream) + ": memory_limit leaves " + std::to_string(budget) +
                               " bytes for a brick's values, too few for 16^3 voxels and the " + std::to_string(margin) +
                               " voxels around them that its kernels reach; raise memory_limit");
+    // Sampled sheets or splatted ones as the grid read whole would choose (shaded.cpp samples a grid whose
+    // lattice takes at most a quarter of the memory available): a brick's own lattice always fits.
+    ShadedParams brick_params = params;
+    if (params.sheet_fill == SheetFill::Automatic &&
+        PrefilteredLattice::elements(stream.index_bbox()) * sizeof(float) > default_memory_limit() / 4)
+        brick_params.sheet_fill = SheetFill::Splat;
     const std::vector<Brick> bricks = cut_into_bricks(boxes, side, margin);
     const std::vector<size_t> order = visibility_order(bricks, side, camera, stream.index_to_world());
     const size_t first = order.size() * bricked.share / bricked.shares, last = order.size() * (bricked.share + 1) / bricked.shares;
@@ -148,7 +157,7 @@ void render_bricks(const GridStream& stream, const ShadedVolume& volume, const C
         ShadedVolume at_brick = volume;
         at_brick.grid = &part;
         ShadedStats part_stats;
-        arena.execute([&] { render_brick({at_brick}, camera, lighting, params, brick.owned, control, part_stats, image, depth); });
+        arena.execute([&] { render_brick({at_brick}, camera, lighting, brick_params, brick.owned, control, part_stats, image, depth); });
         accumulate(stats, part_stats);
         ++stats.batches;
         stats.memory_bytes = std::max(stats.memory_bytes, brick.bytes);
