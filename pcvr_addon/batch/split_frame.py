@@ -77,7 +77,8 @@ def run_split(client, planned_jobs, run_id, parts, done):
     finishing = []
     try:
         for planned in planned_jobs:
-            rendered = composite(client.gather(shares.pop(planned.index)))
+            # Scattered: a frame's composited passes are megabytes, which Dask sends apart from the task.
+            rendered = client.scatter(composite(client.gather(shares.pop(planned.index))))
             finishing.append(client.submit(render_task.render_job, planned, run_id, rendered,
                                            key=f"pcvr-finish-{run_id}-{planned.index}", pure=False, retries=1))
         for future in _distributed().as_completed(finishing):

@@ -40,3 +40,32 @@ def assert_same_images(first, second):
     assert first.keys() == second.keys()
     for name in first:
         assert np.array_equal(first[name], second[name]), name
+
+
+# --split's test volume (batch_scenes.write_split_volume): Stream Above 1 MiB streams its 3.1 MiB, in bricks of at
+# most 1 MiB of values (X-ray: batches of its four 128^3 regions); opacity cutoff 1: only rounding parts the shares
+# from one process (with 0.99 a share goes on where one process stops, by at most the 1% left). Half a pixel a
+# voxel: the tests' time is the bricks'.
+SPLIT_OPTIONS = {"stream_above": 1, "opacity_cutoff": 1.0, "magnification": 0.5}
+
+
+def render_split(volume, output, mode, split=1, client=None, angles=(20.0,)):
+    """A batch of `volume` in `mode` at SPLIT_OPTIONS, each frame in `split` shares; its manifest."""
+    import json
+
+    status, printed = render(volume, output, angles=list(angles), options={"mode": mode, **SPLIT_OPTIONS}, client=client,
+                             split=split)
+    assert status == 0, printed
+    with open(manifest_file(output)) as file:
+        return json.load(file)
+
+
+def assert_close_images(first, second, mode):
+    """Split frames against one process's: X-ray shares summed in another order than the batches (rounding);
+    shaded RGBA composited over (rounding, measured 2.4e-7), its Depth pass apart (split_frame.py); MIP the same
+    maxima."""
+    assert first.keys() == second.keys()
+    for name in first:
+        a, b = first[name][..., :4], second[name][..., :4]
+        assert a[..., 3].max() > 0.5, name  # the volume shows
+        np.testing.assert_allclose(a, b, rtol=0, atol=0 if mode == "MIP" else 1e-5, err_msg=name)

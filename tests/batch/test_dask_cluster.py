@@ -1,5 +1,6 @@
 """A real local Dask cluster of 2 worker processes: sequences and view sweeps equal to one process, a worker
-killed mid-run, and an X-ray of a volume split over both workers."""
+killed mid-run, an X-ray of a volume split over both workers, and frames split over them (--split) in every mode,
+a worker killed mid-frame included."""
 
 import os
 import signal
@@ -139,3 +140,54 @@ def _worker_info(client):
     import socket
     pids = client.run(os.getpid)
     return [{"host": socket.gethostname(), "pid": pid} for pid in pids.values()]
+
+
+@pytest.fixture(scope="module")
+def split_volume(tmp_path_factory):
+    return batch_scenes.write_split_volume(tmp_path_factory.mktemp("split") / "blobs.vdb")
+
+
+def test_two_workers_split_every_mode_as_one_process(tmp_path, split_volume, client):
+    from pcvr_addon.cli import main as cli
+
+    for mode in ("XRAY", "SHADED", "MIP"):
+        bh.render_split(split_volume, tmp_path / mode / "one" / "f_#.exr", mode)
+        argv = ["render", str(split_volume), "-o", str(tmp_path / mode / "split" / "f_#.exr"), "--angles", "20:21:1",
+                "--mode", mode.lower(), "--stream-above", "1", "--opacity-cutoff", "1", "--magnification", "0.5",
+                "--scheduler", client.scheduler.address, "--split", "2"]
+        assert cli.main(argv) == 0
+        bh.assert_close_images(bh.images(tmp_path / mode / "split"), bh.images(tmp_path / mode / "one"), mode)
+
+
+def test_a_worker_killed_mid_frame_loses_nothing(tmp_path, split_volume, client):
+    """The worker rendering a share is killed outright while it renders: the scheduler runs the share again on
+    the other worker (and the nanny starts a new one), and every frame is whole."""
+    angles = [0.0, 40.0]
+    bh.render_split(split_volume, tmp_path / "one" / "v_#.exr", "SHADED", angles=angles)
+    killed = []
+
+    def kill_a_worker_rendering_a_share():
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            for address, keys in client.processing().items():
+                if any(str(key).startswith("pcvr-share-") for key in keys):
+                    pid = client.run(os.getpid, workers=[address]).get(address)
+                    if pid:
+                        os.kill(pid, signal.SIGKILL)
+                        killed.append(pid)
+                        return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_a_worker_rendering_a_share)
+    killer.start()
+    document = bh.render_split(split_volume, tmp_path / "split" / "v_#.exr", "SHADED", split=2, client=client,
+                               angles=angles)
+    killer.join()
+    assert killed, "no share was seen running"
+    assert document["counts"] == {"rendered": len(angles)}
+    bh.assert_close_images(bh.images(tmp_path / "split"), bh.images(tmp_path / "one"), "SHADED")
+    deadline = time.monotonic() + 60
+    while len(client.run(os.getpid)) < 2:  # the nanny replaced the killed worker
+        assert time.monotonic() < deadline, "the killed worker was not replaced"
+        time.sleep(0.2)
+    assert killed[0] not in client.run(os.getpid).values()
