@@ -20,6 +20,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
+#include "pcvr/stride.h"
 #include "shaded/classify/shaded_levels.h"
 
 namespace pcvr {
@@ -59,6 +60,20 @@ int brick_margin(const GridStream& stream, const Camera& camera, const ShadedPar
     const double node = std::max(1.0, std::max(params.stride, 1) / least);
     const double sheets = (mip ? 1.0 : 2.0) * std::max(1.0, params.sheet_spacing);
     return int(std::ceil(radius + sheets + (mip ? 2.0 : 3.0) * node));
+}
+
+/// `params` with the sheets sampled or splatted as the grid read whole would choose them ("auto": shaded.cpp
+/// samples every sheet of a grid where some block splats at stride 1 and its lattice takes at most a quarter of
+/// the memory available), where a brick alone might choose otherwise: its own lattice always fits, and its
+/// finest stride may not be 1.
+ShadedParams bricks_fill_sheets_as_whole(const GridStream& stream, const Camera& camera, const ShadedParams& params) {
+    ShadedParams chosen = params;
+    if (params.sheet_fill != SheetFill::Automatic) return chosen;
+    const auto least = corner_pixels_per_voxel(stream.index_bbox(), stream.index_to_world(), camera, VoxelAxis::LeastMagnified);
+    const bool finest_one = params.stride > 0 ? params.stride == 1 : least && automatic_stride(least->first) == 1;
+    const bool fits = PrefilteredLattice::elements(stream.index_bbox()) * sizeof(float) <= default_memory_limit() / 4;
+    chosen.sheet_fill = finest_one && fits ? SheetFill::Sample : SheetFill::Splat;
+    return chosen;
 }
 
 /// `part`'s counts added into `total`.
@@ -139,12 +154,7 @@ void render_bricks(const GridStream& stream, const ShadedVolume& volume, const C
         throw InvalidArgument(function + ": " + named(stream) + ": memory_limit leaves " + std::to_string(budget) +
                               " bytes for a brick's values, too few for 16^3 voxels and the " + std::to_string(margin) +
                               " voxels around them that its kernels reach; raise memory_limit");
-    // Sampled sheets or splatted ones as the grid read whole would choose (shaded.cpp samples a grid whose
-    // lattice takes at most a quarter of the memory available): a brick's own lattice always fits.
-    ShadedParams brick_params = params;
-    if (params.sheet_fill == SheetFill::Automatic &&
-        PrefilteredLattice::elements(stream.index_bbox()) * sizeof(float) > default_memory_limit() / 4)
-        brick_params.sheet_fill = SheetFill::Splat;
+    const ShadedParams brick_params = bricks_fill_sheets_as_whole(stream, camera, params);
     const std::vector<Brick> bricks = cut_into_bricks(boxes, side, margin);
     const std::vector<size_t> order = visibility_order(bricks, side, camera, stream.index_to_world());
     const size_t first = order.size() * bricked.share / bricked.shares, last = order.size() * (bricked.share + 1) / bricked.shares;
