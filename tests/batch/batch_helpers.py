@@ -69,3 +69,38 @@ def assert_close_images(first, second, mode):
         a, b = first[name][..., :4], second[name][..., :4]
         assert a[..., 3].max() > 0.5, name  # the volume shows
         np.testing.assert_allclose(a, b, rtol=0, atol=0 if mode == "MIP" else 1e-5, err_msg=name)
+
+
+def kill_worker_when(victim, seconds=120):
+    """A started thread that kills, outright (SIGKILL, as a machine lost), the worker process whose pid `victim()`
+    returns, polling it until it returns one; the thread's `killed` lists the pid. (A thread of its own: bpy, which
+    the batch uses while planning, must stay on the main thread.)"""
+    import signal
+    import threading
+    import time
+
+    def watch():
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            pid = victim()
+            if pid:
+                os.kill(pid, signal.SIGKILL)
+                thread.killed.append(pid)
+                return
+            time.sleep(0.005)
+
+    thread = threading.Thread(target=watch)
+    thread.killed = []
+    thread.start()
+    return thread
+
+
+def wait_for_replacement(client, victim, workers=2, seconds=60):
+    """Wait until the cluster has `workers` workers again, none of them the killed process `victim`."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while len(client.run(os.getpid)) < workers:
+        assert time.monotonic() < deadline, "the killed worker was not replaced"
+        time.sleep(0.2)
+    assert victim not in client.run(os.getpid).values()

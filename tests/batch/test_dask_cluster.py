@@ -3,9 +3,6 @@ killed mid-run, an X-ray of a volume split over both workers, and frames split o
 a worker killed mid-frame included."""
 
 import os
-import signal
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -55,25 +52,16 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client
     assert status == 0
     output = tmp_path / "cluster"
     victim = next(iter(client.run(os.getpid).values()))
-    killed_after = []
+    written = []
 
-    def kill_once_an_image_is_there():
-        # As a machine lost would be: the worker process killed outright. (A thread of its own: bpy, which
-        # the batch uses while planning, must stay on the main thread.)
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            written = sum(name.endswith(".exr") for name in os.listdir(output)) if output.is_dir() else 0
-            if written:
-                os.kill(victim, signal.SIGKILL)
-                killed_after.append(written)
-                return
-            time.sleep(0.005)
+    def once_an_image_is_there():
+        written.append(sum(name.endswith(".exr") for name in os.listdir(output)) if output.is_dir() else 0)
+        return victim if written[-1] else None
 
-    killer = threading.Thread(target=kill_once_an_image_is_there)
-    killer.start()
+    killer = bh.kill_worker_when(once_an_image_is_there)
     finished = [bh.render(sequence / "smoke_0001.vdb", output / "v_##.exr", angles=angles, client=client)]
     killer.join()
-    assert killed_after and killed_after[0] < len(angles)  # so the kill came mid-run
+    assert killer.killed and written[-1] < len(angles)  # so the kill came mid-run
     status, printed = finished[0]
     assert status == 0, printed
     bh.assert_same_images(bh.images(output), bh.images(tmp_path / "reference"))
@@ -82,11 +70,7 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client
     assert set(counts) <= {"rendered", "kept"} and sum(counts.values()) == len(angles)
     assert [name for name in os.listdir(output) if name.startswith(".")] == []  # no temporaries left
     # The nanny restarts the worker, which can import the renderer (it starts with this process's sys.path).
-    deadline = time.monotonic() + 60
-    while len(client.run(os.getpid)) < 2:
-        assert time.monotonic() < deadline, "the killed worker was not replaced"
-        time.sleep(0.2)
-    assert victim not in client.run(os.getpid).values()
+    bh.wait_for_replacement(client, victim)
     assert set(client.run(_imports_renderer).values()) == {True}
 
 
@@ -164,30 +148,19 @@ def test_a_worker_killed_mid_frame_loses_nothing(tmp_path, split_volume, client)
     the other worker (and the nanny starts a new one), and every frame is whole."""
     angles = [0.0, 40.0]
     bh.render_split(split_volume, tmp_path / "one" / "v_#.exr", "SHADED", angles=angles)
-    killed = []
 
-    def kill_a_worker_rendering_a_share():
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            for address, keys in client.processing().items():
-                if any(str(key).startswith("pcvr-share-") for key in keys):
-                    pid = client.run(os.getpid, workers=[address]).get(address)
-                    if pid:
-                        os.kill(pid, signal.SIGKILL)
-                        killed.append(pid)
-                        return
-            time.sleep(0.01)
+    def a_worker_rendering_a_share():
+        for address, keys in client.processing().items():
+            if any(str(key).startswith("pcvr-share-") for key in keys):
+                return client.run(os.getpid, workers=[address]).get(address)
+        return None
 
-    killer = threading.Thread(target=kill_a_worker_rendering_a_share)
-    killer.start()
+    killer = bh.kill_worker_when(a_worker_rendering_a_share)
     document = bh.render_split(split_volume, tmp_path / "split" / "v_#.exr", "SHADED", split=2, client=client,
                                angles=angles)
     killer.join()
+    killed = killer.killed
     assert killed, "no share was seen running"
     assert document["counts"] == {"rendered": len(angles)}
     bh.assert_close_images(bh.images(tmp_path / "split"), bh.images(tmp_path / "one"), "SHADED")
-    deadline = time.monotonic() + 60
-    while len(client.run(os.getpid)) < 2:  # the nanny replaced the killed worker
-        assert time.monotonic() < deadline, "the killed worker was not replaced"
-        time.sleep(0.2)
-    assert killed[0] not in client.run(os.getpid).values()
+    bh.wait_for_replacement(client, killed[0])

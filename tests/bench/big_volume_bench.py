@@ -33,12 +33,11 @@ import numpy as np
 
 MiB = 1 << 20
 
-CHILD = r"""
+# Both children: open argv[1] with pcvr_native.<argv[2]> (read_vdb, stream_vdb), measuring memory and time.
+OPEN_IN_CHILD = r"""
 import json, sys, time
 import numpy as np
 import pcvr_native as pn
-
-path, opener, limit, magnification, renders = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 
 def resident():
     return int(open('/proc/self/statm').read().split()[1]) * 4096
@@ -48,9 +47,13 @@ def peak():
 
 before = resident()
 start = time.perf_counter()
-grid = getattr(pn, opener)(path)
+grid = getattr(pn, sys.argv[2])(sys.argv[1])
 opened_s = time.perf_counter() - start
 opened = resident()
+"""
+
+CHILD = OPEN_IN_CHILD + r"""
+limit, magnification, renders = int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 n = grid.index_bbox[1][0] + 1
 # Orthographic, looking down the k axis of the box: `magnification` pixels per voxel.
 side = max(8, round(n * magnification))
@@ -73,25 +76,10 @@ print(json.dumps({"open_bytes": opened - before, "open_s": opened_s, "render_pea
 
 
 # Shaded and MIP of a CT-like volume, read whole or streamed in bricks: argv path, opener, limit, mode, output .npy.
-SHADED_CHILD = r"""
-import json, sys, time
-import numpy as np
-import pcvr_native as pn
+SHADED_CHILD = OPEN_IN_CHILD + r"""
 from pcvr_native import cameras
 
-path, opener, limit, mode, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
-
-def resident():
-    return int(open('/proc/self/statm').read().split()[1]) * 4096
-
-def peak():
-    return next(int(line.split()[1]) * 1024 for line in open('/proc/self/status') if line.startswith('VmHWM'))
-
-before = resident()
-start = time.perf_counter()
-grid = getattr(pn, opener)(path)
-opened_s = time.perf_counter() - start
-opened = resident()
+limit, mode, out = int(sys.argv[3]), sys.argv[4], sys.argv[5]
 (i0, j0, k0), (i1, j1, k1) = grid.index_bbox
 centre = np.array([(i0 + i1) / 2, (j0 + j1) / 2, (k0 + k1) / 2])
 radius = 0.5 * float(np.linalg.norm([i1 - i0, j1 - j0, k1 - k0])) + 4

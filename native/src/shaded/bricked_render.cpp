@@ -76,44 +76,29 @@ ShadedParams bricks_fill_sheets_as_whole(const GridStream& stream, const Camera&
     return chosen;
 }
 
-/// `part`'s counts added into `total`.
+/// `part`'s counts and thread seconds added into `total`, its extremes and lists merged.
 void accumulate(ShadedStats& total, const ShadedStats& part) {
-    total.blocks_total += part.blocks_total;
-    total.blocks_outside += part.blocks_outside;
-    total.blocks_clipped += part.blocks_clipped;
-    total.blocks_transparent += part.blocks_transparent;
-    total.bricks_transparent += part.bricks_transparent;
-    total.voxels_transparent += part.voxels_transparent;
-    total.blocks_listed += part.blocks_listed;
-    total.blocks_linearised += part.blocks_linearised;
-    total.sheets_in_voxel_metric = total.sheets_in_voxel_metric || part.sheets_in_voxel_metric;
-    total.voxels_splatted += part.voxels_splatted;
-    total.voxels_occluded += part.voxels_occluded;
-    total.taps += part.taps;
-    total.samples_classified += part.samples_classified;
-    total.samples_shaded += part.samples_shaded;
-    total.sheets = std::max(total.sheets, part.sheets);
-    total.tiles += part.tiles;
-    total.tile_size = std::max(total.tile_size, part.tile_size);
-    total.tiles_terminated += part.tiles_terminated;
-    total.tile_sheets_composited += part.tile_sheets_composited;
-    total.tile_sheets_skipped += part.tile_sheets_skipped;
-    total.grids_sampled = std::max(total.grids_sampled, part.grids_sampled);
-    total.sheet_samples += part.sheet_samples;
-    total.sheet_samples_skipped += part.sheet_samples_skipped;
+    for (uint64_t ShadedStats::*count :
+         {&ShadedStats::blocks_total, &ShadedStats::blocks_outside, &ShadedStats::blocks_clipped, &ShadedStats::blocks_transparent,
+          &ShadedStats::bricks_transparent, &ShadedStats::voxels_transparent, &ShadedStats::blocks_listed,
+          &ShadedStats::blocks_linearised, &ShadedStats::voxels_splatted, &ShadedStats::voxels_occluded, &ShadedStats::taps,
+          &ShadedStats::samples_classified, &ShadedStats::samples_shaded, &ShadedStats::tiles, &ShadedStats::tiles_terminated,
+          &ShadedStats::tile_sheets_composited, &ShadedStats::tile_sheets_skipped, &ShadedStats::sheet_samples,
+          &ShadedStats::sheet_samples_skipped, &ShadedStats::preintegration_tables_built})
+        total.*count += part.*count;
+    for (uint64_t ShadedStats::*most : {&ShadedStats::sheets, &ShadedStats::grids_sampled, &ShadedStats::preintegration_table_bytes})
+        total.*most = std::max(total.*most, part.*most);
+    for (double ShadedStats::*seconds : {&ShadedStats::seconds_plan, &ShadedStats::seconds_splat, &ShadedStats::seconds_post_convolution,
+                                         &ShadedStats::seconds_sampling, &ShadedStats::seconds_shading})
+        total.*seconds += part.*seconds;
     for (auto [into, from] : {std::pair{&total.sampled_strides, &part.sampled_strides}, std::pair{&total.strides, &part.strides}}) {
         for (int stride : *from)
             if (std::find(into->begin(), into->end(), stride) == into->end()) into->push_back(stride);
         std::sort(into->begin(), into->end());
     }
-    total.seconds_plan += part.seconds_plan;
-    total.seconds_splat += part.seconds_splat;
-    total.seconds_post_convolution += part.seconds_post_convolution;
-    total.seconds_sampling += part.seconds_sampling;
-    total.seconds_shading += part.seconds_shading;
+    total.sheets_in_voxel_metric = total.sheets_in_voxel_metric || part.sheets_in_voxel_metric;
+    total.tile_size = std::max(total.tile_size, part.tile_size);
     if (part.classification != "none" || total.classification.empty()) total.classification = part.classification;
-    total.preintegration_tables_built += part.preintegration_tables_built;
-    total.preintegration_table_bytes = std::max(total.preintegration_table_bytes, part.preintegration_table_bytes);
 }
 
 /// The level a stream renders from: ShadedParams::level, or for "auto" as LevelledVolumes chooses for the
