@@ -44,7 +44,7 @@ def run(quick, log):
                 options = {"mode": mode, "stream_above": stream_above, "magnification": 1.0}
                 for where, on, split in (("one process", None, 1), ("2 workers, --split 2", client, 2)):
                     log(f"split frame: {mode} {where}")
-                    bh.render(path, Path(work) / "warm" / f"{mode}_{split}.exr", angles=[0.0], options=options,
+                    bh.render(path, Path(work) / "warm" / f"{mode}_{split}_#.exr", angles=[0.0], options=options,
                               client=on, split=split)  # workers import bpy and read the topology once
                     output = Path(work) / mode / f"{split}" / "f_#.exr"
                     start = time.perf_counter()
