@@ -145,6 +145,8 @@ def test_what_needs_the_whole_grid_is_refused_by_name(ct_file):
         pn.render_mip(pn.read_vdb(ct_file), cam, memory_limit=LIMIT)
     with pytest.raises(ValueError, match="brick_share"):
         pn.render_mip(stream, cam, brick_share=(3, 3))
+    with pytest.raises(ValueError, match="with_batches.*brick_share"):
+        pn.render_mip(stream.with_batches([0], 1 << 20), cam)
 
 
 def test_a_coarse_level_of_a_stream_renders_whole(ct_file):

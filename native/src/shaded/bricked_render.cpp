@@ -161,6 +161,9 @@ void render_bricks(const GridStream& stream, const ShadedVolume& volume, const C
 }
 
 void check_share(const GridStream& stream, const BrickedParams& bricked, const std::string& function) {
+    if (!stream.only_batches().empty())
+        throw InvalidArgument(function + ": " + named(stream) + " is restricted to some of its batches (with_batches), which "
+                              "splits an X-ray; shaded and MIP split a frame with brick_share");
     if (bricked.shares == 0 || bricked.share >= bricked.shares)
         throw InvalidArgument(function + ": " + named(stream) + ": share " + std::to_string(bricked.share) + " of " +
                               std::to_string(bricked.shares) + " bricks' shares does not exist (shares count from 0)");
