@@ -3,7 +3,9 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/optional.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
 
 #include <array>
 #include <optional>
@@ -20,6 +22,14 @@ using namespace nb::literals;
 #define SHADOW_DOC                                                                                        \
     "shadow: None (render_shaded's `shadows` decides), True or False (this light casts shadows or not,\n" \
     "whatever render_shaded says)."
+
+#define BRICKS_DOC                                                                                                \
+    "A GridStream (stream_vdb) renders in bricks of voxels whose values take at most half of memory_limit\n"     \
+    "(None: 64 MiB a brick), each read from the file with the margin its kernels reach, front to back; the\n"    \
+    "image equals the grid's read whole to within float rounding (stats['batches']: bricks read,\n"           \
+    "stats['memory_bytes']: the most values one held). Not with shadows, ambient occlusion, albedo_grids or\n"  \
+    "method 'raycast'. brick_share=(k, n): only share k of n of the bricks in visibility order; the shares'\n"   \
+    "images composited front to back in k's order (over; MIP: maximum) make the whole image."
 
 namespace pcvr::python {
 
@@ -124,17 +134,53 @@ TransferFunction make_transfer_function(nb::handle density, nb::handle rgba, std
 /// The common arguments of render_shaded and render_mip.
 struct CallParts {
     std::vector<Grid> grids;
+    std::shared_ptr<GridStream> stream;  ///< instead of grids: rendered in bricks
+    BrickedParams bricked;
     std::vector<double> scales;
     ShadedParams params;
+
+    size_t count() const { return stream ? 1 : grids.size(); }
+    const Grid* grid(size_t i) const { return stream ? nullptr : &grids[i]; }
 };
+
+/// A GridStream's memory_limit (None: the default batch) and brick_share ((k, n): share k of n), refused for Grids.
+void bricked_from_python(CallParts& parts, nb::handle memory_limit, nb::handle brick_share, const char* function) {
+    const std::string name(function);
+    if (!parts.stream && (!memory_limit.is_none() || !brick_share.is_none()))
+        throw InvalidArgument(name + ": memory_limit and brick_share are for a GridStream (stream_vdb); Grids are in memory already");
+    if (!memory_limit.is_none()) {
+        const int64_t bytes = nb::cast<int64_t>(memory_limit);
+        if (bytes <= 0) throw InvalidArgument(name + ": memory_limit must be a positive number of bytes, or None");
+        parts.bricked.memory_limit = uint64_t(bytes);
+    }
+    if (!brick_share.is_none()) {
+        const std::vector<int64_t> share = nb::cast<std::vector<int64_t>>(brick_share);
+        if (share.size() != 2 || share[0] < 0 || share[1] < 1 || share[0] >= share[1])
+            throw InvalidArgument(name + ": brick_share must be (k, n) with 0 <= k < n");
+        parts.bricked.share = size_t(share[0]), parts.bricked.shares = size_t(share[1]);
+    }
+}
 
 CallParts call_parts(nb::handle grid_arg, nb::handle density_scale, const char* function, const std::string& method,
                      const std::string& splat_kernel, const std::string& post_filter, int stride, double sheet_spacing,
                      double opacity_cutoff, int threads, int tile_size, int pixel_step, int samples_per_sheet, bool cull_transparent,
                      nb::handle level) {
     CallParts parts;
-    parts.grids = grids_from_python(grid_arg, function);
-    parts.scales = scales_from_python(density_scale, parts.grids.size(), function);
+    nb::handle only = grid_arg;
+    if (!nb::isinstance<GridStream>(grid_arg) && !nb::isinstance<Grid>(grid_arg) && nb::hasattr(grid_arg, "__len__") &&
+        nb::len(grid_arg) == 1)
+        only = grid_arg[0];  // [stream]
+    if (nb::isinstance<GridStream>(only)) {
+        parts.stream = nb::cast<std::shared_ptr<GridStream>>(only);
+    } else if (!nb::isinstance<Grid>(grid_arg)) {
+        for (nb::handle item : grid_sequence(grid_arg, function))
+            if (nb::isinstance<GridStream>(item))
+                throw nb::type_error((std::string(function) + ": a GridStream renders alone, in bricks, not with other grids").c_str());
+        parts.grids = grids_from_python(grid_arg, function);
+    } else {
+        parts.grids = grids_from_python(grid_arg, function);
+    }
+    parts.scales = scales_from_python(density_scale, parts.count(), function);
     ShadedParams& p = parts.params;
     p.method = shaded_method_from_name(method);
     p.splat_kernel = splat_kernel;
@@ -220,6 +266,8 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["preintegration_table_bytes"] = s.preintegration_table_bytes;
     stats["shadow_texels"] = s.shadow_texels;
     stats["seconds_shadows"] = s.seconds_shadows;
+    stats["batches"] = s.batches;
+    stats["memory_bytes"] = s.memory_bytes;
 }
 
 template <class Image>
@@ -239,16 +287,17 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
                             nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids,
-                            const std::string& sheet_fill, const std::string& classification) {
+                            const std::string& sheet_fill, const std::string& classification, nb::handle memory_limit,
+                            nb::handle brick_share) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
     std::vector<TransferFunction> tfs;
     if (nb::isinstance<TransferFunction>(transfer_functions)) {
-        tfs.assign(parts.grids.size(), nb::cast<TransferFunction>(transfer_functions));
+        tfs.assign(parts.count(), nb::cast<TransferFunction>(transfer_functions));
     } else {
         for (nb::handle item : transfer_functions) tfs.push_back(nb::cast<TransferFunction>(item));
-        if (tfs.size() != parts.grids.size())
+        if (tfs.size() != parts.count())
             throw nb::value_error("render_shaded: transfer_functions must be one TransferFunction or one per grid");
     }
     Lighting lighting;
@@ -263,14 +312,15 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
         lighting.material = nb::cast<Shading>(shading);
     } else {
         for (nb::handle item : shading) materials.push_back(nb::cast<Shading>(item));
-        if (materials.size() != parts.grids.size())
+        if (materials.size() != parts.count())
             throw nb::value_error("render_shaded: shading must be one Shading or one per grid");
     }
 
-    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.grids.size(), "render_shaded");
+    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.count(), "render_shaded");
+    bricked_from_python(parts, memory_limit, brick_share, "render_shaded");
     std::vector<ShadedVolume> volumes;
-    for (size_t i = 0; i < parts.grids.size(); ++i)
-        volumes.push_back({&parts.grids[i], &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i], &clips[i]});
+    for (size_t i = 0; i < parts.count(); ++i)
+        volumes.push_back({parts.grid(i), &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i], &clips[i]});
     std::vector<Grid> albedo;
     albedo_grids_from_python(albedo_grids, volumes, albedo);
     RenderControl control;
@@ -281,7 +331,10 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     parts.params.shadows = *flag_from_python(shadows, "render_shaded: shadows", false);
     parts.params.sheet_fill = sheet_fill_from_name(sheet_fill);
     parts.params.classification = classification_from_name(classification);
-    run_polled([&] { image = render_shaded(volumes, camera, lighting, parts.params, control, &s); }, control, progress, cancel);
+    run_polled([&] {
+        image = parts.stream ? render_shaded(*parts.stream, volumes[0], camera, lighting, parts.params, parts.bricked, control, &s)
+                             : render_shaded(volumes, camera, lighting, parts.params, control, &s);
+    }, control, progress, cancel);
     fill_stats(stats, s);
     if (!return_depth) return image_to_numpy(std::move(image), 4);
     MipImage depth;
@@ -295,17 +348,21 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
 nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
                          const std::string& post_filter, int stride, double sheet_spacing, int threads, nb::handle progress,
                          nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                         nb::handle level, nb::handle clip_planes, nb::handle clip_box) {
+                         nb::handle level, nb::handle clip_planes, nb::handle clip_box, nb::handle memory_limit, nb::handle brick_share) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_mip", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false, level);
-    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.grids.size(), "render_mip");
+    const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.count(), "render_mip");
+    bricked_from_python(parts, memory_limit, brick_share, "render_mip");
     std::vector<ShadedVolume> volumes;
-    for (size_t i = 0; i < parts.grids.size(); ++i) volumes.push_back({&parts.grids[i], nullptr, parts.scales[i], nullptr, &clips[i]});
+    for (size_t i = 0; i < parts.count(); ++i) volumes.push_back({parts.grid(i), nullptr, parts.scales[i], nullptr, &clips[i]});
     RenderControl control;
     if (!cancel.is_none() && cancel_requested(cancel)) throw Cancelled("render cancelled before it started");
     MipImage image;
     ShadedStats s;
-    run_polled([&] { image = render_mip(volumes, camera, parts.params, control, &s); }, control, progress, cancel);
+    run_polled([&] {
+        image = parts.stream ? render_mip(*parts.stream, volumes[0], camera, parts.params, parts.bricked, control, &s)
+                             : render_mip(volumes, camera, parts.params, control, &s);
+    }, control, progress, cancel);
     fill_stats(stats, s);
     return image_to_numpy(std::move(image), 1);
 }
@@ -416,7 +473,7 @@ void bind_shaded(nb::module_& m) {
           "stats"_a = nb::none(), nb::kw_only(), "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1,
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
-          "sheet_fill"_a = "auto", "classification"_a = "auto",
+          "sheet_fill"_a = "auto", "classification"_a = "auto", "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(),
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -441,17 +498,17 @@ void bind_shaded(nb::module_& m) {
           "each stretch between consecutive samples by the transfer function's mean over its two ends' densities\n"
           "(Engel, Kraus and Ertl 2001: no rings where a sharp transfer function meets the sheets), from a table\n"
           "built once per TransferFunction and kept with it; 'auto' the measured better (stats['classification'],\n"
-          "stats['preintegration_tables_built'], stats['preintegration_table_bytes']). The ray caster samples points.");
+          "stats['preintegration_tables_built'], stats['preintegration_table_bytes']). The ray caster samples points.\n" BRICKS_DOC);
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
           "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1, "level"_a = 0, "clip_planes"_a = nb::none(),
-          "clip_box"_a = nb::none(),
+          "clip_box"_a = nb::none(), "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(),
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
           "reconstructed density along each ray, never below the largest grid background\n"
           "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.\n"
           "level: as in render_shaded, from levels of maxima (Grid.level(k, 'max_over_background')).\n" CLIP_DOC
-          " A sample counts where its point lies inside.");
+          " A sample counts where its point lies inside.\n" BRICKS_DOC);
 }
 
 }  // namespace pcvr::python

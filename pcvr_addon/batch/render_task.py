@@ -56,7 +56,10 @@ def render_task(planned_jobs, run_id, progress=None, prepare=None):
     return results
 
 
-def render_job(planned, run_id, prepare=prepared_scene.prepare):
+def render_job(planned, run_id, prepare=prepared_scene.prepare, rendered=None):
+    """Render and write one PlannedJob, its scene made by `prepare` (a Preparer shares one between jobs).
+    `rendered` (raw, stats): native results rendered elsewhere (the shares of a split frame, composited:
+    split_frame.py), which this finishes and writes."""
     import pcvr_native
 
     description = run_description(run_id, planned.index)
@@ -72,8 +75,11 @@ def render_job(planned, run_id, prepare=prepared_scene.prepare):
             # --skip-existing then renders it again once its files are there.
             return JobResult(planned.index, output, "failed", time.perf_counter() - start,
                              errors=list(prepared.errors), worker=worker)
-        stats = {}
-        raw = native_render.render_raw(prepared, planned.view, stats=stats)
+        if rendered is None:
+            stats = {}
+            raw = native_render.render_raw(prepared, planned.view, stats=stats)
+        else:
+            raw, stats = rendered
         pixels = passes.finish(prepared, planned.display, raw)
         directory = os.path.dirname(os.path.abspath(output))
         os.makedirs(directory, exist_ok=True)

@@ -19,7 +19,7 @@ from . import jobs as batch_jobs
 from . import manifest
 
 # The options this module adds to the render command (cli names); the others are the render's own.
-BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing")
+BATCH_OPTIONS = ("frames", "angles", "workers", "scheduler", "skip_existing", "split")
 NOT_RENDER_OPTIONS = {"command", "input", "output", *BATCH_OPTIONS}
 MiB = 1 << 20
 
@@ -34,6 +34,8 @@ def add_arguments(render):
     group.add_argument("--workers", type=int, metavar="N", help="render on a local Dask cluster of N processes")
     group.add_argument("--scheduler", metavar="ADDRESS", help="render on a running Dask cluster, e.g. tcp://head:8786")
     group.add_argument("--skip-existing", action="store_true", help="render only the images not there yet")
+    group.add_argument("--split", type=int, metavar="N", help="render each frame in N shares over the workers, its "
+                       "volumes above Stream Above cut into bricks (X-ray: batches) and composited in visibility order")
 
 
 def wants_batch(args):
@@ -47,6 +49,8 @@ def run(args, parser):
         parser.error("--workers starts a cluster, --scheduler joins one: give one of them")
     if args.workers is not None and args.workers < 1:
         parser.error("--workers needs at least 1")
+    if args.split is not None and args.split < 1:
+        parser.error("--split needs at least 1")
     try:
         jobs, manifest_file = _jobs(args, parser)
     except ValueError as ex:
@@ -70,7 +74,7 @@ def run(args, parser):
             print(f"pcvr: {ex}", file=sys.stderr)
             return 1
     try:
-        return render_batch(jobs, manifest_file, _render_defaults(parser), client, args.skip_existing)
+        return render_batch(jobs, manifest_file, _render_defaults(parser), client, args.skip_existing, split=args.split or 1)
     finally:
         if client is not None:
             dask_runner.close(client)
@@ -102,12 +106,13 @@ def _render_defaults(parser):
     return defaults
 
 
-def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False, stream=None, run_id=None):
+def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False, stream=None, run_id=None, split=1):
     """Render `jobs` (batch_jobs.Job) in this process, or on the Dask cluster of `client`, and write the
-    manifest to `manifest_file`. `defaults`: the render options the jobs do not set (cli's). Returns the exit
-    status: 0 when every image is there, 1 when one failed, 130 when interrupted."""
+    manifest to `manifest_file`. `defaults`: the render options the jobs do not set (cli's); `split`: shares of
+    each frame (split_frame.py). Returns the exit status: 0 when every image is there, 1 when one failed, 130
+    when interrupted."""
     from ..render import prepared_scene
-    from . import dask_runner, plan, render_task
+    from . import dask_runner, plan, render_task, split_frame
     from .progress import ProgressBar
 
     stream = stream or sys.stderr
@@ -134,7 +139,7 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
         # Every image streams the volumes above the same size (unless --stream-above says), a quarter of the
         # smallest worker's memory: the threshold is part of the render's settings, not of where it runs.
         stream_above = max(1, memory // 4 // MiB) if memory else 0
-        document.update(worker_count=worker_total, stream_above_mib=stream_above)
+        document.update(worker_count=worker_total, stream_above_mib=stream_above, split=split)
         planned = plan.plan(todo, defaults, stream_above)
         by_index = {p.index: p for p in planned}
         for p in planned:
@@ -143,7 +148,12 @@ def render_batch(jobs, manifest_file, defaults, client=None, skip_existing=False
         rendering = time.time()  # planned: the images' own time from here
         tasks = batch_jobs.in_groups(planned, dask_runner.task_size(len(planned), worker_total),
                                      key=lambda p: p.job.scene_key)
-        if client is None:
+        if split > 1 and client is None:
+            for planned_job in planned:
+                record([split_frame.render_here(planned_job, run_id, split)])
+        elif split > 1:
+            split_frame.run_split(client, planned, run_id, split, record)
+        elif client is None:
             prepare = prepared_scene.Preparer()  # shared by the tasks of this run, all in this process
             for task in tasks:
                 render_task.render_task(task, run_id, progress=lambda result: record([result]), prepare=prepare)

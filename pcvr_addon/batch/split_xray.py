@@ -9,21 +9,13 @@ returns one image per batch, and the images are added here in the same order, as
 single-process streamed render bit for bit, and no worker holds more than a batch of values (half of
 `memory_limit`) and its buffers.
 
-Shaded and MIP images are not sums and need every voxel of a pixel's ray at once: they are not split (a
-sort-last compositor of depth-ordered bricks would be the way; not done).
+Shaded and MIP images are not sums: a frame of those modes is split as bricks composited front to back
+(split_frame.py, the command line's --split).
 """
 
 import numpy as np
 
-# render_xray's batch size when neither the memory limit nor the stream says (GridStream::kDefaultBatchBytes).
-DEFAULT_BATCH_BYTES = 64 << 20
-
-
-def batch_bytes(stream, memory_limit=None):
-    """The bytes of values render_xray(stream, memory_limit=...) reads a batch at a time: half the limit, or
-    the default, or less where the stream asks for less (as streamed_xray.cpp chooses)."""
-    size = memory_limit // 2 if memory_limit else DEFAULT_BATCH_BYTES
-    return min(size, stream.batch_bytes) if stream.batch_bytes else size
+from ..render.prepared_scene import xray_batch_bytes as batch_bytes  # noqa: F401 (render_xray's batch size)
 
 
 def _camera_values(camera):

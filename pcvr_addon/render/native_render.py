@@ -43,15 +43,21 @@ def _level_argument(level):
 def _xray_integral(prepared, view, control, stats, level=None):
     import pcvr_native
 
-    if not prepared.volumes:
+    grids = prepared.xray_grids
+    # A share of a split frame leaves out the grids other shares render (None).
+    kept = [index for index, grid in enumerate(grids) if grid is not None]
+    if not kept:
         return _zeros(view)
     settings = prepared.inputs.xray
+    clip = {name: None if value is None else [value[index] for index in kept]
+            for name, value in prepared.clip_arguments.items()}
     return pcvr_native.render_xray(
-        prepared.xray_grids, native_camera(view),
+        [grids[index] for index in kept], native_camera(view),
         method=settings.method, splat_kernel=settings.splat_kernel, post_filter=settings.post_filter,
-        stride=settings.stride, passband=settings.passband, density_scale=prepared.density_scales, attenuation=prepared.xray_attenuation,
-        stats=stats, **prepared.clip_arguments, **_level_argument(level),
-        **control.arguments(prepared.inputs.threads))
+        stride=settings.stride, passband=settings.passband,
+        density_scale=[prepared.density_scales[index] for index in kept],
+        attenuation=[prepared.xray_attenuation[index] for index in kept],
+        stats=stats, **clip, **_level_argument(level), **control.arguments(prepared.inputs.threads))
 
 
 def _render_xray(prepared, view, control, stats, sheets, level):
@@ -62,14 +68,16 @@ def _render_shaded(prepared, view, control, stats, sheets, level):
     import pcvr_native
 
     with_depth = prepared.inputs.with_depth
-    if not prepared.volumes:
+    # A split frame's volume read whole renders in its first share only (batch.split_frame).
+    left_out = prepared.share and prepared.share[0] > 0 and not prepared.brick_arguments(prepared.grids[0])
+    if not prepared.volumes or left_out:
         nothing = np.full((view.height, view.width), np.inf, dtype=np.float32) if with_depth else None
         return {"rgba": _zeros(view, 4), "depth": nothing}
     transfer_functions, lights, ambient, shadings = prepared.lighting
     result = pcvr_native.render_shaded(
         prepared.grids, native_camera(view), transfer_functions, lights=lights, ambient=ambient, shading=shadings,
         stats=stats, density_scale=prepared.density_scales, albedo_grids=prepared.albedo_grids,
-        return_depth=with_depth, **prepared.clip_arguments,
+        return_depth=with_depth, **prepared.clip_arguments, **prepared.brick_arguments(prepared.grids[0]),
         **dataclasses.asdict(sheets), **_level_argument(level), **control.arguments(prepared.inputs.threads))
     rgba, depth = result if with_depth else (result, None)
     return {"rgba": rgba, "depth": depth}
@@ -84,6 +92,7 @@ def _render_mip(prepared, view, control, stats, sheets, level):
         maxima.append(pcvr_native.render_mip(
             volume.grid, native_camera(view), density_scale=volume.inputs.density_scale, stats=volume_stats,
             **volume.inputs.clipping.native_arguments(), **sheets.mip_arguments(), **_level_argument(level),
+            **prepared.brick_arguments(volume.grid),
             **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
         _add_stats(stats, volume_stats)
     return {"maxima": maxima, "shape": (view.height, view.width)}

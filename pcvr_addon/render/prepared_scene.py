@@ -112,6 +112,9 @@ class PreparedScene:
     errors: list = field(default_factory=list)    # volumes that could not be read, one message each
     lighting: tuple = ()                # shaded: (transfer functions, lights, ambient, Shading)
     warnings: list = field(default_factory=list)  # volumes rendered from a coarse level, one message each
+    # One frame over several processes (batch.split_frame): (k, n), this render's share k of n of each streamed
+    # volume's bricks (shaded, MIP) or batches (X-ray); None: all of them.
+    share: tuple | None = None
 
     @property
     def grids(self):
@@ -119,7 +122,39 @@ class PreparedScene:
 
     @property
     def xray_grids(self):
-        return [volume.xray_grid for volume in self.volumes]
+        """X-ray's grids; a share's streams restricted to their share of the batches of stream_memory_limit's size
+        (in-memory grids: share 0's, None in the others)."""
+        import pcvr_native
+
+        grids = [volume.xray_grid for volume in self.volumes]
+        if self.share is None:
+            return grids
+        part, parts = self.share
+        shared = []
+        for grid in grids:
+            if isinstance(grid, pcvr_native.GridStream):
+                size = xray_batch_bytes(grid, self.stream_memory_limit)
+                batches = _share_of(range(grid.batch_count(size)), part, parts)
+                shared.append(grid.with_batches(batches, size) if batches else None)
+            else:
+                shared.append(grid if part == 0 else None)
+        return shared
+
+    def brick_arguments(self, grid):
+        """render_shaded's and render_mip's memory_limit and brick_share for `grid`: a stream renders in bricks of
+        at most Stream Above's bytes of values; nothing for a Grid."""
+        import pcvr_native
+
+        if not isinstance(grid, pcvr_native.GridStream):
+            return {}
+        return {"memory_limit": self.stream_memory_limit, **({"brick_share": self.share} if self.share else {})}
+
+    @property
+    def stream_memory_limit(self):
+        """A streamed volume's memory limit: bricks (shaded, MIP) of at most Stream Above's bytes of values, and
+        a split frame's X-ray batches too."""
+        import pcvr_native
+        return 2 * (stream_threshold(self.inputs.stream_above_mib) or pcvr_native.default_memory_limit() // 4)
 
     @property
     def xray_attenuation(self):
@@ -150,6 +185,40 @@ class PreparedScene:
         """How many volumes are read from their files while rendering (X-ray of big volumes)."""
         import pcvr_native
         return sum(isinstance(volume.grid, pcvr_native.GridStream) for volume in self.volumes)
+
+
+# render_xray's batch size for a stream when no memory limit says (GridStream::kDefaultBatchBytes).
+DEFAULT_BATCH_BYTES = 64 << 20
+
+
+def xray_batch_bytes(stream, memory_limit=None):
+    """The bytes of values render_xray(stream, memory_limit=...) reads a batch at a time: half the limit, or
+    the default, or less where the stream asks for less (as streamed_xray.cpp chooses)."""
+    size = memory_limit // 2 if memory_limit else DEFAULT_BATCH_BYTES
+    return min(size, stream.batch_bytes) if stream.batch_bytes else size
+
+
+def _share_of(items, part, parts):
+    """Share `part` of `parts` of `items`: consecutive runs, as the native brick shares are cut."""
+    items = list(items)
+    return items[len(items) * part // parts:len(items) * (part + 1) // parts]
+
+
+def bricks_refused(inputs):
+    """Why shaded or MIP mode cannot render a streamed volume in bricks (render_shaded's GridStream), or None:
+    several volumes rendered together, shadows, ambient occlusion and Color Attributes need every voxel at once."""
+    if inputs.mode != 'SHADED':
+        return None  # MIP renders each volume alone
+    if sum(volume.has_grid for volume in inputs.volumes) > 1:
+        return "several volumes shade together"
+    if inputs.sheets is not None and inputs.sheets.shadows:
+        return "shadows need every voxel at once"
+    for volume in inputs.volumes:
+        if volume.material is not None and volume.material[-1]:
+            return "ambient occlusion needs every voxel at once"
+        if volume.medium is not None and volume.medium.colour_grid:
+            return "a Color Attribute needs every voxel at once"
+    return None
 
 
 # The levels shaded and MIP modes draw a streamed volume from: means over the background (what they reconstruct
@@ -202,6 +271,7 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
 
     loaded, errors, warnings = [], [], []
     stream_above = stream_threshold(inputs.stream_above_mib)
+    refused = bricks_refused(inputs) if inputs.mode in LEVEL_REDUCTIONS else None
     for index, volume in enumerate(inputs.volumes):
         if cancelled():
             break
@@ -212,13 +282,14 @@ def prepare(inputs, cancelled=lambda: False, reading=lambda name: None):
         try:
             grid = _grid(volume, stream_above)
             stream, level = None, 0
-            if isinstance(grid, pcvr_native.GridStream) and inputs.mode in LEVEL_REDUCTIONS:
-                # Shaded and MIP need every voxel at once: the finest level that fits stands in for the volume.
+            if isinstance(grid, pcvr_native.GridStream) and refused:
+                # Bricks cannot serve: the finest level that fits stands in for the volume (otherwise shaded and
+                # MIP render the stream at full resolution, a brick at a time).
                 stream, level = grid, fitting_level(grid.value_bytes, stream_above)
                 grid = stream.level(level, LEVEL_REDUCTIONS[inputs.mode])
                 warnings.append(f"Volume object '{volume.name}': {stream.value_bytes / MiB:,.0f} MiB of voxels, more "
-                                f"than Stream Above: rendered from level {level} of detail (1/{2 ** level} of its "
-                                "resolution)")
+                                f"than Stream Above, and {refused}: rendered from level {level} of detail "
+                                f"(1/{2 ** level} of its resolution)")
         except (OSError, ValueError, RuntimeError, MemoryError) as ex:
             errors.append(f"Volume object '{volume.name}': {ex}")
             continue

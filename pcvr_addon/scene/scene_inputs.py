@@ -123,7 +123,8 @@ class RenderInputs:
     world: tuple = (0.0, 0.0, 0.0)     # shaded mode: the ambient light
     with_depth: bool = False           # shaded mode with the Depth pass
     # Volumes of more MiB than this are streamed from their files (0: above a quarter of the memory
-    # available; None: never): X-ray reads them a part at a time, shaded and MIP draw a coarser level.
+    # available; None: never): X-ray reads them a part at a time, shaded and MIP in bricks (or a coarser level
+    # where bricks cannot serve: render.prepared_scene.bricks_refused).
     stream_above_mib: int | None = None
     centimetres_per_unit: float = 100.0  # the scene's length unit (attenuation is per unit length)
 

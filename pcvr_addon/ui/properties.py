@@ -203,8 +203,10 @@ class PCVRSceneSettings(DatablockSettings, bpy.types.PropertyGroup):
     stream_above: IntProperty(
         name="Stream Above",
         description="Volumes whose voxels take more than this many MiB are not read whole: X-ray reads them from "
-                    "their files a part at a time while rendering, shaded and maximum intensity render the finest "
-                    "level of detail that fits (0: above a quarter of the memory available)",
+                    "their files a part at a time while rendering, shaded and maximum intensity in bricks of at most "
+                    "this many MiB composited front to back (the finest level of detail that fits where shadows, "
+                    "ambient occlusion, a Color Attribute or several shaded volumes need every voxel at once; 0: "
+                    "above a quarter of the memory available)",
         min=0, soft_max=65536,
         default=0,
         update=tag_changed,

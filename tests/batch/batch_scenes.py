@@ -30,3 +30,13 @@ def write_sequence(directory, frames, size=SIZE, name="smoke_{:04d}.vdb"):
         pn.Grid.from_dense(blob(frame, size), np.diag([0.1, 0.1, 0.1, 1.0])).write_vdb(path)
         paths.append(path)
     return paths
+
+
+def write_split_volume(path):
+    """Smooth blobs over 160 x 160 x 32 voxels (four 128^3 regions, every voxel active, 3.1 MiB of values): a
+    volume that --split cuts into bricks and batches."""
+    i, j, k = np.meshgrid(np.arange(160), np.arange(160), np.arange(32), indexing="ij", sparse=True)
+    values = 0.05 + sum(np.exp(-((i - ci) ** 2 + (j - cj) ** 2 + (k - ck) ** 2) / (2 * s ** 2))
+                        for ci, cj, ck, s in [(50, 60, 14, 20), (110, 100, 18, 25), (80, 30, 16, 10)])
+    pn.Grid.from_dense(values.astype(np.float32), np.diag([0.1, 0.1, 0.1, 1.0])).write_vdb(str(path))
+    return path

@@ -1,10 +1,8 @@
 """A real local Dask cluster of 2 worker processes: sequences and view sweeps equal to one process, a worker
-killed mid-run, and an X-ray of a volume split over both workers."""
+killed mid-run, an X-ray of a volume split over both workers, and frames split over them (--split) in every mode,
+a worker killed mid-frame included."""
 
 import os
-import signal
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -54,25 +52,16 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client
     assert status == 0
     output = tmp_path / "cluster"
     victim = next(iter(client.run(os.getpid).values()))
-    killed_after = []
+    written = []
 
-    def kill_once_an_image_is_there():
-        # As a machine lost would be: the worker process killed outright. (A thread of its own: bpy, which
-        # the batch uses while planning, must stay on the main thread.)
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            written = sum(name.endswith(".exr") for name in os.listdir(output)) if output.is_dir() else 0
-            if written:
-                os.kill(victim, signal.SIGKILL)
-                killed_after.append(written)
-                return
-            time.sleep(0.005)
+    def once_an_image_is_there():
+        written.append(sum(name.endswith(".exr") for name in os.listdir(output)) if output.is_dir() else 0)
+        return victim if written[-1] else None
 
-    killer = threading.Thread(target=kill_once_an_image_is_there)
-    killer.start()
+    killer = bh.kill_worker_when(once_an_image_is_there)
     finished = [bh.render(sequence / "smoke_0001.vdb", output / "v_##.exr", angles=angles, client=client)]
     killer.join()
-    assert killed_after and killed_after[0] < len(angles)  # so the kill came mid-run
+    assert killer.killed and written[-1] < len(angles)  # so the kill came mid-run
     status, printed = finished[0]
     assert status == 0, printed
     bh.assert_same_images(bh.images(output), bh.images(tmp_path / "reference"))
@@ -81,11 +70,7 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(tmp_path, sequence, client
     assert set(counts) <= {"rendered", "kept"} and sum(counts.values()) == len(angles)
     assert [name for name in os.listdir(output) if name.startswith(".")] == []  # no temporaries left
     # The nanny restarts the worker, which can import the renderer (it starts with this process's sys.path).
-    deadline = time.monotonic() + 60
-    while len(client.run(os.getpid)) < 2:
-        assert time.monotonic() < deadline, "the killed worker was not replaced"
-        time.sleep(0.2)
-    assert victim not in client.run(os.getpid).values()
+    bh.wait_for_replacement(client, victim)
     assert set(client.run(_imports_renderer).values()) == {True}
 
 
@@ -139,3 +124,43 @@ def _worker_info(client):
     import socket
     pids = client.run(os.getpid)
     return [{"host": socket.gethostname(), "pid": pid} for pid in pids.values()]
+
+
+@pytest.fixture(scope="module")
+def split_volume(tmp_path_factory):
+    return batch_scenes.write_split_volume(tmp_path_factory.mktemp("split") / "blobs.vdb")
+
+
+def test_two_workers_split_every_mode_as_one_process(tmp_path, split_volume, client):
+    from pcvr_addon.cli import main as cli
+
+    for mode in ("XRAY", "SHADED", "MIP"):
+        bh.render_split(split_volume, tmp_path / mode / "one" / "f_#.exr", mode)
+        argv = ["render", str(split_volume), "-o", str(tmp_path / mode / "split" / "f_#.exr"), "--angles", "20:21:1",
+                "--mode", mode.lower(), "--stream-above", "1", "--opacity-cutoff", "1", "--magnification", "0.5",
+                "--scheduler", client.scheduler.address, "--split", "2"]
+        assert cli.main(argv) == 0
+        bh.assert_close_images(bh.images(tmp_path / mode / "split"), bh.images(tmp_path / mode / "one"), mode)
+
+
+def test_a_worker_killed_mid_frame_loses_nothing(tmp_path, split_volume, client):
+    """The worker rendering a share is killed outright while it renders: the scheduler runs the share again on
+    the other worker (and the nanny starts a new one), and every frame is whole."""
+    angles = [0.0, 40.0]
+    bh.render_split(split_volume, tmp_path / "one" / "v_#.exr", "SHADED", angles=angles)
+
+    def a_worker_rendering_a_share():
+        for address, keys in client.processing().items():
+            if any(str(key).startswith("pcvr-share-") for key in keys):
+                return client.run(os.getpid, workers=[address]).get(address)
+        return None
+
+    killer = bh.kill_worker_when(a_worker_rendering_a_share)
+    document = bh.render_split(split_volume, tmp_path / "split" / "v_#.exr", "SHADED", split=2, client=client,
+                               angles=angles)
+    killer.join()
+    killed = killer.killed
+    assert killed, "no share was seen running"
+    assert document["counts"] == {"rendered": len(angles)}
+    bh.assert_close_images(bh.images(tmp_path / "split"), bh.images(tmp_path / "one"), "SHADED")
+    bh.wait_for_replacement(client, killed[0])

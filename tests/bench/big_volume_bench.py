@@ -12,8 +12,11 @@ once the file is open, the render's peak above it, and the wall times.
 | streamed    | stream_vdb, then render_xray with memory_limit (half of it for a batch's voxels)            |
 | zoomed out  | a stream at 1/128 pixel per voxel, twice: the first render makes the coarse level from every |
 |             | batch, the second renders it from memory                                                    |
+| shaded, MIP | a CT-like 512 x 512 x 361 volume read whole against streamed in bricks under 32 MiB, each    |
+|             | twice, alternated, with the two images' difference (`--shaded-only`: just these)            |
 
     python tests/bench/big_volume_bench.py [--quick]     # prints the table
+    python tests/bench/big_volume_bench.py --shaded-only  # only the shaded and MIP rows, printed
 """
 
 from __future__ import annotations
@@ -30,12 +33,11 @@ import numpy as np
 
 MiB = 1 << 20
 
-CHILD = r"""
+# Both children: open argv[1] with pcvr_native.<argv[2]> (read_vdb, stream_vdb), measuring memory and time.
+OPEN_IN_CHILD = r"""
 import json, sys, time
 import numpy as np
 import pcvr_native as pn
-
-path, opener, limit, magnification, renders = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 
 def resident():
     return int(open('/proc/self/statm').read().split()[1]) * 4096
@@ -45,9 +47,13 @@ def peak():
 
 before = resident()
 start = time.perf_counter()
-grid = getattr(pn, opener)(path)
+grid = getattr(pn, sys.argv[2])(sys.argv[1])
 opened_s = time.perf_counter() - start
 opened = resident()
+"""
+
+CHILD = OPEN_IN_CHILD + r"""
+limit, magnification, renders = int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 n = grid.index_bbox[1][0] + 1
 # Orthographic, looking down the k axis of the box: `magnification` pixels per voxel.
 side = max(8, round(n * magnification))
@@ -67,6 +73,129 @@ print(json.dumps({"open_bytes": opened - before, "open_s": opened_s, "render_pea
                   "render_s": times, "voxels": stats["voxels"], "batches": stats["batches"], "level": stats["level"],
                   "image": side}))
 """
+
+
+# Shaded and MIP of a CT-like volume, read whole or streamed in bricks: argv path, opener, limit, mode, output .npy.
+SHADED_CHILD = OPEN_IN_CHILD + r"""
+from pcvr_native import cameras
+
+limit, mode, out = int(sys.argv[3]), sys.argv[4], sys.argv[5]
+(i0, j0, k0), (i1, j1, k1) = grid.index_bbox
+centre = np.array([(i0 + i1) / 2, (j0 + j1) / 2, (k0 + k1) / 2])
+radius = 0.5 * float(np.linalg.norm([i1 - i0, j1 - j0, k1 - k0])) + 4
+# Orthographic, tilted so that bricks occlude one another, about one pixel per voxel.
+direction = np.array([0.3, -0.5, -0.8]) / np.linalg.norm([0.3, -0.5, -0.8])
+cam = pn.Camera(cameras.look_at(centre - direction * 3 * radius, centre),
+                cameras.ortho(-radius, radius, -radius, radius, radius, 5 * radius), int(2 * radius), int(2 * radius))
+tf = pn.TransferFunction(density=[-1000, -200, 0, 100, 300, 1000, 3000],
+                         rgba=[[0, 0, 0, 0], [0, 0, 0, 0], [0.8, 0.4, 0.3, 0.05], [0.8, 0.4, 0.3, 0.1], [1, 1, 0.9, 0.2],
+                               [1, 1, 1, 0.9], [1, 1, 1, 0.95]])
+kwargs = {"memory_limit": limit} if limit else {}
+stats = {}
+with open('/proc/self/clear_refs', 'w') as f:
+    f.write('5')
+start = time.perf_counter()
+if mode == "shaded":
+    # Splatted: "auto" samples the sheets where the volume's lattice fits in a quarter of the memory available at
+    # the time, which on a shared machine changes from one process to the next.
+    image = pn.render_shaded(grid, cam, tf, lights=[pn.Light.sun(direction=(-0.5, -0.2, -0.8))], stats=stats,
+                             sheet_fill="splat", **kwargs)
+else:
+    image = pn.render_mip(grid, cam, stats=stats, **kwargs)
+render_s = time.perf_counter() - start
+np.save(out, image)
+print(json.dumps({"open_bytes": opened - before, "open_s": opened_s, "render_peak_bytes": peak() - opened,
+                  "process_peak_bytes": peak(), "render_s": [render_s], "batches": stats["batches"],
+                  "brick_bytes": stats["memory_bytes"], "image": cam.width}))
+"""
+
+
+def ct_like_slabs(shape, planes=16):
+    """A CT-like volume in Hounsfield units, every voxel active as in a scan (air -1000, soft tissue near 40,
+    skull 1000, ventricles 0, lesions), made a slab of i-planes at a time from the ellipsoids of the 3-D
+    Shepp-Logan head (pcvr_native.phantoms.ct_phantom) stretched over the box, with a little noise."""
+    ellipsoids = [(1.0, (0.69, 0.92, 0.81), (0.0, 0.0, 0.0)), (-0.8, (0.6624, 0.874, 0.78), (0.0, -0.0184, 0.0)),
+                  (-0.2, (0.11, 0.31, 0.22), (0.22, 0.0, 0.0)), (-0.2, (0.16, 0.41, 0.28), (-0.22, 0.0, 0.0)),
+                  (0.1, (0.21, 0.25, 0.41), (0.0, 0.35, -0.15)), (0.1, (0.046, 0.046, 0.05), (0.0, 0.1, 0.25))]
+    # (the phantom's first six ellipsoids, axis-aligned)
+    rng = np.random.default_rng(0)
+    axes = [np.linspace(-1.0, 1.0, n, dtype=np.float32) for n in shape]
+    for i in range(0, shape[0], planes):
+        x, y, z = np.meshgrid(axes[0][i:i + planes], axes[1], axes[2], indexing="ij", sparse=True)
+        value = np.zeros((len(axes[0][i:i + planes]), shape[1], shape[2]), dtype=np.float32)
+        for amplitude, (a, b, c), (cx, cy, cz) in ellipsoids:
+            q = np.sqrt(((x - cx) / a) ** 2 + ((y - cy) / b) ** 2 + ((z - cz) / c) ** 2)
+            value += np.float32(amplitude) * np.clip((1.0 - q) * 100.0 + 0.5, 0.0, 1.0)  # ramps of a voxel or so
+        hounsfield = np.interp(value, [0.0, 0.2, 1.0], [-1000.0, 40.0, 1000.0]) + rng.normal(0.0, 5.0, value.shape)
+        yield np.where(hounsfield == -1000.0, -1000.5, hounsfield).astype(np.float32)
+
+
+def measure_shaded(path, opener, limit, mode, out):
+    proc = subprocess.run([sys.executable, "-c", SHADED_CHILD, str(path), opener, str(limit), mode, str(out)],
+                          capture_output=True, text=True, timeout=3600)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{opener} {mode} child failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def run_shaded(quick, log, rounds=2):
+    """Whole against streamed in bricks, shaded and MIP, alternated `rounds` times (the machine is shared)."""
+    import pcvr_native as pn
+
+    shape = (256, 256, 181) if quick else (512, 512, 361)
+    limit = 32 * MiB
+    with tempfile.TemporaryDirectory(prefix="pcvr_bricks_") as work:
+        path = Path(work) / "ct_like.vdb"
+        log(f"big volume: writing a CT-like {shape} volume")
+        xf = np.diag([0.5, 0.5, 0.7, 1.0])
+        pn.Grid.from_slabs(ct_like_slabs(shape), shape, xf, background=-1000.0).write_vdb(str(path))
+        stream = pn.stream_vdb(str(path))
+        info = {"shape": list(shape), "active_voxels": stream.active_voxel_count, "value_bytes": stream.value_bytes,
+                "file_bytes": path.stat().st_size, "limit": limit, "load_before": os.getloadavg()[0]}
+        del stream
+        rows = []
+        for mode in ("shaded", "mip"):
+            for round_index in range(rounds):
+                pair = {}
+                for case, opener, case_limit in (("whole", "read_vdb", 0), ("bricks", "stream_vdb", limit)):
+                    log(f"big volume: {mode} {case}, round {round_index + 1}")
+                    out = Path(work) / f"{mode}_{case}.npy"
+                    pair[case] = measure_shaded(path, opener, case_limit, mode, out)
+                    pair[case]["image_array"] = np.load(out)
+                difference = float(np.abs(pair["bricks"]["image_array"] - pair["whole"]["image_array"]).max())
+                rms = float(np.sqrt(np.mean((pair["bricks"]["image_array"] - pair["whole"]["image_array"]) ** 2)))
+                for case in ("whole", "bricks"):
+                    del pair[case]["image_array"]
+                    rows.append({"mode": mode, "case": case, "round": round_index + 1, **pair[case],
+                                 "max_difference": difference, "rms_difference": rms})
+        info["load_after"] = os.getloadavg()[0]
+    return {"date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"), **info, "rows": rows}
+
+
+def shaded_section(results) -> list[str]:
+    if not results:
+        return []
+    shape = " x ".join(str(n) for n in results["shape"])
+    lines = ["### Shaded and MIP in bricks", "",
+             f"A CT-like {shape} volume (every voxel active, as in a scan: {results['value_bytes'] / MiB:.0f} MiB of "
+             f"values, a {results['file_bytes'] / MiB:.0f} MiB file) rendered shaded and as a MIP, orthographic and tilted, "
+             "at about a pixel per voxel (shaded sheets splatted), read whole (`read_vdb`), or streamed in bricks under a "
+             f"{results['limit'] // MiB} MiB memory limit (`stream_vdb`, then `render_shaded(stream, ..., memory_limit=...)`: "
+             "bricks whose values take at most half the limit, each read with its margin and rendered front to back). "
+             "Each in a fresh process, whole and bricks alternated; *process peak* is the process's peak resident "
+             "memory (VmHWM), *render peak* that above the memory held once the file was open. *Difference*: the "
+             "largest and RMS difference between the two images. "
+             f"Measured {results['date']}, load average {results['load_before']:.1f} before and "
+             f"{results['load_after']:.1f} after (2 cores shared with other sessions).", "",
+             "| mode | case | round | process peak | render peak | open s | render s | bricks | largest brick | difference (max, RMS) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results["rows"]:
+        bricks = str(r["batches"]) if r["batches"] else "-"
+        brick = f"{r['brick_bytes'] / MiB:.1f} MiB" if r["brick_bytes"] else "-"
+        lines.append(f"| {r['mode']} | {r['case']} | {r['round']} | {r['process_peak_bytes'] / MiB:.0f} MiB | "
+                     f"{r['render_peak_bytes'] / MiB:.0f} MiB | {r['open_s']:.2f} | {r['render_s'][0]:.2f} | {bricks} | {brick} | "
+                     f"{r['max_difference']:.2g}, {r['rms_difference']:.2g} |")
+    return lines + [""]
 
 
 def field(n):
@@ -111,7 +240,7 @@ def run(quick, log):
         log("big volume: zoomed out")
         rows.append({"case": "zoomed out", "limit": 0, **measure(path, "stream_vdb", 0, 1 / 128, renders=2)})
     return {"date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"), "load": os.getloadavg()[0],
-            **info, "rows": rows}
+            **info, "rows": rows, "shaded": run_shaded(quick, log)}
 
 
 def section(results) -> list[str]:
@@ -138,9 +267,12 @@ def section(results) -> list[str]:
         rate = results["active_voxels"] / r["render_s"][0] / 1e6
         lines.append(f"| {r['case']} | {limit} | {r['open_bytes'] / MiB:.0f} MiB | {r['render_peak_bytes'] / MiB:.0f} MiB | "
                      f"{r['open_s']:.2f} | {renders} | {rate:.0f} | {r['batches']} | {r['level']} |")
-    return lines + [""]
+    return lines + [""] + shaded_section(results.get("shaded"))
 
 
 if __name__ == "__main__":
+    if "--shaded-only" in sys.argv:
+        print("\n".join(shaded_section(run_shaded("--quick" in sys.argv, lambda m: print(m, file=sys.stderr, flush=True)))))
+        sys.exit(0)
     import standalone
     standalone.main(__doc__, run, section)

@@ -89,6 +89,13 @@ public:
     /// with the region they lie in. Throws VdbReadError naming the file if it changed or fails to read.
     void for_each_batch(uint64_t batch_bytes, const std::function<void(const Batch&)>& visit) const;
 
+    /// The index boxes (inclusive) that hold values: each leaf's 8^3 and each active tile's, from the
+    /// topology alone; bricked renders (shaded/bricked_render.cpp) size their bricks from them.
+    std::vector<std::array<int32_t, 6>> value_boxes() const;
+    /// The voxels within `box` (inclusive index bounds) read from the file, as a Grid (every leaf that meets
+    /// the box is read whole, then cut to it). Throws as for_each_batch does.
+    Grid read_box(const std::array<int32_t, 6>& box) const;
+
     struct Impl;
     GridStream(std::shared_ptr<Impl> impl, const Mat4& index_to_world, uint64_t batch_bytes);
 

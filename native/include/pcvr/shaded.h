@@ -38,6 +38,7 @@
 #include "pcvr/camera.h"
 #include "pcvr/clip_region.h"
 #include "pcvr/grid.h"
+#include "pcvr/grid_stream.h"
 #include "pcvr/render_control.h"
 #include "pcvr/shading.h"
 #include "pcvr/transfer_function.h"
@@ -189,6 +190,8 @@ struct ShadedStats {
     uint64_t preintegration_table_bytes = 0;
     uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
     double seconds_shadows = 0;       ///< building them (wall seconds)
+    uint64_t batches = 0;             ///< a GridStream's bricks read and rendered (0: grids in memory)
+    uint64_t memory_bytes = 0;        ///< a GridStream's: the most bytes of values one brick held
 };
 
 /// Premultiplied linear RGBA, row 0 on top.
@@ -216,6 +219,28 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
 /// Transfer functions are not used.
 MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                     RenderControl& control, ShadedStats* stats = nullptr);
+
+/// How a GridStream renders shaded or MIP: in bricks (cubes of voxels, each read with the margin its
+/// kernels, filters and gradients reach across its faces) whose values take at most half of
+/// `memory_limit` (0: GridStream::kDefaultBatchBytes, or the stream's own batch_bytes), front to back in
+/// visibility order, each continuing the image the ones before it left. `shares` > 1 renders only share
+/// `share` of the bricks in that order: the shares' images composited front to back in share order (over
+/// for shaded, the maximum for MIP) make the whole image (pcvr_addon/batch splits a frame so).
+struct BrickedParams {
+    uint64_t memory_limit = 0;
+    size_t share = 0, shares = 1;
+};
+
+/// A GridStream's shaded image: as render_shaded of the grid read whole (`volume` says everything but the
+/// grid, which is ignored), to within float rounding. Refused (InvalidArgument, naming the grid and file):
+/// shadows, ambient occlusion and albedo grids (they need every voxel at once), method "raycast".
+/// ShadedParams::level > 0 or -1 ("auto", where it picks a coarse level) renders that level, made from
+/// the file a batch at a time and kept with the stream, whole.
+RgbaImage render_shaded(const GridStream& stream, const ShadedVolume& volume, const Camera& camera, const Lighting& lighting,
+                        const ShadedParams& params, const BrickedParams& bricked, RenderControl& control, ShadedStats* stats = nullptr);
+/// A GridStream's MIP, as render_mip of the grid read whole.
+MipImage render_mip(const GridStream& stream, const ShadedVolume& volume, const Camera& camera, const ShadedParams& params,
+                    const BrickedParams& bricked, RenderControl& control, ShadedStats* stats = nullptr);
 
 /// The largest background (times its scale) of the volumes, 0 for none: beyond its active voxels a
 /// grid's density is its background, so this is the maximum along a ray that meets no voxel.

@@ -17,6 +17,7 @@
 #include "pcvr/errors.h"
 #include "pcvr/kernel.h"
 #include "pcvr/memory_budget.h"
+#include "shaded/bricked_render.h"
 #include "shaded/classify/preintegration.h"
 #include "shaded/classify/shaded_levels.h"
 #include "shaded/classify/transparency_culling.h"
@@ -162,8 +163,10 @@ std::pair<double, double> clip_depths(const Camera& camera) {
 }
 
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
+/// `owned`: a brick of a bricked render (bricked_render.h), continuing `image`.
 void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
-                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
+                   const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth,
+                   const IndexBox* owned = nullptr) {
     const auto start = Clock::now();
     const bool mip = lighting == nullptr;
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
@@ -409,6 +412,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     setup.near_depth = float(near_depth);
     setup.far_depth = float(far_depth);
     setup.mip_background = float(mip_background(volumes));
+    std::optional<SampleOwnership> ownership;
+    if (owned) setup.owned = &ownership.emplace(*owned, volumes.front().grid->index_to_world(), geometry.origin0);
     stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
 
     control.begin_phase(tiles.size(), 0.02, 1.0);
@@ -465,22 +470,36 @@ Image run(const std::vector<ShadedVolume>& volumes, const Camera& camera, const 
     return out;
 }
 
-}  // namespace
-
-RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
-                        const ShadedParams& params, RenderControl& control, ShadedStats* stats) {
-    validate(volumes, params, true);
-    lighting.validate();
-    for (const ShadedVolume& v : volumes) {
-        if (!v.material) continue;
-        try {
-            v.lit_by(lighting).validate();
-        } catch (const InvalidArgument& e) {
-            throw InvalidArgument("grid '" + v.grid->name() + "': " + e.what());
+/// Throws InvalidArgument for what neither renderer takes: shaded (lighting given) or MIP.
+void validate_call(const std::vector<ShadedVolume>& volumes, const Lighting* lighting, const ShadedParams& params) {
+    validate(volumes, params, lighting != nullptr);
+    if (lighting) {
+        lighting->validate();
+        for (const ShadedVolume& v : volumes) {
+            if (!v.material) continue;
+            try {
+                v.lit_by(*lighting).validate();
+            } catch (const InvalidArgument& e) {
+                throw InvalidArgument("grid '" + v.grid->name() + "': " + e.what());
+            }
         }
     }
     Kernel::from_name(params.splat_kernel);
     post_filter_from_name(params.post_filter);
+}
+
+}  // namespace
+
+void render_brick(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting, const ShadedParams& params,
+                  const IndexBox& owned, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
+    validate_call(volumes, lighting, params);
+    const LevelledVolumes levelled(volumes, camera, 0, lighting ? LevelReduction::MeanOverBackground : LevelReduction::MaxOverBackground);
+    render_sheets(levelled.volumes(), camera, lighting, params, control, stats, image, depth, &owned);
+}
+
+RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
+                        const ShadedParams& params, RenderControl& control, ShadedStats* stats) {
+    validate_call(volumes, &lighting, params);
     const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MeanOverBackground);
     return run<RgbaImage>(levelled.volumes(), camera, params, 4, stats, [&](ShadedStats& s, RgbaImage& image) {
         s.level = levelled.level();
@@ -506,9 +525,7 @@ double mip_background(const std::vector<ShadedVolume>& volumes) {
 
 MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                     RenderControl& control, ShadedStats* stats) {
-    validate(volumes, params, false);
-    Kernel::from_name(params.splat_kernel);
-    post_filter_from_name(params.post_filter);
+    validate_call(volumes, nullptr, params);
     const LevelledVolumes levelled(volumes, camera, params.level, LevelReduction::MaxOverBackground);
     return run<MipImage>(levelled.volumes(), camera, params, 1, stats, [&](ShadedStats& s, MipImage& image) {
         s.level = levelled.level();

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <vector>
 
@@ -93,6 +94,13 @@ struct GridStream::Impl {
         return next;
     }
 
+    /// Throws VdbReadError where the file is no longer the one opened.
+    void check_unchanged() const {
+        if (!(FileIdentity::of(path) == identity))
+            throw VdbReadError("cannot read " + vdb_reader::quoted(path) + ": the file changed since " + vdb_reader::quoted(name) +
+                               " was opened from it; open it again");
+    }
+
     /// An empty float grid with the stream's background, for a batch.
     vdb::FloatGrid::Ptr empty_batch() const { return vdb::FloatGrid::create(topology->background()); }
 
@@ -113,15 +121,57 @@ struct GridStream::Impl {
                 leaves.push_back(std::move(leaf));
             }
         }
-        std::vector<LeafT*> targets;
-        for (auto& leaf : leaves) targets.push_back(leaf.get());
         // Regions with leaves hold consecutive leaves: the batch's first leaf starts the run.
         const auto with_leaves = std::find_if(regions.begin() + first, regions.begin() + last,
                                               [](const Region& r) { return r.leaves > 0; });
-        if (with_leaves != regions.begin() + last)
-            read_leaves_parallel(reader->file(), targets, leaf_positions.data() + with_leaves->first_leaf, half);
-        for (auto& leaf : leaves) batch.addLeaf(leaf.release());
+        std::vector<size_t> numbers(leaves.size());
+        std::iota(numbers.begin(), numbers.end(), with_leaves != regions.begin() + last ? with_leaves->first_leaf : 0);
+        read_into(batch, leaves, numbers);
         return voxels;
+    }
+
+    /// Fill `leaves` (numbers[i]: leaves[i]'s place in the file's leaf order) and move them into `tree`.
+    void read_into(vdb::FloatTree& tree, std::vector<std::unique_ptr<LeafT>>& leaves, const std::vector<size_t>& numbers) {
+        std::vector<LeafT*> targets;
+        for (auto& leaf : leaves) targets.push_back(leaf.get());
+        if (!targets.empty()) read_leaves_parallel(reader->file(), targets, numbers, leaf_positions.data(), half);
+        for (auto& leaf : leaves) tree.addLeaf(leaf.release());
+    }
+
+    /// Reads the leaves that meet `box`, and the active tiles' voxels within it: the voxels within it.
+    vdb::FloatGrid::Ptr read_box(const vdb::CoordBBox& box) {
+        vdb::FloatGrid::Ptr grid = empty_batch();
+        std::vector<std::unique_ptr<LeafT>> leaves;
+        std::vector<size_t> numbers;
+        for (const Region& region : regions) {
+            for (const Tile& tile : region.tiles) {
+                vdb::CoordBBox part = tile_box(tile);
+                part.intersect(box);
+                if (!part.empty()) grid->tree().fill(part, tile.value, true);
+            }
+            if (!region.node || !region.node->getNodeBoundingBox().hasOverlap(box)) continue;
+            size_t number = region.first_leaf;
+            for (auto src = region.node->cbeginChildOn(); src; ++src, ++number) {
+                if (!src->getNodeBoundingBox().hasOverlap(box)) continue;
+                auto leaf = std::make_unique<LeafT>(vdb::PartialCreate(), src->origin(), topology->background());
+                leaf->setValueMask(src->getValueMask());
+                leaves.push_back(std::move(leaf));
+                numbers.push_back(number);
+            }
+        }
+        read_into(grid->tree(), leaves, numbers);
+        // The leaves' voxels beyond the box would only cost work; within the active voxels' bounds, as the
+        // cut walks its box's tiles.
+        vdb::CoordBBox cut = box;
+        cut.intersect(vdb::CoordBBox({bbox[0], bbox[1], bbox[2]}, {bbox[3], bbox[4], bbox[5]}));
+        grid->clip(cut);
+        grid->setName(name);
+        return grid;
+    }
+
+    static vdb::CoordBBox tile_box(const Tile& tile) {
+        const int dim = tile.level == 1 ? LeafT::DIM : tile.level == 2 ? LowerT::DIM : UpperT::DIM;
+        return vdb::CoordBBox::createCube(tile.origin, dim);
     }
 };
 
@@ -207,11 +257,7 @@ void GridStream::Impl::for_each_batch(uint64_t batch_bytes, const Mat4& index_to
                                       const std::function<void(const Batch&)>& visit, const std::vector<size_t>& only) {
     Impl& s = *this;
     std::lock_guard<std::mutex> lock(s.mutex);
-    guard_read(s.path, [&] {
-        if (!(FileIdentity::of(s.path) == s.identity))
-            throw VdbReadError("cannot read " + vdb_reader::quoted(s.path) + ": the file changed since " + vdb_reader::quoted(s.name) +
-                               " was opened from it; open it again");
-    });
+    guard_read(s.path, [&] { s.check_unchanged(); });
     uint64_t voxels_done = 0;
     size_t next = 0;
     // An empty grid still makes one (empty) batch.
@@ -234,6 +280,30 @@ void GridStream::for_each_batch(uint64_t batch_bytes, const std::function<void(c
         throw InvalidArgument("grid '" + impl_->name + "': its batches were chosen at " + std::to_string(batch_bytes_) +
                               " bytes a batch, not " + std::to_string(batch_bytes));
     impl_->for_each_batch(batch_bytes, index_to_world_, visit, only_batches_);
+}
+
+std::vector<std::array<int32_t, 6>> GridStream::value_boxes() const {
+    std::vector<std::array<int32_t, 6>> boxes;
+    auto add = [&](const vdb::CoordBBox& b) {
+        boxes.push_back({b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z()});
+    };
+    for (const Region& region : impl_->regions) {
+        for (const Tile& tile : region.tiles) add(Impl::tile_box(tile));
+        if (region.node)
+            for (auto leaf = region.node->cbeginChildOn(); leaf; ++leaf) add(leaf->getNodeBoundingBox());
+    }
+    return boxes;
+}
+
+Grid GridStream::read_box(const std::array<int32_t, 6>& box) const {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    const vdb::CoordBBox within({box[0], box[1], box[2]}, {box[3], box[4], box[5]});
+    vdb::FloatGrid::Ptr grid;
+    guard_read(impl_->path, [&] {
+        impl_->check_unchanged();
+        grid = impl_->read_box(within);
+    });
+    return Grid(std::make_shared<Grid::Data>(std::move(grid), impl_->path), index_to_world_, impl_->name);
 }
 
 size_t GridStream::batch_count(uint64_t batch_bytes) const {

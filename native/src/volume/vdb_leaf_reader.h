@@ -22,12 +22,14 @@
 
 namespace pcvr::vdb_reader {
 
-/// Fill the values of `leaves` (consecutive in the tree's leaf order, their value masks set by
-/// read_topology) from their records at `positions` in `file`: a run of leaves a task, each through a
-/// stream of its own tagged as `file`'s, with its own copy of the stream metadata (OpenVDB counts the
-/// leaves it reads in it). `file`'s own stream is not moved.
+/// Fill the values of `leaves` (their value masks set by read_topology) from their records in `file`:
+/// leaves[i] is leaf number `numbers[i]` of the tree's leaf order, whose record starts at
+/// `positions[numbers[i]]`. A run of leaves a task, each through a stream of its own tagged as `file`'s,
+/// with its own copy of the stream metadata (OpenVDB counts the leaves it reads in it); consecutive
+/// numbers read on without a seek. `file`'s own stream is not moved.
 template <typename Leaf>
-void read_leaves_parallel(const SizedStream& file, const std::vector<Leaf*>& leaves, const int64_t* positions, bool half) {
+void read_leaves_parallel(const SizedStream& file, const std::vector<Leaf*>& leaves, const std::vector<size_t>& numbers,
+                          const int64_t* positions, bool half) {
     constexpr size_t kLeavesPerTask = 64;  // 128 KiB of values: a file open is noise beside it
     tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), kLeavesPerTask),
                       [&](const tbb::blocked_range<size_t>& run) {
@@ -36,8 +38,10 @@ void read_leaves_parallel(const SizedStream& file, const std::vector<Leaf*>& lea
         in.copyfmt(file.is);  // versions, compression, background, and throwing on a short read
         auto meta = std::make_shared<vdb::io::StreamMetadata>(*file.meta);
         vdb::io::setStreamMetadataPtr(in, meta, /*transfer=*/false);
-        in.seekg(positions[run.begin()]);
-        for (size_t i = run.begin(); i != run.end(); ++i) leaves[i]->readBuffers(in, half);
+        for (size_t i = run.begin(); i != run.end(); ++i) {
+            if (i == run.begin() || numbers[i] != numbers[i - 1] + 1) in.seekg(positions[numbers[i]]);
+            leaves[i]->readBuffers(in, half);
+        }
     });
 }
 

@@ -31,6 +31,25 @@ void WalkStats::add(const WalkStats& o) {
 SheetWalker::SheetWalker() = default;
 SheetWalker::~SheetWalker() = default;
 
+size_t SheetWalker::continue_image(const SheetWalkSetup& setup, const PixelRect& rect, const float* image, const float* depth) {
+    size_t opaque = 0;
+    for (int y = 0; y < rect.height(); ++y) {
+        const size_t row = size_t(rect.y0 + y) * setup.width + rect.x0;
+        for (int x = 0; x < rect.width(); ++x) {
+            const size_t p = size_t(y) * row_pitch_ + x;
+            if (setup.mip) {
+                maximum_[p] = image[row + x];
+                continue;
+            }
+            const float* in = image + 4 * (row + x);
+            red_[p] = in[0], green_[p] = in[1], blue_[p] = in[2], alpha_[p] = in[3];
+            if (depth) depth_[p] = depth[row + x];
+            opaque += alpha_[p] >= setup.opacity_cutoff ? 1 : 0;
+        }
+    }
+    return opaque;
+}
+
 void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image, float* depth, WalkStats& stats,
                          RenderControl& control) {
     const TileSet& tiles = *setup.tiles;
@@ -115,6 +134,7 @@ void SheetWalker::render(const SheetWalkSetup& setup, size_t tile, float* image,
     depth_.assign(row_pitch_ * th + 8, INFINITY);
     if (mip) maximum_.assign(row_pitch_ * th + 8, setup.mip_background);
     size_t opaque = 0, opaque_at_rebuild = 0;
+    if (setup.owned) opaque = continue_image(setup, rect, image, depth);
     // The occlusion map is rebuilt (its cost: the tile's pixels) each time this many more became opaque.
     const size_t rebuild_step = std::max<size_t>(256, tile_pixels / 64);
 

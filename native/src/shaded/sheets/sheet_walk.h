@@ -27,6 +27,7 @@
 #include "shaded/classify/sample_clip.h"
 #include "shaded/sheets/compositing.h"
 #include "shaded/sheets/occlusion_map.h"
+#include "shaded/sheets/sample_ownership.h"
 #include "shaded/sheets/sheet_buffer.h"
 #include "shaded/sheets/sheet_geometry.h"
 #include "shaded/sheets/sheet_sampling.h"
@@ -78,6 +79,9 @@ struct SheetWalkSetup {
     int width = 0, height = 0;
     float near_depth = 0, far_depth = INFINITY;  ///< the clip planes, in camera-space depth
     float mip_background = 0;  ///< MIP: the maximum where no voxel reaches (see mip_background)
+    /// Non-null: one brick of a bricked render (shaded/bricks): only the samples it owns count, and each
+    /// tile continues the image already there (colour, opacity, depth or maximum) instead of starting empty.
+    const SampleOwnership* owned = nullptr;
 
     int8x within_clip(float8 depth) const { return (depth >= near_depth) & (depth <= far_depth); }
     /// True when every pixel's stretch of ray from u - half to u + half (sheet parameter) lies between
@@ -126,6 +130,9 @@ private:
     template <bool Preintegrated, int MostSources>
     size_t composite_sample_as(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s, float t, int samples);
     void take_maximum(const SheetWalkSetup& setup, const PixelRect& rect, int64_t s);
+    /// A brick's tile starts from the image the bricks before it left (SheetWalkSetup::owned); returns
+    /// how many of its pixels are opaque already.
+    size_t continue_image(const SheetWalkSetup& setup, const PixelRect& rect, const float* image, const float* depth);
     struct Active {
         size_t entry;  // into the tile's blocks
         int next_rank;

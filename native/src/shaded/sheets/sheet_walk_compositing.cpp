@@ -86,7 +86,8 @@ void SheetWalker::take_maximum(const SheetWalkSetup& setup, const PixelRect& rec
                 float* most = maximum_.data() + size_t(y) * row_pitch_ + x;
                 // Zero means no voxel reaches: empty, not a density of 0.
                 const int8x counted = p.inside & (m != 0) & setup.within_clip(f.depth);
-                const int8x kept = setup.grids[gi].clip ? counted & setup.grids[gi].clip->inside<float8>(f.position) : counted;
+                const int8x clipped = setup.grids[gi].clip ? counted & setup.grids[gi].clip->inside<float8>(f.position) : counted;
+                const int8x kept = setup.owned ? clipped & setup.owned->owns(f.position) : clipped;
                 const float8 density = peak * (1.0f / spacing) + setup.grids[gi].background;
                 store8(most, select8(kept, max8(load8(most), density), load8(most)));
             }
@@ -269,6 +270,7 @@ size_t SheetWalker::composite_sample_as(const SheetWalkSetup& setup, const Pixel
             const SampleFrames f = sample_frames(geo, setup.sheets.spherical, lanes.px, lanes.py, u);
             const float8 share = whole ? broadcast8(1.0f) : setup.clip_share(f.depth, f.depth_rate * float(half_extent));
             open &= share > 0;
+            if (setup.owned) open &= setup.owned->owns(f.position);
             if (!any8(open)) continue;
             // The rows of the inverse of [per_pixel_x per_pixel_y along], times its determinant: they turn
             // derivatives per pixel and per unit of the sheet parameter into a world gradient.
