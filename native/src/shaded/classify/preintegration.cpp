@@ -29,6 +29,7 @@ std::vector<Entry> integrate(int entries, Values values) {
     }
     return out;
 }
+
 }  // namespace
 
 PreintegrationTable::PreintegrationTable(const TransferFunction& tf)
@@ -42,10 +43,6 @@ PreintegrationTable::PreintegrationTable(const TransferFunction& tf)
         v[0] = -std::log1p(-p[3]);  // extinction times unit_distance
         for (int c = 0; c < 3; ++c) v[c + 1] = v[0] * p[c];
     });
-    second_.resize(absorption_.size());
-    for (size_t e = 1; e < absorption_.size(); ++e)  // K is quadratic within an entry: its exact integral
-        second_[e] = second_[e - 1] + (absorption_[e - 1].integral[0] + absorption_[e].integral[0]) / 2 -
-                     (absorption_[e].value[0] - absorption_[e - 1].value[0]) / 12;
     if (tf.has_emission())
         emission_ = integrate<Entry<3>>(kEntries, [&](int e, double (&v)[3]) {
             for (int c = 0; c < 3; ++c) v[c] = at.emission[size_t(e)][c];
@@ -56,7 +53,7 @@ PreintegrationTable::PreintegrationTable(const TransferFunction& tf)
 uint64_t PreintegrationTable::tables_built() { return built_count.load(); }
 
 size_t PreintegrationTable::bytes() const {
-    return sizeof(*this) + absorption_.size() * sizeof(Entry<4>) + second_.size() * sizeof(double) + emission_.size() * sizeof(Entry<3>) +
+    return sizeof(*this) + absorption_.size() * sizeof(Entry<4>) + emission_.size() * sizeof(Entry<3>) +
            density_.size() * sizeof(double) + rgba_.size() * sizeof(rgba_[0]) + emission_points_.size() * sizeof(emission_points_[0]);
 }
 
@@ -95,19 +92,6 @@ void PreintegrationTable::integral_at(const std::vector<Entry<C>>& table, double
     for (int c = 0; c < C; ++c) out[c] = a.integral[c] + f * (a.value[c] + 0.5 * f * (b.value[c] - a.value[c]));
 }
 
-double PreintegrationTable::second_integral_at(double x) const {
-    if (x <= 0) return 0.5 * x * x * absorption_[0].value[0];
-    if (x >= kEntries) {
-        const double d = x - kEntries;
-        const Entry<4>& end = absorption_[size_t(kEntries)];
-        return second_[size_t(kEntries)] + d * end.integral[0] + 0.5 * d * d * end.value[0];
-    }
-    const size_t i = size_t(x);
-    const double f = x - double(i);
-    const Entry<4>&a = absorption_[i], &b = absorption_[i + 1];
-    return second_[i] + f * (a.integral[0] + f * (a.value[0] / 2 + f * (b.value[0] - a.value[0]) / 6));
-}
-
 template <int C>
 void PreintegrationTable::mean_over(const std::vector<Entry<C>>& table, double x0, double x1, double (&out)[C]) {
     double lo[C], hi[C];
@@ -117,36 +101,46 @@ void PreintegrationTable::mean_over(const std::vector<Entry<C>>& table, double x
     for (int c = 0; c < C; ++c) out[c] = (hi[c] - lo[c]) * per;
 }
 
-PreintegrationTable::Slabs PreintegrationTable::operator()(const ClassificationTable& point, float8 front, float8 back,
-                                                           int8x lanes) const {
-    // Within one entry the functions are linear (up to one kink): the point table at the middle is the mean.
-    const float8 middle = 0.5f * (front + back);
-    Slabs out{point(middle), {}, broadcast8(0.5f)};
-    if (has_emission()) out.glow = point.emission(middle);
-    const float8 entries_apart = abs8(back - front) * float(scale_);
+PreintegrationTable::Half PreintegrationTable::half(double x0, double x1) const {
+    // A half of (nearly) no length is its point: widened to a thousandth of an entry, the means are its values
+    // to double's precision and the divisions stay finite.
+    if (std::abs(x1 - x0) < 1e-3) {
+        const double c = 0.5 * (x0 + x1);
+        x0 = c - 5e-4, x1 = c + 5e-4;
+    }
+    Half out{};
+    mean_over(absorption_, x0, x1, out.absorption);
+    if (has_emission()) mean_over(emission_, x0, x1, out.emission);
+    return out;
+}
+
+PreintegrationTable::Slabs PreintegrationTable::operator()(const ClassificationTable& point, float8 front, float8 middle,
+                                                           float8 back, int8x lanes) const {
+    // Within one entry the functions are linear (up to one kink): the point table at the mean density is the mean.
+    const float8 mean = 0.25f * (front + back) + 0.5f * middle;
+    Slabs out{point(mean), {}};
+    if (has_emission()) out.glow = point.emission(mean);
+    const float8 entries_apart = (max8(max8(front, back), middle) - min8(min8(front, back), middle)) * float(scale_);
     const uint32_t wide = lane_mask(lanes & (entries_apart >= 1.0f));
     if (!wide) return out;
     const double per_unit = point.per_unit_distance();
+    auto entry = [&](float density) { return (double(density) - first_) * scale_; };
     for (int l = 0; l < 8; ++l) {
         if (!((wide >> l) & 1)) continue;
-        const double x0 = (double(front[l]) - first_) * scale_, x1 = (double(back[l]) - first_) * scale_;
-        double m[4];
-        mean_over(absorption_, x0, x1, m);
-        const bool absorbs = m[0] > 0;
-        if (absorbs) {  // the extinction's first moment from the front, over (x1 - x0) times its integral m[0] (x1 - x0)
-            double k1[4];
-            integral_at(absorption_, x1, k1);
-            const double moment = (x1 - x0) * k1[0] - (second_integral_at(x1) - second_integral_at(x0));
-            out.centre[l] = float(std::clamp(moment / (m[0] * (x1 - x0) * (x1 - x0)), 0.0, 1.0));
-        }
-        out.light.extinction[l] = float(std::min(m[0] * per_unit, 1e30));
-        out.light.red[l] = absorbs ? float(m[1] / m[0]) : 0.0f;
-        out.light.green[l] = absorbs ? float(m[2] / m[0]) : 0.0f;
-        out.light.blue[l] = absorbs ? float(m[3] / m[0]) : 0.0f;
+        // Two linear halves through the reconstruction's middle: a thin peak between the ends (a one-voxel
+        // bone) is followed, where one straight line from end to end would cut under it.
+        const double xm = entry(middle[l]);
+        const Half a = half(entry(front[l]), xm), b = half(xm, entry(back[l]));
+        const double absorption = a.absorption[0] + b.absorption[0];  // twice the mean: each half is half the stretch
+        const bool absorbs = absorption > 0;
+        out.light.extinction[l] = float(std::min(0.5 * absorption * per_unit, 1e30));
+        out.light.red[l] = absorbs ? float((a.absorption[1] + b.absorption[1]) / absorption) : 0.0f;
+        out.light.green[l] = absorbs ? float((a.absorption[2] + b.absorption[2]) / absorption) : 0.0f;
+        out.light.blue[l] = absorbs ? float((a.absorption[3] + b.absorption[3]) / absorption) : 0.0f;
         if (has_emission()) {
-            double e[3];
-            mean_over(emission_, x0, x1, e);
-            out.glow.red[l] = float(e[0]), out.glow.green[l] = float(e[1]), out.glow.blue[l] = float(e[2]);
+            out.glow.red[l] = float(0.5 * (a.emission[0] + b.emission[0]));
+            out.glow.green[l] = float(0.5 * (a.emission[1] + b.emission[1]));
+            out.glow.blue[l] = float(0.5 * (a.emission[2] + b.emission[2]));
         }
     }
     return out;

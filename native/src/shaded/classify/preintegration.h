@@ -14,17 +14,18 @@
 /// (K_c(d_b) - K_c(d_f)) / (K(d_b) - K(d_f)), K_c the integral of extinction times colour: the
 /// opacity-corrected form without self-attenuation (Engel et al.'s integral functions; light emitted at
 /// the back of a thick stretch is not dimmed by its front more than its share of the opacity says).
-/// Emission is pre-integrated the same way (its mean over [d_f, d_b]). The stretch is lit where its extinction
-/// lies: at the centroid of the extinction along it, from the integral of K (by parts, the first moment of the
-/// extinction over [d_f, d_b] is (d_b - d_f) K(d_b) - (the integral of K from d_f to d_b), relative to d_f),
-/// so that a stretch whose back end crosses a bone's threshold takes the gradient at the bone, as a point
-/// sample there would, not at the middle of the stretch.
+/// Emission is pre-integrated the same way (its mean over [d_f, d_b]).
+///
+/// The density is not linear between two samples: a one-voxel bone is a thin peak along each ray, and one straight
+/// line from end to end cuts under it. Each stretch is split at its middle, where the sheets' reconstruction gives
+/// a third density, into two linear halves integrated apart; its optical depth and colour are the halves' sums.
+/// It is lit at its middle (the sheet walk's choice: at the extinction's centroid it measured the same).
 ///
 /// The integral functions are kept per transfer function in double (a float's 2^-24 of K over 4096
 /// entries lost the extinction of a faint range behind an opaque one), unit-free (the extinction times
 /// unit_distance, divided out per render), as a cumulative sum of the same 4096 entries ClassificationTable
-/// interpolates: where d_f and d_b lie within one entry of each other the mean is the point table's value
-/// at the middle, so the two classifications agree where the density is constant.
+/// interpolates: where the three densities lie within one entry of each other the mean is the point table's
+/// value at their mean, so the two classifications agree where the density is constant.
 #pragma once
 
 #include <array>
@@ -54,11 +55,11 @@ public:
     struct Slabs {  ///< eight stretches of ray
         ClassificationTable::Samples light;  ///< mean colour (extinction-weighted) and mean extinction per world unit
         ClassificationTable::Emissions glow; ///< mean emitted radiance per world unit (zero without emission)
-        float8 centre;  ///< where the extinction's centroid lies, as a fraction of the way from front to back
     };
-    /// Stretches from density `front` to `back`, in the lanes `lanes` (the others zero). `point` is the same
-    /// transfer function's ClassificationTable for this render's unit distance.
-    Slabs operator()(const ClassificationTable& point, float8 front, float8 back, int8x lanes) const;
+    /// Stretches from density `front` through `middle` (at their middle) to `back`, each half linear, in the lanes
+    /// `lanes` (the others zero). `point` is the same transfer function's ClassificationTable for this render's
+    /// unit distance.
+    Slabs operator()(const ClassificationTable& point, float8 front, float8 middle, float8 back, int8x lanes) const;
 
 private:
     bool made_from(const TransferFunction& tf) const;
@@ -74,13 +75,16 @@ private:
     static void integral_at(const std::vector<Entry<C>>& table, double x, double (&out)[C]);
     template <int C>
     static void mean_over(const std::vector<Entry<C>>& table, double x0, double x1, double (&out)[C]);
-    /// The integral of channel 0's integral (the extinction's) from entry 0 to x.
-    double second_integral_at(double x) const;
+    /// One linear half of a stretch, from x0 to x1 (in entries): its means of absorption's four channels
+    /// (extinction, and extinction times colour) and of the emission.
+    struct Half {
+        double absorption[4], emission[3];
+    };
+    Half half(double x0, double x1) const;
 
     double first_, scale_;  // entry index = (density - first) * scale, as ClassificationTable's
     std::vector<Entry<4>> absorption_;  // extinction * unit_distance, and that times red, green, blue
     std::vector<Entry<3>> emission_;    // radiance; empty without emission
-    std::vector<double> second_;        // per entry, the integral of absorption_'s channel 0 integral from entry 0
     // What it was built from, to notice a changed transfer function.
     std::vector<double> density_;
     std::vector<std::array<double, 4>> rgba_;
