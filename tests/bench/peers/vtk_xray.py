@@ -40,6 +40,7 @@ import vtk  # noqa: E402
 from vtk.util import numpy_support  # noqa: E402
 
 from budget import Budget  # noqa: E402
+from image_axes import axis_aligned  # noqa: E402
 
 OPTICAL_DEPTH = 1.0   # fixed-point mapper: k * largest integral
 ADDITIVE_TOP = 0.95   # GPU mapper: largest integral -> this pixel value
@@ -51,10 +52,8 @@ def log(msg):
 
 
 def image_data(values, index_to_world):
-    xf = np.asarray(index_to_world, dtype=np.float64)
+    values, xf = axis_aligned(values, index_to_world)
     lin = xf[:3, :3]
-    if np.abs(lin - np.diag(np.diag(lin))).max() > 1e-12 * np.abs(lin).max():
-        raise ValueError("VTK peer: index_to_world must be axis-aligned")
     img = vtk.vtkImageData()
     img.SetDimensions(*values.shape)
     img.SetSpacing(*np.diag(lin))
