@@ -45,23 +45,6 @@ def ball(n: int):
     return np.clip(RADIUS * n + 0.5 - r, 0.0, 1.0).astype(np.float32), np.eye(4)
 
 
-def ring_profile(image, reference) -> dict:
-    """The ring measure of `image` against `reference` (premultiplied RGBA, the ball in the middle)."""
-    image, reference = np.asarray(image, dtype=np.float64), np.asarray(reference, dtype=np.float64)
-    h, w = reference.shape[:2]
-    y, x = np.mgrid[0:h, 0:w]
-    radius = np.hypot(x - (w - 1) / 2.0, y - (h - 1) / 2.0).astype(int)
-    both = (image[..., 3] > OPAQUE) & (reference[..., 3] > OPAQUE)
-    difference = (image[..., :3] - reference[..., :3]) @ LUMINANCE
-    counts = np.bincount(radius[both], minlength=radius.max() + 1)
-    sums = np.bincount(radius[both], weights=difference[both], minlength=radius.max() + 1)
-    rings = np.nonzero(counts)[0]
-    means = sums[rings] / counts[rings]
-    left = means - np.polyval(np.polyfit(rings, means, FIT_DEGREE), rings)
-    return {"rms": 255.0 * float(np.sqrt(np.mean(left ** 2))), "peak": 255.0 * float(np.abs(left).max()),
-            "radii": int(len(rings)), "pixels": int(both.sum())}
-
-
 def run(quick: bool, workdir: Path, log) -> dict:
     import pcvr_native as pn
 
@@ -92,7 +75,25 @@ def run(quick: bool, workdir: Path, log) -> dict:
     return out
 
 
+def ring_profile(image, reference) -> dict:
+    """The ring measure of `image` against `reference` (premultiplied RGBA, the ball in the middle)."""
+    image, reference = np.asarray(image, dtype=np.float64), np.asarray(reference, dtype=np.float64)
+    h, w = reference.shape[:2]
+    y, x = np.mgrid[0:h, 0:w]
+    radius = np.hypot(x - (w - 1) / 2.0, y - (h - 1) / 2.0).astype(int)
+    both = (image[..., 3] > OPAQUE) & (reference[..., 3] > OPAQUE)
+    difference = (image[..., :3] - reference[..., :3]) @ LUMINANCE
+    counts = np.bincount(radius[both], minlength=radius.max() + 1)
+    sums = np.bincount(radius[both], weights=difference[both], minlength=radius.max() + 1)
+    rings = np.nonzero(counts)[0]
+    means = sums[rings] / counts[rings]
+    left = means - np.polyval(np.polyfit(rings, means, FIT_DEGREE), rings)
+    return {"rms": 255.0 * float(np.sqrt(np.mean(left ** 2))), "peak": 255.0 * float(np.abs(left).max()),
+            "radii": int(len(rings)), "pixels": int(both.sum())}
+
+
 def section(res: dict | None) -> list[str]:
+    """The rings' sub-section of ct_head.py's section, or nothing where they were not measured."""
     if not res:
         return []
     lines = ["### Slicing rings on a sphere", "",
@@ -105,9 +106,6 @@ def section(res: dict | None) -> list[str]:
              "largest magnitude of the rest in 8-bit steps (1/255). Sheets twice as far apart are the control: the measure "
              "has to rise there.", "",
              "| renderer | rings RMS (1/255) | largest (1/255) | annuli | time (s) |", "|---|---|---|---|---|"]
-    for key, m in res["methods"].items():
-        if "skipped" in m:
-            lines.append(f"| {key} | skipped: {m['skipped']} | | | |")
-            continue
-        lines.append(f"| {key} | {m['rms']:.2f} | {m['peak']:.2f} | {m['radii']} | {m['seconds']:.3f} |")
+    lines += [f"| {key} | skipped: {m['skipped']} | | | |" if "skipped" in m else
+              f"| {key} | {m['rms']:.2f} | {m['peak']:.2f} | {m['radii']} | {m['seconds']:.3f} |" for key, m in res["methods"].items()]
     return lines + [""]
