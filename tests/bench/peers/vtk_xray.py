@@ -13,7 +13,7 @@ What a scientific user would pick, offscreen (EGL, Mesa's llvmpipe on this CPU-o
 |                                      | 1 - exp(-k v u) (256-point table): I = 1 - exp(-k * integral)   |                       |
 
 Times are wall-clock seconds of ``Render()`` plus the read-back that waits for it, after one
-warm-up render per view; repeated up to 3 times when cheap (median). The fixed-point mapper runs at
+warm-up render per view; repeated up to 3 times (the job's `repeats`) when cheap (median). The fixed-point mapper runs at
 full quality (fixed_point_mapper: VTK's frame-rate adaptation off). Both read back the 8-bit
 framebuffer (VTK's render windows are RGBA8): that quantisation is part of what a VTK user gets and
 shows in the error. The gain (and k) map the largest exact integral to 0.95 (optical depth 1.0), as a
@@ -199,7 +199,7 @@ def render_views(job, setup, log):
 
         warmup_s, _ = timed()
         del cpu[:]
-        seconds, pixels = budget.repeat(timed)
+        seconds, pixels = budget.repeat(timed, most=job.get("repeats", 3))
         budget.record(config["key"], view, min(seconds))
         path = out_dir / f"{config['key']}_{view_key}.npy"
         image, extra = decode(pixels)
