@@ -73,8 +73,12 @@ def fetch_deb_member(package: str, member: str, target: Path) -> Path:
             tail = (proc.stderr.strip().splitlines() or ["no package file"])[-1]
             raise Unavailable(f"`apt-get download {package}` failed ({tail}); run `apt-get update` first if the "
                               "package lists are empty")
+        try:
+            data = deb_member(debs[0].read_bytes(), member)
+        except Unavailable as e:
+            raise Unavailable(f"{debs[0].name}: {e}") from None
         partial = Path(tmp) / target.name
-        partial.write_bytes(deb_member(debs[0].read_bytes(), member))
+        partial.write_bytes(data)
         partial.replace(target)  # whole or not at all
     return target
 
