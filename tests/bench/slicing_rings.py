@@ -61,7 +61,7 @@ def run(quick: bool, workdir: Path, log) -> dict:
     cam, spec = views.camera(view), ct_head.scene_for(STEP_TF)
     reference, reference_s, _ = ct_head.native_render(grid, cam, spec, "raycast", sheet_spacing=REFERENCE_SPACING)
     out = {"size": n, "side": SIDE, "reference_spacing": REFERENCE_SPACING, "reference_s": reference_s, "methods": {}}
-    renders = {"pcvr": {}, f"pcvr, sheets {CONTROL_SHEET_SPACING:g} voxels apart": {"sheet_spacing": CONTROL_SHEET_SPACING}}
+    renders = {"`pcvr`": {}, f"`pcvr`, sheets {CONTROL_SHEET_SPACING:g} voxels apart": {"sheet_spacing": CONTROL_SHEET_SPACING}}
     for key, kw in renders.items():
         image, seconds, _ = ct_head.native_render(grid, cam, spec, "pcvr", **kw)
         out["methods"][key] = dict(ring_profile(image, reference), seconds=seconds)
