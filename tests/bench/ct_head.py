@@ -100,7 +100,8 @@ def transfer_function(name: str, presets: dict, index_to_world) -> dict:
     if name in TRANSFER_FUNCTIONS:
         return TRANSFER_FUNCTIONS[name]
     voxel = float(np.linalg.norm(np.asarray(index_to_world)[:3, :3], axis=0).min())
-    return dict(presets[name], unit_distance=voxel * presets[name]["unit_distance"])
+    preset = presets[name]
+    return {"density": preset["density"], "rgba": preset["rgba"], "unit_distance": voxel / preset["opacity_scale"]}
 
 
 def run(quick: bool, log) -> dict:
@@ -108,7 +109,7 @@ def run(quick: bool, log) -> dict:
     rounds = QUICK_ROUNDS if quick else ROUNDS
     workdir = shaded_volumes.CACHE / "bench"
     workdir.mkdir(parents=True, exist_ok=True)
-    presets = shaded_volumes.preset_points(shaded_volumes.PRESETS, unit_distance=1.0)
+    presets = shaded_volumes.preset_points(shaded_volumes.PRESETS)
     out = {"threads": THREADS, "field_of_view": FIELD_OF_VIEW, "rounds": rounds, "volumes": {}, "scenes": {}}
     for volume in shaded_volumes.VOLUMES:
         rec = out["volumes"][volume.key] = {"title": volume.title, "source": volume.source}

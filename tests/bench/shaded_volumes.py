@@ -129,16 +129,14 @@ def dense_box(grid):
     return (i1 - i0 + 1, j1 - j0 + 1, k1 - k0 + 1), index_to_world
 
 
-def preset_points(names, unit_distance: float) -> dict:
-    """{name: transfer function as ct_head.TRANSFER_FUNCTIONS has them} of the add-on's presets `names`,
-    as Blender makes them (a child process with bpy runs this file); opacity per `unit_distance` (world
-    units), divided by the preset's opacity scale as the add-on divides it."""
+def preset_points(names) -> dict:
+    """{name: {"density", "rgba", "opacity_scale"}} of the add-on's presets `names` as Blender makes them (a child
+    process with bpy runs this file): the control points' densities and colours with opacity per voxel, and the
+    opacity scale the add-on divides that voxel by."""
     proc = subprocess.run([sys.executable, __file__, "--presets", *names], capture_output=True, text=True, timeout=300)
     if proc.returncode != 0:
         raise RuntimeError(f"reading the presets {', '.join(names)} in Blender failed: {proc.stderr.strip()[-400:]}")
-    points = json.loads(proc.stdout.strip().splitlines()[-1])
-    return {name: {"density": p["density"], "rgba": p["rgba"], "unit_distance": unit_distance / p["opacity_scale"]}
-            for name, p in points.items()}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def _presets_in_blender(names) -> dict:
