@@ -12,6 +12,7 @@ An .inv3 file is a gzipped tar of an InVesalius project: ``main.plist`` names th
 (``matrix.dat``, raw C-order [slice, row, column]), its dtype, shape and spacing. Nothing is committed:
 the package is downloaded and unpacked into CACHE once (a few seconds, 19 MB), and `load()` raises
 Unavailable with the reason where that cannot be done (no apt, no network), for the caller to report.
+fetch_deb_member does the same for any file of any package (shaded_volumes.py's other volumes).
 """
 
 from __future__ import annotations
@@ -56,24 +57,28 @@ def deb_member(deb: bytes, name_suffix: str) -> bytes:
     raise Unavailable(f"{name_suffix} not found in the package")
 
 
-def _fetch_inv3() -> Path:
-    """CACHE/Cranium.inv3, downloading the package first when it is not there."""
-    target = CACHE / "Cranium.inv3"
+def fetch_deb_member(package: str, member: str, target: Path) -> Path:
+    """`target`, unpacked from the file `member` of the Debian package `package` (`apt-get download`) when it
+    is not there yet. Raises Unavailable saying why where that cannot be done."""
     if target.exists():
         return target
-    CACHE.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=CACHE) as tmp:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         try:
-            proc = subprocess.run(["apt-get", "download", PACKAGE], cwd=tmp, capture_output=True, text=True, timeout=300)
+            proc = subprocess.run(["apt-get", "download", package], cwd=tmp, capture_output=True, text=True, timeout=300)
         except (OSError, subprocess.TimeoutExpired) as e:
-            raise Unavailable(f"`apt-get download {PACKAGE}` could not run: {e}") from e
-        debs = list(Path(tmp).glob(f"{PACKAGE}_*.deb"))
+            raise Unavailable(f"`apt-get download {package}` could not run: {e}") from e
+        debs = list(Path(tmp).glob(f"{package}_*.deb"))
         if proc.returncode != 0 or not debs:
             tail = (proc.stderr.strip().splitlines() or ["no package file"])[-1]
-            raise Unavailable(f"`apt-get download {PACKAGE}` failed ({tail}); run `apt-get update` first if the "
+            raise Unavailable(f"`apt-get download {package}` failed ({tail}); run `apt-get update` first if the "
                               "package lists are empty")
+        try:
+            data = deb_member(debs[0].read_bytes(), member)
+        except Unavailable as e:
+            raise Unavailable(f"{debs[0].name}: {e}") from None
         partial = Path(tmp) / target.name
-        partial.write_bytes(deb_member(debs[0].read_bytes(), MEMBER))
+        partial.write_bytes(data)
         partial.replace(target)  # whole or not at all
     return target
 
@@ -81,7 +86,7 @@ def _fetch_inv3() -> Path:
 def load(inv3: Path | None = None):
     """(values [i, j, k] float32 in Hounsfield units, 4 x 4 index_to_world in mm, metadata dict), from
     `inv3` (an InVesalius project) or the cached download."""
-    inv3 = inv3 or _fetch_inv3()
+    inv3 = inv3 or fetch_deb_member(PACKAGE, MEMBER, CACHE / "Cranium.inv3")
     with tarfile.open(inv3) as tar:
         members = {Path(m.name).name: m for m in tar.getmembers()}
         main = plistlib.loads(tar.extractfile(members["main.plist"]).read())

@@ -19,7 +19,7 @@ a search of kernel pairs, and PCVR's own speed, memory and limits; writes docs/b
 | big volumes | big_volume_bench.py | memory and time of a 384^3 X-ray read whole, streamed and zoomed out |
 | shaded levels | shaded_levels.py | shaded and MIP error and time per level of detail, 1/2 to 1/32 |
 | batches     | batch_bench.py   | frames/s and DRRs/s in one process and on 1 and 2 Dask workers, overheads, N machines |
-| CT head     | ct_head.py       | shaded rendering of a real CT head (Debian's invesalius-examples) against VTK |
+| real volumes | ct_head.py      | shaded rendering of a CT head and two MR heads (shaded_volumes.py) with five transfer functions against VTK, and slicing rings |
 | cut open    | clipping_bench.py | X-ray and shaded time and error of the CT head whole, cropped to half, cut by a plane |
 | DRR         | drr_bench.py     | cone-beam DRRs of the CT head beside plastimatch and RTK: time, DRRs/s, error against a ray march |
 | shadows     | shadows_bench.py | shaded time with and without shadows, CT phantom and CT head, against the ray caster's shadow rays |
@@ -95,7 +95,7 @@ STANDALONE_PARTS = [
     ("shaded_levels", "shaded_levels", "shaded and MIP levels of detail"),
     ("big_volume", "big_volume_bench", "big volumes"),
     ("batch", "batch_bench", "batches over Dask"),
-    ("ct_head", "ct_head", "shaded rendering of a real CT head against VTK"),
+    ("ct_head", "ct_head", "shaded rendering of real volumes against VTK"),
     ("clipping", "clipping_bench", "cut open: crop boxes and clip planes"),
     ("drr", "drr_bench", "DRRs beside plastimatch and RTK"),
     ("shadows", "shadows_bench", "shadows: cost and accuracy"),
@@ -481,7 +481,7 @@ def parse_args(argv=None):
     p.add_argument("--no-batch", dest="batch", action="store_false",
                    help="skip frames/s and DRRs/s of batches in one process and on Dask workers")
     p.add_argument("--no-ct-head", dest="ct_head", action="store_false",
-                   help="skip the real CT head against VTK")
+                   help="skip the real volumes (a CT head, two MR heads) against VTK")
     p.add_argument("--no-clipping", dest="clipping", action="store_false",
                    help="skip the CT head whole, cropped and cut by a plane")
     p.add_argument("--no-drr", dest="drr", action="store_false",

@@ -64,17 +64,31 @@ def oblique(shape, index_to_world, magnification: float, direction=VIEW_DIRECTIO
             "magnification": float(magnification), "depth_range": _depth_range(world, w2c)}
 
 
-def perspective(shape, index_to_world, magnification: float = PERSPECTIVE_MAGNIFICATION, square: int | None = None) -> dict:
+def perspective(shape, index_to_world, magnification: float = PERSPECTIVE_MAGNIFICATION, square: int | None = None,
+                fov_degrees: float | None = None) -> dict:
     """Pinhole view along VIEW_DIRECTION, PERSPECTIVE_DISTANCE diagonals from the centre, with
     `magnification` pixels per voxel there, framing the whole volume; or, with `square`, a square image
-    of that many pixels a side that the volume fills (the magnification then follows from it)."""
+    of that many pixels a side that the volume fills (the magnification then follows from it), and with
+    `fov_degrees` as well, from the distance at which that field of view (across the image) fits it."""
     xf = np.asarray(index_to_world, dtype=np.float64)
     world, centre, diag, d = _framing(shape, xf)
+
+    def fitted(distance):
+        w2c = look_at(centre - d * distance, centre, VIEW_UP)
+        cam = world @ w2c[:3, :3].T + w2c[:3, 3]
+        return w2c, (np.abs(cam[:, :2]) / -cam[:, 2:3]).max(axis=0)  # half the image per unit of focal length
+
     distance = PERSPECTIVE_DISTANCE * diag
-    w2c = look_at(centre - d * distance, centre, VIEW_UP)
+    if fov_degrees is not None and square is not None:
+        # The volume's half-extent over the focal length falls as the camera backs off: bisect for the
+        # distance where it fills the image inside the margins at this field of view.
+        goal = math.tan(math.radians(fov_degrees) / 2.0) * (square - 2 * MARGIN_PIXELS) / square
+        near, far = 0.5 * diag, 100.0 * diag
+        for _ in range(60):
+            distance = 0.5 * (near + far)
+            near, far = (distance, far) if fitted(distance)[1].max() > goal else (near, distance)
+    w2c, extent = fitted(distance)
     voxel = float(np.linalg.svd(w2c[:2, :3] @ xf[:3, :3], compute_uv=False).min())
-    cam = world @ w2c[:3, :3].T + w2c[:3, 3]
-    extent = (np.abs(cam[:, :2]) / -cam[:, 2:3]).max(axis=0)  # half the image per unit of focal length
     if square is not None:
         focal = (square - 2 * MARGIN_PIXELS) / (2.0 * float(extent.max()))
         magnification = focal * voxel / distance

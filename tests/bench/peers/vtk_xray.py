@@ -13,7 +13,7 @@ What a scientific user would pick, offscreen (EGL, Mesa's llvmpipe on this CPU-o
 |                                      | 1 - exp(-k v u) (256-point table): I = 1 - exp(-k * integral)   |                       |
 
 Times are wall-clock seconds of ``Render()`` plus the read-back that waits for it, after one
-warm-up render per view; repeated up to 3 times when cheap (median). The fixed-point mapper runs at
+warm-up render per view; repeated up to 3 times (the job's `repeats`) when cheap (median). The fixed-point mapper runs at
 full quality (fixed_point_mapper: VTK's frame-rate adaptation off). Both read back the 8-bit
 framebuffer (VTK's render windows are RGBA8): that quantisation is part of what a VTK user gets and
 shows in the error. The gain (and k) map the largest exact integral to 0.95 (optical depth 1.0), as a
@@ -40,6 +40,7 @@ import vtk  # noqa: E402
 from vtk.util import numpy_support  # noqa: E402
 
 from budget import Budget  # noqa: E402
+from image_axes import axis_aligned  # noqa: E402
 
 OPTICAL_DEPTH = 1.0   # fixed-point mapper: k * largest integral
 ADDITIVE_TOP = 0.95   # GPU mapper: largest integral -> this pixel value
@@ -51,10 +52,8 @@ def log(msg):
 
 
 def image_data(values, index_to_world):
-    xf = np.asarray(index_to_world, dtype=np.float64)
+    values, xf = axis_aligned(values, index_to_world)
     lin = xf[:3, :3]
-    if np.abs(lin - np.diag(np.diag(lin))).max() > 1e-12 * np.abs(lin).max():
-        raise ValueError("VTK peer: index_to_world must be axis-aligned")
     img = vtk.vtkImageData()
     img.SetDimensions(*values.shape)
     img.SetSpacing(*np.diag(lin))
@@ -200,7 +199,7 @@ def render_views(job, setup, log):
 
         warmup_s, _ = timed()
         del cpu[:]
-        seconds, pixels = budget.repeat(timed)
+        seconds, pixels = budget.repeat(timed, most=job.get("repeats", 3))
         budget.record(config["key"], view, min(seconds))
         path = out_dir / f"{config['key']}_{view_key}.npy"
         image, extra = decode(pixels)
