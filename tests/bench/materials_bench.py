@@ -46,7 +46,12 @@ ROWS = [("ct_bone", "pcvr", "CT head, CT Bone preset: PCVR's Blinn-Phong (the pr
         ("smoke", "pcvr", "plume, Quick Smoke: PCVR scattering with shadows"),
         ("fire", "pcvr", "plume, Quick Fire: PCVR scattering with shadows"),
         ("coloured_smoke", "pcvr", "plume, Quick Smoke with a `color` grid as its Color Attribute: PCVR scattering "
-                                   "with shadows")]
+                                   "with shadows"),
+        ("cloud", "pcvr", "cumulus, dense white (density 40), sun: PCVR multiple scattering (the default)"),
+        ("cloud", "pcvr_single", "cumulus, sun: PCVR single scattering (one octave)"),
+        ("cloud", "pcvr_no_shadows", "cumulus, sun: PCVR without shadows"),
+        ("cloud_point", "pcvr", "cumulus, point light: PCVR multiple scattering"),
+        ("cloud_point", "pcvr_single", "cumulus, point light: PCVR single scattering")]
 PNG_STEP = 1.0 / 255.0
 
 
@@ -54,6 +59,8 @@ def job(quick: bool) -> dict:
     return {"quick": quick, "samples": QUICK_SAMPLES if quick else SAMPLES, "rounds": QUICK_ROUNDS if quick else ROUNDS,
             "ct_size": 48 if quick else 96, "ct_magnification": 2.0 if quick else 3.0,
             "plume_size": 32 if quick else 64, "plume_pixels": 128 if quick else 256,
+            "cloud_size": 48 if quick else 128, "cloud_pixels": (80, 60) if quick else (160, 120),
+            **({"scenes": os.environ["PCVR_MATERIALS_SCENES"].split(",")} if os.environ.get("PCVR_MATERIALS_SCENES") else {}),
             "work_dir": str(WORK_DIR), "image_dir": str(WORK_DIR / "img" if quick else IMAGE_DIR),
             "result": str(WORK_DIR / "result.json")}
 

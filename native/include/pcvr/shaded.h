@@ -105,6 +105,10 @@ struct ShadedParams {
     SheetFill sheet_fill = SheetFill::Automatic;
     /// Point-sampled or pre-integrated classification (the ray caster always samples points, finely).
     Classification classification = Classification::Automatic;
+    /// Raycast only: > 0 renders scattering media by Monte Carlo path tracing (light scattered any number of
+    /// times), this many paths per pixel, seeded by `seed` (src/shaded/reference/path_tracer.h).
+    int paths = 0;
+    uint64_t seed = 0;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -186,6 +190,8 @@ struct ShadedStats {
     uint64_t preintegration_table_bytes = 0;
     uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
     double seconds_shadows = 0;       ///< building them (wall seconds)
+    /// Octaves of multiple scattering built (Shading::scattering_octaves; 1: single scattering only).
+    int scattering_octaves = 1;
 };
 
 /// Premultiplied linear RGBA, row 0 on top.
