@@ -207,7 +207,7 @@ def cloud(light):
             lamp.data.energy, lamp.rotation_euler = 4.0, (0.6, 0.5, 0.3)
         else:
             lamp = bpy.data.objects.new("Point", bpy.data.lights.new("Point", 'POINT'))
-            lamp.data.energy, lamp.location = 4000.0, (-2.0, -2.5, 3.0)
+            lamp.data.energy, lamp.location = 1000.0, (-2.0, -2.5, 3.0)
         scene.collection.objects.link(lamp)
         world = bpy.data.worlds.new("World")
         world.color = (0.3, 0.4, 0.6)
