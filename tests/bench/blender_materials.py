@@ -116,30 +116,41 @@ def ct_bone(job, directory):
                                                    "pcvr_scattering": pcvr('SCATTER', True), "cycles": cycles}
 
 
-def plume_scene(vdb_path, n, size):
-    """The plume of `n`^3 voxels seen from the side at `size`^2 pixels, a sun from the left, a dark grey world."""
+def side_view_scene(name, vdb_path, pixels, ortho_scale, camera_at):
+    """A volume object `name` of the .vdb at `vdb_path`, seen from the side (along +y) by an orthographic camera at
+    `camera_at`, `pixels` (width, height), the Standard view transform: (scene, object)."""
     scene = fresh_scene()
-    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_x, scene.render.resolution_y = pixels
     scene.render.resolution_percentage = 100
     scene.view_settings.view_transform = 'Standard'
-    volume = bpy.data.volumes.new("Plume")
+    volume = bpy.data.volumes.new(name)
     volume.filepath = vdb_path
-    obj = bpy.data.objects.new("Plume", volume)
+    obj = bpy.data.objects.new(name, volume)
     scene.collection.objects.link(obj)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    extent = n * smoke_plume.VOXEL
-    camera.data.type, camera.data.ortho_scale = 'ORTHO', extent * 1.05
-    camera.location, camera.rotation_euler = (extent / 2, -10.0, extent / 2), (math.pi / 2, 0.0, 0.0)
+    camera.data.type, camera.data.ortho_scale = 'ORTHO', ortho_scale
+    camera.location, camera.rotation_euler = camera_at, (math.pi / 2, 0.0, 0.0)
     scene.collection.objects.link(camera)
     scene.camera = camera
+    return scene, obj
+
+
+def set_world(scene, colour):
+    world = bpy.data.worlds.new("World")
+    world.color = colour
+    if world.node_tree is not None:
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
+    scene.world = world
+
+
+def plume_scene(vdb_path, n, size):
+    """The plume of `n`^3 voxels seen from the side at `size`^2 pixels, a sun from the left, a dark grey world."""
+    extent = n * smoke_plume.VOXEL
+    scene, obj = side_view_scene("Plume", vdb_path, (size, size), extent * 1.05, (extent / 2, -10.0, extent / 2))
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
     sun.data.energy, sun.rotation_euler = 3.0, (0.0, 1.0, 0.3)
     scene.collection.objects.link(sun)
-    world = bpy.data.worlds.new("World")
-    world.color = (0.05, 0.05, 0.05)
-    if world.node_tree is not None:
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
-    scene.world = world
+    set_world(scene, (0.05, 0.05, 0.05))
     return scene, obj
 
 
@@ -187,21 +198,9 @@ def cloud(light):
         vdb_path = os.path.join(directory, f"cloud_{job['cloud_size']}.vdb")
         if not os.path.exists(vdb_path):
             cumulus.write_vdb(vdb_path, job["cloud_size"])
-        scene = fresh_scene()
-        scene.render.resolution_x, scene.render.resolution_y = job["cloud_pixels"]
-        scene.render.resolution_percentage = 100
-        scene.view_settings.view_transform = 'Standard'
-        volume = bpy.data.volumes.new("Cloud")
-        volume.filepath = vdb_path
-        obj = bpy.data.objects.new("Cloud", volume)
-        scene.collection.objects.link(obj)
+        scene, obj = side_view_scene("Cloud", vdb_path, job["cloud_pixels"], 1.7, (0.03, -10.0, -0.07))
         obj.data.materials.append(cloud_material())
         obj.data.pcvr.source = 'MATERIAL'
-        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-        camera.data.type, camera.data.ortho_scale = 'ORTHO', 1.7
-        camera.location, camera.rotation_euler = (0.03, -10.0, -0.07), (math.pi / 2, 0.0, 0.0)
-        scene.collection.objects.link(camera)
-        scene.camera = camera
         if light == 'SUN':
             lamp = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
             lamp.data.energy, lamp.rotation_euler = 4.0, (0.6, 0.5, 0.3)
@@ -209,11 +208,7 @@ def cloud(light):
             lamp = bpy.data.objects.new("Point", bpy.data.lights.new("Point", 'POINT'))
             lamp.data.energy, lamp.location = 1000.0, (-2.0, -2.5, 3.0)
         scene.collection.objects.link(lamp)
-        world = bpy.data.worlds.new("World")
-        world.color = (0.3, 0.4, 0.6)
-        if world.node_tree is not None:
-            world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.4, 0.6, 1.0)
-        scene.world = world
+        set_world(scene, (0.3, 0.4, 0.6))
         scene.pcvr.mode = 'SHADED'
         scene.cycles.max_bounces = scene.cycles.volume_bounces = 64
 
