@@ -199,6 +199,9 @@ def test_scattering_octaves_reach_render_shaded(blob_object):
     np.testing.assert_allclose(image, expected(2), atol=TOLERANCE * expected(2).max())
     # The octaves reached the renderer: they brighten the blob's shade.
     assert image[..., :3].sum() > 1.01 * expected(1)[..., :3].sum()
+    mode, stats = statistics.last_render[scene.session_uid]
+    assert dict(statistics.statistics_rows(mode, stats))["Scattering octaves"] == "2"
+    assert "Multiple scattering (2 octaves)" in statistics.status_line(mode, stats)
 
 
 def test_ambient_occlusion_reaches_render_shaded(blob_object):
