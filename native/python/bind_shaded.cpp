@@ -262,6 +262,7 @@ void fill_stats(nb::handle stats, const ShadedStats& s) {
     stats["seconds_sampling"] = s.seconds_sampling;
     stats["seconds_shading"] = s.seconds_shading;
     stats["classification"] = s.classification;
+    stats["scattering_octaves"] = s.scattering_octaves;
     stats["preintegration_tables_built"] = s.preintegration_tables_built;
     stats["preintegration_table_bytes"] = s.preintegration_table_bytes;
     stats["shadow_texels"] = s.shadow_texels;
@@ -288,7 +289,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
                             nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids,
                             const std::string& sheet_fill, const std::string& classification, nb::handle memory_limit,
-                            nb::handle brick_share) {
+                            nb::handle brick_share, int paths, uint64_t seed) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -331,6 +332,10 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     parts.params.shadows = *flag_from_python(shadows, "render_shaded: shadows", false);
     parts.params.sheet_fill = sheet_fill_from_name(sheet_fill);
     parts.params.classification = classification_from_name(classification);
+    if (paths < 0 || (paths > 0 && parts.params.method != ShadedMethod::Raycast))
+        throw nb::value_error("render_shaded: paths must be >= 0, and > 0 only with method='raycast'");
+    parts.params.paths = paths;
+    parts.params.seed = seed;
     run_polled([&] {
         image = parts.stream ? render_shaded(*parts.stream, volumes[0], camera, lighting, parts.params, parts.bricked, control, &s)
                              : render_shaded(volumes, camera, lighting, parts.params, control, &s);
@@ -441,22 +446,32 @@ void bind_shaded(nb::module_& m) {
                         "Henyey-Greenstein phase function of `anisotropy` g in (-1, 1), > 0 forwards).")
         .def("__init__",
              [](Shading* self, double ambient, double diffuse, double specular, double shininess, bool lit, const std::string& model,
-                double anisotropy, bool ambient_occlusion) {
+                double anisotropy, bool ambient_occlusion, int scattering_octaves) {
                  new (self) Shading{ambient, diffuse, specular, shininess, lit, shading_model_from_name(model), anisotropy,
-                                    ambient_occlusion};
+                                    ambient_occlusion, scattering_octaves};
                  Lighting{{}, {0, 0, 0}, *self}.validate();
              },
              "ambient"_a = 0.1, "diffuse"_a = 0.9, "specular"_a = 0.2, "shininess"_a = 10.0, "lit"_a = true,
-             "model"_a = "blinn_phong", "anisotropy"_a = 0.0, "ambient_occlusion"_a = false,
+             "model"_a = "blinn_phong", "anisotropy"_a = 0.0, "ambient_occlusion"_a = false, "scattering_octaves"_a = 6,
              "lit=False: samples keep the transfer function's colours (shading off, as in VTK and 3D Slicer).\n"
              "ambient_occlusion=True: the ambient light reaches each sample through the volumes, as the mean of its\n"
-             "transmittance towards +-x, +-y and +-z (the world's light in Cycles is shadowed so).")
+             "transmittance towards +-x, +-y and +-z (the world's light in Cycles is shadowed so).\n"
+             "scattering_octaves (model 'scatter'): light scattered more than once, as octaves of shadows at lower\n"
+             "extinction (Wrenninge 2015; lights that cast shadows, and the ambient light with ambient_occlusion);\n"
+             "1: single scattering only. stats['scattering_octaves'] says how many a render built.")
         .def_rw("ambient", &Shading::ambient)
         .def_rw("diffuse", &Shading::diffuse)
         .def_rw("specular", &Shading::specular)
         .def_rw("shininess", &Shading::shininess)
         .def_rw("lit", &Shading::lit)
         .def_rw("ambient_occlusion", &Shading::ambient_occlusion)
+        .def_prop_rw("scattering_octaves", [](const Shading& s) { return s.scattering_octaves; },
+                     [](Shading& s, int n) {
+                         Shading changed = s;
+                         changed.scattering_octaves = n;
+                         Lighting{{}, {0, 0, 0}, changed}.validate();
+                         s = changed;
+                     })
         .def_prop_ro("model", [](const Shading& s) { return s.model == Shading::Model::Scatter ? "scatter" : "blinn_phong"; })
         .def_prop_ro("anisotropy", [](const Shading& s) { return s.anisotropy; })
         .def("__repr__", [](const Shading& s) {
@@ -474,6 +489,7 @@ void bind_shaded(nb::module_& m) {
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
           "sheet_fill"_a = "auto", "classification"_a = "auto", "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(),
+          "paths"_a = 0, "seed"_a = 0,
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -498,7 +514,10 @@ void bind_shaded(nb::module_& m) {
           "each stretch between consecutive samples by the transfer function's mean over its two ends' densities\n"
           "(Engel, Kraus and Ertl 2001: no rings where a sharp transfer function meets the sheets), from a table\n"
           "built once per TransferFunction and kept with it; 'auto' the measured better (stats['classification'],\n"
-          "stats['preintegration_tables_built'], stats['preintegration_table_bytes']). The ray caster samples points.\n" BRICKS_DOC);
+          "stats['preintegration_tables_built'], stats['preintegration_table_bytes']). The ray caster samples points.\n"
+          "paths (method='raycast'): > 0 path-traces scattering media instead (Monte Carlo, light scattered any number\n"
+          "of times, every light shadowed, the world's light occluded), that many paths per pixel from `seed`: the\n"
+          "brute-force reference for Shading.scattering_octaves.\n" BRICKS_DOC);
     m.def("render_mip", &render_mip_py, "grids"_a, "camera"_a, "method"_a = "pcvr", "splat_kernel"_a = "gauss1.4",
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),

@@ -379,15 +379,16 @@ def _native_lighting(prepared):
     shadings = []
     for volume in prepared.volumes:
         medium = volume.inputs.medium
-        use_shading, ambient, diffuse, specular, shininess, anisotropy, occlusion = volume.inputs.material
+        use_shading, ambient, diffuse, specular, shininess, anisotropy, occlusion, octaves = volume.inputs.material
         if medium is not None:
-            # A Blender material is a scattering medium: single scattering with its phase function, as Cycles
-            # lights it (its transfer function's colour is the albedo), not Blinn-Phong on gradients.
-            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy, ambient_occlusion=occlusion))
+            # A Blender material is a scattering medium: scattering with its phase function, as Cycles lights it
+            # (its transfer function's colour is the albedo), not Blinn-Phong on gradients.
+            shadings.append(pcvr_native.Shading(model="scatter", anisotropy=medium.anisotropy, ambient_occlusion=occlusion,
+                                                scattering_octaves=octaves))
             continue
         if anisotropy is not None:
             shadings.append(pcvr_native.Shading(model="scatter", anisotropy=anisotropy, lit=use_shading,
-                                                ambient_occlusion=occlusion))
+                                                ambient_occlusion=occlusion, scattering_octaves=octaves))
             continue
         shadings.append(pcvr_native.Shading(ambient=ambient, diffuse=diffuse, specular=specular,
                                             shininess=shininess, lit=use_shading, ambient_occlusion=occlusion))

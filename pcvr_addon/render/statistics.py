@@ -75,7 +75,9 @@ def _automatic_choices(stats):
     subgrids = [s for s in stats.get("sampled_strides", []) if s > 1]
     post = f", post-convolved at stride {format_strides(subgrids)}" if subgrids else ""
     sampling = f" | Sheets sampled ({sampled} volume{'s' if sampled > 1 else ''}{post})" if sampled else ""
-    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric + sampling
+    octaves = stats.get("scattering_octaves", 1)
+    scattering = f" | Multiple scattering ({octaves} octaves)" if octaves > 1 else ""
+    return level + (f" | Supersampled {sub} x {sub}" if sub > 1 else "") + metric + sampling + scattering
 
 
 def status_line(mode, stats):
@@ -153,4 +155,6 @@ def _shadow_rows(stats):
     """The lights' transmittance volumes, where the render had shadows."""
     if not stats.get("shadow_texels"):
         return []
-    return [("Shadow texels", f"{stats['shadow_texels']:,}"), ("Shadows", f"{stats['seconds_shadows']:.3f} s")]
+    octaves = stats.get("scattering_octaves", 1)
+    scattering = [("Scattering octaves", f"{octaves}")] if octaves > 1 else []
+    return [("Shadow texels", f"{stats['shadow_texels']:,}"), ("Shadows", f"{stats['seconds_shadows']:.3f} s")] + scattering

@@ -180,12 +180,12 @@ def gradient_opacity_inputs(settings):
 
 
 def material(settings):
-    """A volume's material: (use_shading, ambient, diffuse, specular, shininess, anisotropy, ambient_occlusion),
-    anisotropy None for Blinn-Phong (a number: single scattering)."""
+    """A volume's material: (use_shading, ambient, diffuse, specular, shininess, anisotropy, ambient_occlusion,
+    scattering_octaves), anisotropy None for Blinn-Phong (a number: scattering)."""
     anisotropy = float(settings.anisotropy) if settings.shading_model == 'SCATTER' else None
     return (settings.use_shading, *(as_typed(getattr(settings, name))
                                     for name in ("ambient", "diffuse", "specular", "shininess")), anisotropy,
-            bool(settings.ambient_occlusion))
+            bool(settings.ambient_occlusion), int(settings.scattering_octaves))
 
 
 def object_units_per_world(object_to_world, direction=None):

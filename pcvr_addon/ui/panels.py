@@ -313,6 +313,8 @@ class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
         layout.prop(settings, "shading_model")
         layout.prop(settings, "ambient_occlusion")
         col = layout.column(align=True)
+        if settings.shading_model == 'SCATTER' or settings.source == 'MATERIAL':
+            col.prop(settings, "scattering_octaves")
         if settings.shading_model == 'SCATTER':
             col.prop(settings, "anisotropy")
             return

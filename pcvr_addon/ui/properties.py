@@ -432,6 +432,15 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         min=-0.99, max=0.99, default=0.0,
         update=tag_changed,
     )
+    scattering_octaves: IntProperty(
+        name="Scattering Octaves",
+        description="Light scattered more than once (Scattering model, and Source: Material): octaves of the lights' "
+                    "shadows at lower extinction add the light a dense cloud diffuses into its shade, as Cycles' "
+                    "volume bounces do; needs Shadows (and Ambient Occlusion for the world's light). 1: single "
+                    "scattering only",
+        min=1, max=16, default=6,
+        update=tag_changed,
+    )
     ambient_occlusion: BoolProperty(
         name="Ambient Occlusion",
         description="Shadow the world's ambient light through the volumes, as Cycles does: each sample gets the mean "

@@ -34,6 +34,13 @@ def lit_blob_scene(blob_object, transparent=True):
     return scene
 
 
+def lit_blob_lights():
+    """lit_blob_scene's lights as render_shaded takes them (Blender's sun irradiance over pi, its point power over
+    4 pi^2)."""
+    return [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
+            pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+
+
 # Numbers that single precision (Blender's colours and settings) holds exactly, so that the references below
 # get the very same inputs.
 WORLD = (0.125, 0.1875, 0.25)
@@ -44,8 +51,7 @@ TOLERANCE = 1e-5
 def reference(blob_object):
     """pcvr_native.render_shaded called directly with what lit_blob_scene holds, the light conversion of
     docs/shaded-rendering-in-blender.md written out: sun strength / pi, point power / (4 pi^2)."""
-    lights = [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
-              pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+    lights = lit_blob_lights()
     return pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
                             lights=lights, ambient=WORLD, method="regular",
                             shading=pn.Shading(ambient=0.25, diffuse=0.75, specular=0.375, shininess=20.0))
@@ -168,8 +174,7 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
     scene = lit_blob_scene(blob_object)
     blob_object.data.pcvr.shading_model, blob_object.data.pcvr.anisotropy = 'SCATTER', 0.5
     image = ls.combined(bs.render(scene))
-    lights = [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
-              pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+    lights = lit_blob_lights()
     expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
                                 lights=lights, ambient=WORLD, method="regular",
                                 shading=pn.Shading(model="scatter", anisotropy=0.5))
@@ -179,12 +184,31 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
     assert np.abs(image - reference(blob_object)).max() > 0.05 * expected.max()
 
 
+def test_scattering_octaves_reach_render_shaded(blob_object):
+    scene = lit_blob_scene(blob_object)
+    scene.pcvr.shadows = True
+    settings = blob_object.data.pcvr
+    assert settings.scattering_octaves == 6
+    settings.shading_model, settings.anisotropy, settings.scattering_octaves = 'SCATTER', 0.5, 2
+    image = ls.combined(bs.render(scene))
+
+    def expected(octaves):
+        return pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
+                                lights=lit_blob_lights(), ambient=WORLD, method="regular", shadows=True,
+                                shading=pn.Shading(model="scatter", anisotropy=0.5, scattering_octaves=octaves))
+    np.testing.assert_allclose(image, expected(2), atol=TOLERANCE * expected(2).max())
+    # The octaves reached the renderer: they brighten the blob's shade.
+    assert image[..., :3].sum() > 1.01 * expected(1)[..., :3].sum()
+    mode, stats = statistics.last_render[scene.session_uid]
+    assert dict(statistics.statistics_rows(mode, stats))["Scattering octaves"] == "2"
+    assert "Multiple scattering (2 octaves)" in statistics.status_line(mode, stats)
+
+
 def test_ambient_occlusion_reaches_render_shaded(blob_object):
     scene = lit_blob_scene(blob_object)
     blob_object.data.pcvr.ambient_occlusion = True
     image = ls.combined(bs.render(scene))
-    lights = [pn.Light.sun(ls.sun_direction((0.7, -0.4, 0.3)), color=(1.0, 0.875, 0.75), strength=4.0 / math.pi),
-              pn.Light.point((-1.0, -1.5, 1.0), strength=300.0 / (4 * math.pi ** 2))]
+    lights = lit_blob_lights()
     expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
                                 lights=lights, ambient=WORLD, method="regular",
                                 shading=pn.Shading(ambient=0.25, diffuse=0.75, specular=0.375, shininess=20.0,

@@ -179,7 +179,8 @@ def test_panels_of_each_mode(tmp_path, mode):
         assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "ambient", "diffuse",
                                                           "specular", "shininess"]
         obj.data.pcvr.shading_model = 'SCATTER'
-        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "anisotropy"]
+        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "scattering_octaves",
+                                                          "anisotropy"]
         assert draw(ui.PCVR_DATA_PT_gradient_opacity, context, "draw_header") == ["use_gradient_opacity"]
         gradient = draw(ui.PCVR_DATA_PT_gradient_opacity, context)
         assert gradient[:2] == ["gradient_opacity", "pcvr.gradient_opacity_new"]

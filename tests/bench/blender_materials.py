@@ -14,6 +14,11 @@ module, run as
 | smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
 | fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
 | coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
+| cloud   | tools/cumulus.py's cumulus (procedural), a Principled Volume of colour 0.98, density 40, anisotropy    |
+|         | 0.5, from the side at 160 x 120, a sun of strength 4 from above, a pale blue world (issue 39); PCVR  |
+|         | with shadows (`pcvr`: multiple scattering, the default), with one octave (`pcvr_single`), without  |
+|         | shadows (`pcvr_no_shadows`); Cycles with 64 volume bounces                                          |
+| cloud_point | the cloud lit by a point light instead of the sun                                               |
 
 Each render is timed as a whole (bpy.ops.render.render, reading the file included: PCVR's grid cache is emptied
 first); PCVR's time is the least of the job's rounds, Cycles renders once at the job's samples (its default
@@ -39,7 +44,7 @@ from pcvr_addon.cli import command_scene  # noqa: E402
 from pcvr_addon.io import image_io  # noqa: E402
 from pcvr_addon.render import cache  # noqa: E402
 from pcvr_addon.scene import lighting, transfer_function  # noqa: E402
-from tools import ct_head, smoke_plume  # noqa: E402
+from tools import ct_head, cumulus, smoke_plume  # noqa: E402
 
 
 def fresh_scene():
@@ -111,30 +116,41 @@ def ct_bone(job, directory):
                                                    "pcvr_scattering": pcvr('SCATTER', True), "cycles": cycles}
 
 
-def plume_scene(vdb_path, n, size):
-    """The plume of `n`^3 voxels seen from the side at `size`^2 pixels, a sun from the left, a dark grey world."""
+def side_view_scene(name, vdb_path, pixels, ortho_scale, camera_at):
+    """A volume object `name` of the .vdb at `vdb_path`, seen from the side (along +y) by an orthographic camera at
+    `camera_at`, `pixels` (width, height), the Standard view transform: (scene, object)."""
     scene = fresh_scene()
-    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_x, scene.render.resolution_y = pixels
     scene.render.resolution_percentage = 100
     scene.view_settings.view_transform = 'Standard'
-    volume = bpy.data.volumes.new("Plume")
+    volume = bpy.data.volumes.new(name)
     volume.filepath = vdb_path
-    obj = bpy.data.objects.new("Plume", volume)
+    obj = bpy.data.objects.new(name, volume)
     scene.collection.objects.link(obj)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    extent = n * smoke_plume.VOXEL
-    camera.data.type, camera.data.ortho_scale = 'ORTHO', extent * 1.05
-    camera.location, camera.rotation_euler = (extent / 2, -10.0, extent / 2), (math.pi / 2, 0.0, 0.0)
+    camera.data.type, camera.data.ortho_scale = 'ORTHO', ortho_scale
+    camera.location, camera.rotation_euler = camera_at, (math.pi / 2, 0.0, 0.0)
     scene.collection.objects.link(camera)
     scene.camera = camera
+    return scene, obj
+
+
+def set_world(scene, colour):
+    world = bpy.data.worlds.new("World")
+    world.color = colour
+    if world.node_tree is not None:
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
+    scene.world = world
+
+
+def plume_scene(vdb_path, n, size):
+    """The plume of `n`^3 voxels seen from the side at `size`^2 pixels, a sun from the left, a dark grey world."""
+    extent = n * smoke_plume.VOXEL
+    scene, obj = side_view_scene("Plume", vdb_path, (size, size), extent * 1.05, (extent / 2, -10.0, extent / 2))
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
     sun.data.energy, sun.rotation_euler = 3.0, (0.0, 1.0, 0.3)
     scene.collection.objects.link(sun)
-    world = bpy.data.worlds.new("World")
-    world.color = (0.05, 0.05, 0.05)
-    if world.node_tree is not None:
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
-    scene.world = world
+    set_world(scene, (0.05, 0.05, 0.05))
     return scene, obj
 
 
@@ -161,7 +177,58 @@ def plume(style, coloured=False):
     return make
 
 
-SCENES = {"ct_bone": ct_bone, "smoke": plume('SMOKE'), "fire": plume('FIRE'), "coloured_smoke": plume('SMOKE', True)}
+def cloud_material():
+    """The issue's dense white cloud: a Principled Volume of colour 0.98, density 40, anisotropy 0.5."""
+    material = bpy.data.materials.new("Cloud")
+    if material.node_tree is None:  # before 5.0
+        material.use_nodes = True
+    tree = material.node_tree
+    tree.nodes.clear()
+    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
+    volume.inputs["Color"].default_value = (0.98, 0.98, 0.98, 1.0)
+    volume.inputs["Density"].default_value = 40.0
+    volume.inputs["Anisotropy"].default_value = 0.5
+    tree.links.new(volume.outputs[0], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Volume"])
+    return material
+
+
+def cloud(light):
+    """The cumulus lit by a sun or a point light ('SUN', 'POINT'), in PCVR's three ways and in Cycles."""
+    def make(job, directory):
+        vdb_path = os.path.join(directory, f"cloud_{job['cloud_size']}.vdb")
+        if not os.path.exists(vdb_path):
+            cumulus.write_vdb(vdb_path, job["cloud_size"])
+        scene, obj = side_view_scene("Cloud", vdb_path, job["cloud_pixels"], 1.7, (0.03, -10.0, -0.07))
+        obj.data.materials.append(cloud_material())
+        obj.data.pcvr.source = 'MATERIAL'
+        if light == 'SUN':
+            lamp = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
+            lamp.data.energy, lamp.rotation_euler = 4.0, (0.6, 0.5, 0.3)
+        else:
+            lamp = bpy.data.objects.new("Point", bpy.data.lights.new("Point", 'POINT'))
+            lamp.data.energy, lamp.location = 1000.0, (-2.0, -2.5, 3.0)
+        scene.collection.objects.link(lamp)
+        set_world(scene, (0.3, 0.4, 0.6))
+        scene.pcvr.mode = 'SHADED'
+        scene.cycles.max_bounces = scene.cycles.volume_bounces = 64
+
+        def pcvr(octaves, shadows):
+            def use():
+                scene.render.engine = 'PCVR'
+                obj.data.pcvr.scattering_octaves, scene.pcvr.shadows = octaves, shadows
+            return use
+
+        default = obj.data.pcvr.bl_rna.properties["scattering_octaves"].default
+        variants = {"pcvr": pcvr(default, True), "pcvr_single": pcvr(1, True), "pcvr_no_shadows": pcvr(default, False),
+                    "cycles": lambda: setattr(scene.render, "engine", 'CYCLES')}
+        if light != 'SUN':
+            del variants["pcvr_no_shadows"]
+        return scene, int((cumulus.cumulus_values(job["cloud_size"]) > 0).sum()), variants
+    return make
+
+
+SCENES = {"ct_bone": ct_bone, "smoke": plume('SMOKE'), "fire": plume('FIRE'), "coloured_smoke": plume('SMOKE', True),
+          "cloud": cloud('SUN'), "cloud_point": cloud('POINT')}
 
 
 def timed_render(scene):
@@ -210,7 +277,7 @@ def main(job_path):
     result = {"blender": bpy.app.version_string, "scenes": {}}
     try:
         with tempfile.TemporaryDirectory(prefix="pcvr-materials-") as directory:
-            for key in SCENES:
+            for key in job.get("scenes", SCENES):
                 result["scenes"][key] = render_scene(key, job, directory)
     finally:
         if hasattr(bpy.types.Scene, "pcvr"):

@@ -72,8 +72,9 @@ def inputs_for(mode, grid, points=RAMP):
     volume = si.VolumeInputs(name="CT phantom", filepath="", grid_name=None,
                              object_to_world=tuple(map(tuple, np.eye(4))), density_scale=1.0,
                              ramp=ramp if mode == 'SHADED' else None,
-                             # scene_inputs.material's tuple: shaded, Blinn-Phong 0.1 / 0.9 / 0.2 / 10, no ambient occlusion
-                             material=(True, 0.1, 0.9, 0.2, 10.0, None, False) if mode == 'SHADED' else None, grid=grid)
+                             # scene_inputs.material's tuple: shaded, Blinn-Phong 0.1 / 0.9 / 0.2 / 10, no ambient occlusion,
+                             # (scattering octaves unused)
+                             material=(True, 0.1, 0.9, 0.2, 10.0, None, False, 6) if mode == 'SHADED' else None, grid=grid)
     world = (0.05, 0.05, 0.05)
     sun = lighting.LightSpec("sun", SUN_DIRECTION, (1.0, 1.0, 1.0), 1.0)
     settings = dict(method="pcvr", splat_kernel="gauss1.4", stride=0)

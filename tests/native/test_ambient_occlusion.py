@@ -29,8 +29,9 @@ STEP = 5  # the ray caster's pixels: six shadow rays per sample make it the slow
 def renders(ct, model: str, occlusion: bool):
     """pcvr's image at the ray caster's pixels, and the ray caster's."""
     # Blinn-Phong's ambient coefficient as high as scattering's (which takes the ambient colour whole).
-    kw = dict(lights=[SUN], ambient=AMBIENT, shading=pn.Shading(model=model, ambient=0.6, ambient_occlusion=occlusion),
-              opacity_cutoff=1.0)
+    # One octave: the occlusion of light scattered once (the octaves give some back: test_multiple_scattering.py).
+    kw = dict(lights=[SUN], ambient=AMBIENT, opacity_cutoff=1.0,
+              shading=pn.Shading(model=model, ambient=0.6, ambient_occlusion=occlusion, scattering_octaves=1))
     cam = camera(ct, "persp", 3.0)
     image = pn.render_shaded(ct, cam, TF, **kw)
     reference = pn.render_shaded(ct, cam, TF, method="raycast", sheet_spacing=REFERENCE_SPACING, pixel_step=STEP, **kw)

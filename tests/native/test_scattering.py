@@ -62,7 +62,7 @@ def test_against_the_ray_caster(name):
     light = SUN if light == "sun" else point_light(grid)
     kind = pn.Light.sun if light.kind == "sun" else pn.Light.point
     lights = [kind(light.vector, strength=light.strength * BRIGHTER)]
-    scatter = pn.Shading(model="scatter", anisotropy=0.4)
+    scatter = pn.Shading(model="scatter", anisotropy=0.4, scattering_octaves=1)  # octaves: test_multiple_scattering.py
     image, reference = pcvr_and_reference(grid, camera(grid, projection, 3.0), bone_tf(), lights, shading=scatter,
                                           shadows=True, ambient=(0.2, 0.2, 0.2))
     assert psnr(image, reference) >= SCENES[name], psnr(image, reference)

@@ -18,7 +18,7 @@ from shaded_scenes import SUN, blob_volume, bone_tf, camera, ct_volume, optical_
 from shadow_scenes import (FAR_CENTRE, GREY, NEAR_CENTRE, REFERENCE_SPACING, REFERENCE_STEP, SUN_ALONG_X, blob_camera,
                            blobs, pcvr_and_reference, pixel_mask, slab_and_receiver)
 
-SCATTER = pn.Shading(model="scatter")
+SCATTER = pn.Shading(model="scatter", scattering_octaves=1)  # single scattering: what the shadows attenuate
 
 
 def test_a_blob_behind_another_from_the_sun_is_darkened():

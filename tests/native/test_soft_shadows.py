@@ -11,7 +11,7 @@ from shaded_scenes import camera
 
 TF = pn.TransferFunction(density=[0.0, 0.5, 1.0], rgba=[[1, 1, 1, 0], [1, 1, 1, 0.3], [1, 1, 1, 0.9]])
 # Single scattering, no ambient light: a sample's brightness is its transmittance.
-KW = dict(shadows=True, opacity_cutoff=1.0, shading=pn.Shading(model="scatter"), ambient=(0, 0, 0))
+KW = dict(shadows=True, opacity_cutoff=1.0, shading=pn.Shading(model="scatter", scattering_octaves=1), ambient=(0, 0, 0))
 ALONG_X = (1.0, 0.0, 0.0)
 
 

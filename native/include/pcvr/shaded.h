@@ -106,6 +106,10 @@ struct ShadedParams {
     SheetFill sheet_fill = SheetFill::Automatic;
     /// Point-sampled or pre-integrated classification (the ray caster always samples points, finely).
     Classification classification = Classification::Automatic;
+    /// Raycast only: > 0 renders scattering media by Monte Carlo path tracing (light scattered any number of
+    /// times), this many paths per pixel, seeded by `seed` (src/shaded/reference/path_tracer.h).
+    int paths = 0;
+    uint64_t seed = 0;
 };
 
 /// One grid in a shaded render: its transfer function, the factor its values are multiplied by
@@ -192,6 +196,8 @@ struct ShadedStats {
     double seconds_shadows = 0;       ///< building them (wall seconds)
     uint64_t batches = 0;             ///< a GridStream's bricks read and rendered (0: grids in memory)
     uint64_t memory_bytes = 0;        ///< a GridStream's: the most bytes of values one brick held
+    /// Octaves of multiple scattering built (Shading::scattering_octaves; 1: single scattering only).
+    int scattering_octaves = 1;
 };
 
 /// Premultiplied linear RGBA, row 0 on top.

@@ -29,6 +29,13 @@
 /// Ambient occlusion (Shading::ambient_occlusion, both models): the ambient colour reaches a sample as
 /// the world's light does in Cycles, through the volumes: times the mean of its transmittance towards
 /// the six directions +-x, +-y, +-z (ambient_occlusion_suns), each as a sun's shadow to infinity.
+///
+/// Multiple scattering (Scatter, Shading::scattering_octaves n > 1): light that scattered more than once,
+/// by Wrenninge's octaves (OctaveFactors; docs/how-it-works.md, "Multiple scattering"): octave k adds a^k c^k
+/// times the single scattering term with the extinction scaled by b^k and the anisotropy by d^k, c the albedo,
+/// read from transmittances built at that extinction (ScatteringOctave). Lights without shadows scatter once;
+/// the ambient light's octaves need ambient occlusion, and its sum never passes the ambient colour times c
+/// (the white furnace: an unoccluded world lights no medium brighter than itself).
 #pragma once
 
 #include <vector>
@@ -71,6 +78,28 @@ struct Shading {
     Model model = Model::BlinnPhong;
     double anisotropy = 0.0;  ///< Scatter only: the Henyey-Greenstein g
     bool ambient_occlusion = false;  ///< the ambient light through the volumes (see above)
+    /// Scatter only: octaves of multiple scattering (see above), 1: single scattering only.
+    int scattering_octaves = 6;
+    /// The octaves this material asks for: 1 unless it scatters and is lit.
+    int octaves() const { return lit && model == Model::Scatter ? scattering_octaves : 1; }
+};
+
+/// The most octaves Shading::scattering_octaves may ask for.
+constexpr int kMostScatteringOctaves = 16;
+
+/// Wrenninge's factors per octave of multiple scattering: a (contribution), b (extinction), d (anisotropy).
+/// Chosen against the path tracer on a white cloud of optical depths 1.4 to 56 across (docs/how-it-works.md,
+/// "Multiple scattering"): 0.5, 0.5, 0.5 (the paper's example) left a dense cloud half as bright as it is.
+struct OctaveFactors {
+    static constexpr float contribution = 0.7f, extinction = 0.5f, anisotropy = 0.5f;
+};
+
+class LightTransmittance;
+
+/// One octave k >= 1 of multiple scattering: each light's transmittance (null: none) and the ambient
+/// occluders' (empty: none), at the extinction scaled by b^k. Kept alive by the caller, as the Shader's others.
+struct ScatteringOctave {
+    std::vector<const LightTransmittance*> per_light, occluders;
 };
 
 /// Ambient occlusion's six directions as suns, light arriving from +x, -x, +y, -y, +z and -z.
@@ -115,8 +144,11 @@ public:
     /// every sample's colour before it is lit.
     /// `occluders`: empty, or the transmittances of ambient_occlusion_suns, kept alive likewise; read
     /// where the material asks for ambient occlusion.
+    /// `octaves`: octaves 1, 2, ... of multiple scattering (as many as the caller built; the material reads
+    /// up to its scattering_octaves - 1 of them).
     explicit Shader(const Lighting& lighting, const Vec3& origin = {}, std::vector<const LightTransmittance*> transmittance = {},
-                    const AlbedoModulation* albedo = nullptr, std::vector<const LightTransmittance*> occluders = {});
+                    const AlbedoModulation* albedo = nullptr, std::vector<const LightTransmittance*> occluders = {},
+                    std::vector<ScatteringOctave> octaves = {});
 
     /// The lit colour of eight samples: `colour` from the transfer function, `gradient` of the density
     /// (world space, any length or scale), `to_eye` (unit, from the sample towards the eye),
@@ -163,6 +195,10 @@ private:
                    float8 ambient_share) const;
     /// The mean transmittance of the occluders at eight samples (1 without).
     float8 ambient_share(const Vec3x8& position) const;
+    /// What octaves_ add to scatter()'s `radiance` (single scattering at the samples, before the albedo).
+    Vec3x8 scatter_octaves(const Vec3x8& radiance, const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position,
+                           const float8* transmittance, float8 ambient_share) const;
+    std::vector<ScatteringOctave> octaves_;
     std::vector<PreparedLight> lights_;
     std::vector<const LightTransmittance*> occluders_;
     const AlbedoModulation* albedo_;

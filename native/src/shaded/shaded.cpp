@@ -263,8 +263,9 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     std::optional<LightVolumes> shadows;
     if (!mip) {
         const auto shadows_start = Clock::now();
+        stats.scattering_octaves = scattering_octaves(volumes, *lighting, params.shadows);
         shadows.emplace(volumes, *lighting, params.shadows, any_ambient_occlusion(volumes, *lighting), kernel, geometry.origin0,
-                        control);
+                        control, stats.scattering_octaves);
         stats.shadow_texels = shadows->texels();
         stats.seconds_shadows = std::chrono::duration<double>(Clock::now() - shadows_start).count();
     }
@@ -294,7 +295,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             classification = classifications.back().get();
             albedos.push_back(AlbedoField::of(volume, geometry.origin0));
             shaders.push_back(std::make_unique<Shader>(volume.lit_by(*lighting), geometry.origin0, shadows->per_light(),
-                                                       albedos.back().get(), shadows->occluders()));
+                                                       albedos.back().get(), shadows->occluders(), shadows->octaves()));
             shader = shaders.back().get();
             if (preintegrated) {
                 bool built = false;

@@ -198,8 +198,8 @@ ExtinctionField::ExtinctionField(const std::vector<ShadedVolume>& volumes, const
 
 ExtinctionField::~ExtinctionField() = default;
 
-float8 ExtinctionField::at(const Vec3x8& p) const {
-    float8 sum = broadcast8(0.0f);
+template <class Fn>
+void ExtinctionField::densities(const Vec3x8& p, Fn&& fn) const {
     for (const auto& lattice : lattices_) {
         const Lattice& l = *lattice;
         float8 x[3];
@@ -233,10 +233,29 @@ float8 ExtinctionField::at(const Vec3x8& p) const {
         int8x reached = inside & (departure != 0.0f);
         if (l.clip) reached &= l.clip->inside<float8>(p);
         if (!any8(reached)) continue;
-        const float8 extinction = l.table->extinction(departure * l.scale + l.offset);
-        sum += select8(reached, extinction, broadcast8(0.0f));
+        fn(*l.table, departure * l.scale + l.offset, reached);
     }
+}
+
+float8 ExtinctionField::at(const Vec3x8& p) const {
+    float8 sum = broadcast8(0.0f);
+    densities(p, [&](const ClassificationTable& table, float8 density, int8x reached) {
+        sum += select8(reached, table.extinction(density), broadcast8(0.0f));
+    });
     return sum;
+}
+
+ExtinctionField::Medium ExtinctionField::medium(const Vec3x8& p) const {
+    Medium out{broadcast8(0.0f), {broadcast8(0.0f), broadcast8(0.0f), broadcast8(0.0f)}};
+    densities(p, [&](const ClassificationTable& table, float8 density, int8x reached) {
+        const ClassificationTable::Samples s = table(density);
+        const float8 sigma = select8(reached, s.extinction, broadcast8(0.0f));
+        out.extinction += sigma;
+        out.albedo = out.albedo + Vec3x8{s.red, s.green, s.blue} * sigma;
+    });
+    const float8 per = select8(out.extinction > 0.0f, 1.0f / out.extinction, broadcast8(0.0f));
+    out.albedo = out.albedo * per;
+    return out;
 }
 
 }  // namespace pcvr

@@ -26,6 +26,7 @@
 #include "pcvr/kernel.h"
 #include "pcvr/lanes.h"
 #include "pcvr/shaded.h"
+#include "pcvr/transfer_function.h"
 #include "shaded/classify/sample_clip.h"
 
 namespace pcvr {
@@ -40,6 +41,13 @@ public:
 
     /// Extinction per world unit at eight points.
     float8 at(const Vec3x8& position) const;
+    /// The extinction and the transfer functions' colour (weighted by the grids' extinctions; 0 where none) at
+    /// eight points: the medium the path tracer scatters in (src/shaded/reference/path_tracer.h).
+    struct Medium {
+        float8 extinction;
+        Vec3x8 albedo;
+    };
+    Medium medium(const Vec3x8& position) const;
     /// The corners (relative to the origin) of each grid's box, widened by the kernel's reach: no
     /// extinction outside them.
     const std::vector<Vec3>& corners() const { return corners_; }
@@ -49,6 +57,9 @@ public:
 
 private:
     struct Lattice;
+    /// Calls fn(table, density, reached) for each grid's lattice that the points may reach.
+    template <class Fn>
+    void densities(const Vec3x8& position, Fn&& fn) const;
     std::vector<std::unique_ptr<Lattice>> lattices_;
     std::vector<Vec3> corners_;
     double smallest_spacing_ = INFINITY;

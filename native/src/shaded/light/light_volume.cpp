@@ -41,8 +41,9 @@ struct Axis {
 
 }  // namespace
 
-LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const Vec3& origin, double spacing, RenderControl& control)
-    : point_(light.kind == Light::Kind::Point) {
+LightVolume::LightVolume(const Light& light, const ExtinctionField& field, const Vec3& origin, double spacing, RenderControl& control,
+                         float extinction_scale)
+    : point_(light.kind == Light::Kind::Point), extinction_scale_(extinction_scale) {
     if (point_) {
         pivot_ = to_float(light.vector - origin);
         faces_.resize(6);
@@ -141,7 +142,7 @@ void LightVolume::integrate(const Face& f, const ExtinctionField& field, RenderC
             const float w = f.w0 + iw * f.dw;
             for (int iu = 0; iu < padded; iu += 8) {
                 const float8 u = f.u0 + (lane_index8() + float(iu)) * f.du;
-                const float8 sigma = field.at(position(f, u, broadcast8(v), w));
+                const float8 sigma = field.at(position(f, u, broadcast8(v), w)) * extinction_scale_;
                 // Along a point light's ray a texel step is dw times sqrt(1 + u^2 + v^2).
                 const float8 step = point_ ? f.dw * sqrt8(1.0f + u * u + v * v) : broadcast8(f.dw);
                 const float8 before = load8(sigma_before.data() + iu);
@@ -208,25 +209,38 @@ float8 LightVolume::at(const Vec3x8& p) const {
 float LightVolume::at(const Vec3f& p) const { return at(lanes(p))[0]; }
 
 LightVolumes::LightVolumes(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows,
-                           bool ambient_occlusion, const Kernel& kernel, const Vec3& origin, RenderControl& control) {
+                           bool ambient_occlusion, const Kernel& kernel, const Vec3& origin, RenderControl& control, int octaves) {
     const std::vector<Light>& lights = lighting.lights;
     const bool shadows = std::any_of(lights.begin(), lights.end(), [&](const Light& l) { return l.casts_shadow(render_shadows); });
     if (!shadows && !ambient_occlusion) return;
     const ExtinctionField field(volumes, kernel, origin);
-    if (shadows)  // else per_light_ stays empty: no light casts a shadow
-        for (const Light& light : lights) {
-            if (field.empty() || !light.casts_shadow(render_shadows)) {
-                per_light_.push_back(nullptr);
-                continue;
-            }
-            volumes_.push_back(std::make_unique<LightVolume>(light, field, origin, field.smallest_spacing(), control));
-            per_light_.push_back(volumes_.back().get());
-        }
-    if (!ambient_occlusion || field.empty()) return;
-    for (const Light& sun : ambient_occlusion_suns()) {
-        volumes_.push_back(std::make_unique<LightVolume>(sun, field, origin, 2.0 * field.smallest_spacing(), control));
-        occluders_.push_back(volumes_.back().get());
+    if (field.empty()) octaves = 1;
+    octaves_.resize(size_t(std::max(octaves - 1, 0)));
+    for (int k = 0; k < std::max(octaves, 1); ++k) {
+        // Octave 0 is the lights' own shadow; octave k's extinction is b^k of it, on a lattice twice as coarse.
+        const float scale = float(std::pow(double(OctaveFactors::extinction), k));
+        const double spacing = (k == 0 ? 1.0 : 2.0) * field.smallest_spacing();
+        std::vector<const LightTransmittance*>& per_light = k == 0 ? per_light_ : octaves_[k - 1].per_light;
+        std::vector<const LightTransmittance*>& occluders = k == 0 ? occluders_ : octaves_[k - 1].occluders;
+        auto add = [&](const Light& light, double h) {
+            volumes_.push_back(std::make_unique<LightVolume>(light, field, origin, h, control, scale));
+            return volumes_.back().get();
+        };
+        if (shadows)  // else per_light stays empty: no light casts a shadow
+            for (const Light& light : lights)
+                per_light.push_back(field.empty() || !light.casts_shadow(render_shadows) ? nullptr : add(light, spacing));
+        if (ambient_occlusion && !field.empty())
+            for (const Light& sun : ambient_occlusion_suns()) occluders.push_back(add(sun, 2.0 * spacing));
     }
+}
+
+int scattering_octaves(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows) {
+    const bool shadows = std::any_of(lighting.lights.begin(), lighting.lights.end(),
+                                     [&](const Light& l) { return l.casts_shadow(render_shadows); });
+    if (!shadows && !any_ambient_occlusion(volumes, lighting)) return 1;
+    int most = 1;
+    for (const ShadedVolume& v : volumes) most = std::max(most, (v.material ? *v.material : lighting.material).octaves());
+    return most;
 }
 
 LightVolumes::~LightVolumes() = default;

@@ -38,8 +38,10 @@ public:
     /// Texels per light at most (64 MiB): past it the lattice's spacing grows.
     static constexpr uint64_t kMostTexels = uint64_t(1) << 24;
 
-    /// `spacing`: texel spacing in world units (at a point light's farthest reach for its pyramids).
-    LightVolume(const Light& light, const ExtinctionField& field, const Vec3& origin, double spacing, RenderControl& control);
+    /// `spacing`: texel spacing in world units (at a point light's farthest reach for its pyramids);
+    /// `extinction_scale`: the field's extinction is multiplied by it (an octave of multiple scattering).
+    LightVolume(const Light& light, const ExtinctionField& field, const Vec3& origin, double spacing, RenderControl& control,
+                float extinction_scale = 1.0f);
 
     float8 at(const Vec3x8& position) const override;
     float at(const Vec3f& position) const override;
@@ -66,6 +68,7 @@ private:
     float8 transmittance(const Face& f, float8 u, float8 v, float8 w) const;
 
     bool point_;
+    float extinction_scale_;
     float spread_ = 0;     // sun: tan(angle / 2), > 0: soft shadows (penumbra.h)
     // Soft shadows only, while the lattice is built: each texel's optical depth and its occluders' mean w.
     std::vector<float> depth_, occluder_;
@@ -81,20 +84,29 @@ private:
 /// The light volumes of a render: one per light that casts shadows (Light::casts_shadow), and with
 /// `ambient_occlusion` one per ambient_occlusion_suns direction, at twice the texel spacing (the ambient
 /// term is the mean of six: a texel's error weighs a sixth, and the lattices cost an eighth).
+/// With `octaves` > 1 (multiple scattering), octaves 1 to octaves - 1 get the same again at the extinction
+/// scaled by OctaveFactors::extinction^k, at twice the spacing (their light has scattered: its shadows are soft).
 class LightVolumes {
 public:
     LightVolumes(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows, bool ambient_occlusion,
-                 const Kernel& kernel, const Vec3& origin, RenderControl& control);
+                 const Kernel& kernel, const Vec3& origin, RenderControl& control, int octaves = 1);
     ~LightVolumes();
     /// For Shader: empty when no light casts shadows, else one per light (null: no shadow).
     const std::vector<const LightTransmittance*>& per_light() const { return per_light_; }
     /// For Shader: the ambient occlusion directions' (empty without).
     const std::vector<const LightTransmittance*>& occluders() const { return occluders_; }
+    /// For Shader: octaves 1, 2, ... of multiple scattering (empty without).
+    const std::vector<ScatteringOctave>& octaves() const { return octaves_; }
     uint64_t texels() const;
 
 private:
     std::vector<std::unique_ptr<LightVolume>> volumes_;
     std::vector<const LightTransmittance*> per_light_, occluders_;
+    std::vector<ScatteringOctave> octaves_;
 };
+
+/// The octaves of multiple scattering a render needs: the most any volume's material asks for (1: none), 1
+/// where no light casts shadows and there is no ambient occlusion (nothing to scatter into the shade).
+int scattering_octaves(const std::vector<ShadedVolume>& volumes, const Lighting& lighting, bool render_shadows);
 
 }  // namespace pcvr

@@ -26,6 +26,8 @@ void Lighting::validate() const {
         if (!std::isfinite(k) || k < 0)
             throw InvalidArgument("Shading: ambient, diffuse, specular and shininess must be finite and >= 0");
     if (!(std::abs(m.anisotropy) < 1)) throw InvalidArgument("Shading: anisotropy must lie strictly between -1 and 1");
+    if (m.scattering_octaves < 1 || m.scattering_octaves > kMostScatteringOctaves)
+        throw InvalidArgument("Shading: scattering_octaves must lie in [1, " + std::to_string(kMostScatteringOctaves) + "]");
     for (size_t i = 0; i < lights.size(); ++i) {
         const Light& l = lights[i];
         const std::string what = "light " + std::to_string(i) + ": ";
@@ -50,7 +52,8 @@ std::vector<Light> ambient_occlusion_suns() {
 }
 
 Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const LightTransmittance*> transmittance,
-               const AlbedoModulation* albedo, std::vector<const LightTransmittance*> occluders)
+               const AlbedoModulation* albedo, std::vector<const LightTransmittance*> occluders,
+               std::vector<ScatteringOctave> octaves)
     : albedo_(albedo) {
     lighting.validate();
     if (!transmittance.empty() && transmittance.size() != lighting.lights.size())
@@ -59,6 +62,13 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const L
         throw InvalidArgument("Shader: one occluder per ambient occlusion direction, or none");
     if (lighting.material.ambient_occlusion) occluders_ = std::move(occluders);
     const Shading& m = lighting.material;
+    for (ScatteringOctave& octave : octaves) {
+        if (int(octaves_.size()) + 1 >= m.octaves()) break;
+        if (octave.per_light.empty()) octave.per_light.assign(lighting.lights.size(), nullptr);
+        if (octave.per_light.size() != lighting.lights.size()) throw InvalidArgument("Shader: one transmittance per light in each octave");
+        if (!m.ambient_occlusion) octave.occluders.clear();
+        octaves_.push_back(std::move(octave));
+    }
     lit_ = m.lit;
     modulated_ = albedo_ != nullptr || !occluders_.empty();
     scatter_ = m.model == Shading::Model::Scatter;
@@ -105,21 +115,56 @@ float8 Shader::ambient_share(const Vec3x8& position) const {
     return sum * (1.0f / float(occluders_.size()));
 }
 
+namespace {
+/// The Henyey-Greenstein phase function of anisotropy g for the unit vector towards the light `l` and the
+/// way to the eye, normalised over the sphere as Cycles' is.
+float8 henyey_greenstein(float g, const Vec3x8& l, const Vec3x8& to_eye) {
+    const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
+    // cos theta between the light's travel (-l) and the way to the eye.
+    const float8 base = max8(1.0f + g * g + 2.0f * g * dot(l, to_eye), broadcast8(1e-12f));
+    return numerator / (base * sqrt8(base));
+}
+}  // namespace
+
 Vec3x8 Shader::scatter(const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position, const float8* transmittance,
                        float8 ambient_share) const {
-    Vec3x8 radiance = lanes(ambient_) * ambient_share;
-    const float g = anisotropy_;
-    const float numerator = float((1.0 - double(g) * g) / (4.0 * M_PI));
+    Vec3x8 radiance = lanes({0, 0, 0});
     for (size_t i = 0; i < lights_.size(); ++i) {
         const auto [l, energy] = arriving(lights_[i], position, transmittance + i);
-        // cos theta between the light's travel (-l) and the way to the eye.
-        const float8 base = max8(1.0f + g * g + 2.0f * g * dot(l, to_eye), broadcast8(1e-12f));
-        const float8 phase = numerator / (base * sqrt8(base));
-        radiance = radiance + energy * phase;
+        radiance = radiance + energy * henyey_greenstein(anisotropy_, l, to_eye);
     }
-    radiance = bounded(radiance);
     const Vec3x8 c = bounded(colour);
+    if (octaves_.empty()) radiance = radiance + lanes(ambient_) * ambient_share;
+    else radiance = scatter_octaves(radiance, c, to_eye, position, transmittance, ambient_share);
+    radiance = bounded(radiance);
     return bounded(Vec3x8{c.x * radiance.x, c.y * radiance.y, c.z * radiance.z});
+}
+
+Vec3x8 Shader::scatter_octaves(const Vec3x8& single, const Vec3x8& colour, const Vec3x8& to_eye, const Vec3x8& position,
+                               const float8* transmittance, float8 ambient_share) const {
+    Vec3x8 radiance = single, weight = lanes({1, 1, 1}), ambient = lanes({1, 1, 1}) * ambient_share;
+    float g = anisotropy_;
+    for (const ScatteringOctave& octave : octaves_) {
+        weight = times(weight, colour) * OctaveFactors::contribution;
+        g *= OctaveFactors::anisotropy;
+        for (size_t i = 0; i < lights_.size(); ++i) {
+            const LightTransmittance* t = octave.per_light[i];
+            if (!t || !lights_[i].transmittance) continue;
+            // Only the light the first octave misses: a medium too thin to shadow scatters too little to add.
+            const float8 extra = max8(t->at(position) - transmittance[i], broadcast8(0.0f));
+            const auto [l, energy] = arriving(lights_[i], position, &extra);
+            radiance = radiance + times(weight, energy * henyey_greenstein(g, l, to_eye));
+        }
+        if (!octave.occluders.empty()) {
+            float8 share = broadcast8(0.0f);
+            for (const LightTransmittance* t : octave.occluders) share += t->at(position);
+            ambient = ambient + weight * (share * (1.0f / float(octave.occluders.size())));
+        }
+    }
+    // The white furnace: the world's light, scattered any number of times, is at most what arrives unoccluded.
+    const float8 one = broadcast8(1.0f);
+    ambient = {min8(ambient.x, one), min8(ambient.y, one), min8(ambient.z, one)};
+    return radiance + times(lanes(ambient_), ambient);
 }
 
 Vec3f Shader::shade(const Vec3f& transfer_colour, const Vec3f& gradient, const Vec3f& to_eye, const Vec3f& position) const {

@@ -15,6 +15,8 @@
 #include "shaded/classify/sample_clip.h"
 #include "shaded/classify/shaded_levels.h"
 #include "shaded/light/albedo_field.h"
+#include "shaded/light/light_volume.h"
+#include "shaded/reference/path_tracer.h"
 #include "shaded/sheets/compositing.h"
 #include "shaded/sheets/sheet_walk.h"
 #include "shaded/sheets/slab_splat.h"
@@ -121,8 +123,10 @@ bool ray_box_depths(const RayGrid& g, const Vec3& origin, const Vec3& dir, doubl
 class ShadowRays final : public LightTransmittance {
 public:
     /// Reads `grids` when asked, not before: the Marcher fills them after it made its shaders.
-    ShadowRays(const Light& light, const std::vector<RayGrid>& grids, const Kernel& kernel, const Vec3& origin, double step)
-        : light_(light), grids_(grids), kernel_(kernel), origin_(origin), step_(step) {}
+    /// `extinction_scale` multiplies the extinction (an octave of multiple scattering).
+    ShadowRays(const Light& light, const std::vector<RayGrid>& grids, const Kernel& kernel, const Vec3& origin, double step,
+               double extinction_scale = 1.0)
+        : light_(light), grids_(grids), kernel_(kernel), origin_(origin), step_(step), extinction_scale_(extinction_scale) {}
 
     float at(const Vec3f& position) const override {
         const Vec3 x = origin_ + Vec3{position.x, position.y, position.z};
@@ -146,7 +150,10 @@ public:
     }
     float8 at(const Vec3x8& position) const override {
         float8 out;
-        for (int l = 0; l < 8; ++l) out[l] = at(Vec3f{position.x[l], position.y[l], position.z[l]});
+        for (int l = 0; l < 8; ++l)  // one sample's eight lanes (Shader::shade of one Vec3f): one ray
+            out[l] = l > 0 && position.x[l] == position.x[0] && position.y[l] == position.y[0] && position.z[l] == position.z[0]
+                         ? out[0]
+                         : at(Vec3f{position.x[l], position.y[l], position.z[l]});
         return out;
     }
 
@@ -163,7 +170,7 @@ private:
         const int64_t steps = int64_t(std::ceil((to - from) / step_));
         const double ds = (to - from) / double(steps);
         double tau = 0;
-        for (int64_t k = 0; k < steps && tau < kOpaqueDepth; ++k) {
+        for (int64_t k = 0; k < steps && tau * extinction_scale_ < kOpaqueDepth; ++k) {
             const Vec3 p = x + dir * (from + (double(k) + 0.5) * ds);
             for (const RayGrid& g : grids_) {
                 if (g.clip && !g.clip->inside<double>(p - origin_)) continue;
@@ -171,14 +178,14 @@ private:
                 if (s.reached) tau += double((*g.classification)(float(s.density)).extinction) * ds;
             }
         }
-        return float(std::exp(-tau));
+        return float(std::exp(-tau * extinction_scale_));
     }
 
     Light light_;
     const std::vector<RayGrid>& grids_;
     const Kernel& kernel_;
     Vec3 origin_;
-    double step_;
+    double step_, extinction_scale_;
 };
 
 /// Calls fn(pixel_index, px, py) for the sampled pixels, in parallel over rows.
@@ -217,24 +224,23 @@ struct Marcher {
         double finest = INFINITY;
         for (const ShadedVolume& v : volumes)
             if (v.grid->active_voxel_count() > 0) finest = std::min(finest, smallest_voxel_spacing(*v.grid));
-        std::vector<const LightTransmittance*> shadowed;
-        if (lighting && std::isfinite(finest))
-            for (const Light& light : lighting->lights) {
-                if (!light.casts_shadow(params.shadows)) {
-                    shadowed.push_back(nullptr);
-                    continue;
-                }
-                shadow_rays.push_back(std::make_unique<ShadowRays>(light, grids, kernel, geometry.origin0, finest * params.sheet_spacing));
-                shadowed.push_back(shadow_rays.back().get());
-            }
-        if (std::all_of(shadowed.begin(), shadowed.end(), [](const LightTransmittance* t) { return t == nullptr; })) shadowed.clear();
-        // Ambient occlusion: shadow rays towards its six directions.
-        std::vector<const LightTransmittance*> occluders;
-        if (lighting && any_ambient_occlusion(volumes, *lighting) && std::isfinite(finest))
-            for (const Light& sun : ambient_occlusion_suns()) {
-                shadow_rays.push_back(std::make_unique<ShadowRays>(sun, grids, kernel, geometry.origin0, finest * params.sheet_spacing));
-                occluders.push_back(shadow_rays.back().get());
-            }
+        // Per octave of multiple scattering (0: the lights' own shadows), shadow rays towards each shadowed light
+        // and, with ambient occlusion, towards its six directions, at the octave's extinction.
+        const int octaves = lighting && std::isfinite(finest) ? scattering_octaves(volumes, *lighting, params.shadows) : 1;
+        std::vector<ScatteringOctave> rays(static_cast<size_t>(octaves));
+        for (int k = 0; k < octaves && lighting && std::isfinite(finest); ++k) {
+            const double scale = std::pow(double(OctaveFactors::extinction), k);
+            auto add = [&](const Light& light) {
+                shadow_rays.push_back(std::make_unique<ShadowRays>(light, grids, kernel, geometry.origin0, finest * params.sheet_spacing, scale));
+                return shadow_rays.back().get();
+            };
+            for (const Light& light : lighting->lights) rays[k].per_light.push_back(light.casts_shadow(params.shadows) ? add(light) : nullptr);
+            if (std::all_of(rays[k].per_light.begin(), rays[k].per_light.end(), [](auto* t) { return t == nullptr; })) rays[k].per_light.clear();
+            if (any_ambient_occlusion(volumes, *lighting))
+                for (const Light& sun : ambient_occlusion_suns()) rays[k].occluders.push_back(add(sun));
+        }
+        const std::vector<const LightTransmittance*> shadowed = rays.front().per_light, occluders = rays.front().occluders;
+        rays.erase(rays.begin());
         for (const ShadedVolume& v : volumes) {
             const Grid& grid = *v.grid;
             if (grid.active_voxel_count() == 0) continue;
@@ -251,7 +257,7 @@ struct Marcher {
                 tables.emplace_back(tf, unit);
                 table = &tables.back();
                 albedos.push_back(AlbedoField::of(v, geometry.origin0));
-                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed, albedos.back().get(), occluders);
+                shaders.emplace_back(v.lit_by(*lighting), geometry.origin0, shadowed, albedos.back().get(), occluders, rays);
                 shader = &shaders.back();
             }
             std::optional<SampleClip> clip;
@@ -325,6 +331,7 @@ double rim_compensation(const Kernel& kernel) {
 
 void raycast_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,
                     const ShadedParams& params, RenderControl& control, float* rgba, float* depth) {
+    if (params.paths > 0) return path_trace_shaded(volumes, camera, lighting, params, control, rgba);
     const Marcher m(volumes, camera, params, &lighting);
     const float cutoff = float(params.opacity_cutoff);
     const double rim = rim_compensation(m.kernel);
