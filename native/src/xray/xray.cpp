@@ -124,6 +124,61 @@ private:
     std::pair<double, double> regular_range_;
 };
 
+}  // namespace
+
+namespace {
+
+/// The sum of `values` (width x height) over the (2 radius + 1)^2 box around each pixel, clipped to the image:
+/// running sums along rows, then along columns, whatever the radius.
+std::vector<double> box_sums(const std::vector<double>& values, int width, int height, int radius) {
+    std::vector<double> rows(values.size()), out(values.size());
+    std::vector<double> prefix(size_t(std::max(width, height)) + 1);
+    auto along = [&](const double* in, double* result, int n, size_t step) {
+        prefix[0] = 0;
+        for (int i = 0; i < n; ++i) prefix[size_t(i) + 1] = prefix[size_t(i)] + in[size_t(i) * step];
+        for (int i = 0; i < n; ++i) result[size_t(i) * step] = prefix[size_t(std::min(n, i + radius + 1))] - prefix[size_t(std::max(0, i - radius))];
+    };
+    for (int y = 0; y < height; ++y) along(values.data() + size_t(y) * width, rows.data() + size_t(y) * width, width, 1);
+    for (int x = 0; x < width; ++x) along(rows.data() + x, out.data() + x, height, size_t(width));
+    return out;
+}
+
+}  // namespace
+
+uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
+    const size_t n = size_t(width) * height;
+    const uint64_t negative = uint64_t(std::count_if(pixels.begin(), pixels.end(), [](float p) { return p < 0; }));
+    if (negative == 0) return 0;
+    // Pixel p's deficit d_p goes to the positive pixels q within `radius` in proportion to them, q d_p / H_p with
+    // H_p their sum around p: q loses q times the box sum of d / H around it. All at once, in any order.
+    std::vector<double> positive(n), deficit(n);
+    for (size_t i = 0; i < n; ++i) positive[i] = std::max(0.0f, pixels[i]), deficit[i] = std::max(0.0f, -pixels[i]);
+    const std::vector<double> held = box_sums(positive, width, height, radius);
+    for (size_t i = 0; i < n; ++i) deficit[i] = deficit[i] > 0 && held[i] > 0 ? deficit[i] / held[i] : 0.0;
+    const std::vector<double> taken = box_sums(deficit, width, height, radius);
+    // A share above one (no overshoot within reach) leaves that pixel at zero and the rest of the deficit unpaid.
+    for (size_t i = 0; i < n; ++i) pixels[i] = float(positive[i] * std::max(0.0, 1.0 - taken[i]));
+    return negative;
+}
+
+int ringing_reach(const XrayStats& stats) {
+    // Regular splatting's taps are about a voxel apart on its stride-1 grid.
+    double widest = std::max(1.0, stats.max_magnification);
+    for (double s : stats.strides) widest = std::max(widest, s);
+    return int(std::ceil(kRingingNodes * std::min(widest, double(kMaxStride))));
+}
+
+namespace {
+
+/// Whether every voxel of every grid, times its density scale, is >= 0 (from the grids' value ranges, read
+/// when they were built or mapped): then every splat is, and so must every pixel be.
+bool nonnegative_field(const std::vector<WeightedGrid>& grids) {
+    return std::all_of(grids.begin(), grids.end(), [](const WeightedGrid& g) {
+        const auto [lo, hi] = g.grid->value_range();
+        return g.density_scale >= 0 ? lo >= 0 : hi <= 0;
+    });
+}
+
 /// The least and most pixels per voxel (least magnified direction) over the boxes of the grids rendered:
 /// what regular splatting compensates for, the same for a grid read whole and for its batches (which set
 /// XrayParams::compensation_magnification to the whole stream's). {0, 0} when unknown.
@@ -390,6 +445,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
 
     XrayStats stats;
     stats.batches = 1;
+    stats.nonnegative = nonnegative_field(grids);
     XrayImage out;
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
     arena.execute([&] {
@@ -413,6 +469,11 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
         const int sub = supersampling(grids, cam, params);
         ImageAccumulator image = sub > 1 ? render_supersampled(grids, cam, params, kernel, post_shape, control, stats, sub)
                                          : render_splatted(grids, cam, params, kernel, post_shape, control, stats);
+        // The passband compensation rings below zero beside a sharp edge, and so do Catmull-Rom's lobes: a field
+        // >= 0 must not (a negative line integral is a transmission above 100%). After the sub-pixels' mean, as a
+        // stream's sum of batches is.
+        if (params.keep_nonnegative && stats.nonnegative)
+            stats.pixels_negative_corrected += clear_negative_pixels(image.pixels, image.width, image.height, ringing_reach(stats));
         out.width = image.width;
         out.height = image.height;
         out.pixels = std::move(image.pixels);
