@@ -108,9 +108,10 @@ public:
         const auto band = bands_.find(grid.stride());
         if (band == bands_.end() || !(band->second.max_magnification > 0)) return;
         // Orthographic, an automatic stride is its voxels' magnification (from 1 up); a perspective band's
-        // strides climb in steps of 2^(1/4) from its least magnified voxels, which lie about 2^(1/8) above.
+        // strides fall in steps of kPerspectiveBandRatio from its most magnified voxels: they lie about half a
+        // step below.
         const double s = grid.stride();
-        const double m = std::clamp(perspective_ ? s * std::pow(2.0, 0.125) : s, band->second.min_magnification,
+        const double m = std::clamp(perspective_ ? s / std::sqrt(kPerspectiveBandRatio) : s, band->second.min_magnification,
                                     band->second.max_magnification);
         sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s, pixel_mean_)), 1, control);
     }
@@ -146,19 +147,67 @@ std::vector<double> box_sums(const std::vector<double>& values, int width, int h
 }  // namespace
 
 uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
-    const size_t n = size_t(width) * height;
-    const uint64_t negative = uint64_t(std::count_if(pixels.begin(), pixels.end(), [](float p) { return p < 0; }));
-    if (negative == 0) return 0;
     // Pixel p's deficit d_p goes to the positive pixels q within `radius` in proportion to them, q d_p / H_p with
-    // H_p their sum around p: q loses q times the box sum of d / H around it. All at once, in any order.
-    std::vector<double> positive(n), deficit(n);
-    for (size_t i = 0; i < n; ++i) positive[i] = std::max(0.0f, pixels[i]), deficit[i] = std::max(0.0f, -pixels[i]);
-    const std::vector<double> held = box_sums(positive, width, height, radius);
-    for (size_t i = 0; i < n; ++i) deficit[i] = deficit[i] > 0 && held[i] > 0 ? deficit[i] / held[i] : 0.0;
-    const std::vector<double> taken = box_sums(deficit, width, height, radius);
+    // H_p their sum around p: q loses q times the sum of d / H over the negative pixels around it. All at once,
+    // in any order, within the box of the negative pixels widened by `radius` (nothing else changes).
+    // Undershoots within float's rounding of the peak (a Gaussian's cut tails) are set to zero: their mass is below
+    // 1e-6 of a pixel's at the peak each.
+    const float peak = *std::max_element(pixels.begin(), pixels.end());
+    const float negligible = -1e-6f * std::max(peak, 0.0f);
+    uint64_t cleared = 0;
+    std::vector<size_t> negative;
+    int x0 = width, x1 = -1, y0 = height, y1 = -1;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            float& p = pixels[size_t(y) * width + x];
+            if (!(p < 0)) continue;
+            ++cleared;
+            if (p >= negligible) {
+                p = 0;
+                continue;
+            }
+            negative.push_back(size_t(y) * width + x), x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+        }
+    if (negative.empty()) return cleared;
+    x0 = std::max(0, x0 - radius), x1 = std::min(width - 1, x1 + radius), y0 = std::max(0, y0 - radius), y1 = std::min(height - 1, y1 + radius);
+    const int w = x1 - x0 + 1, h = y1 - y0 + 1;
+    auto at = [&](int u, int v) -> float& { return pixels[size_t(v + y0) * width + u + x0]; };
+    const double window = double(2 * radius + 1) * (2 * radius + 1);
+    if (double(negative.size()) * window < 8.0 * double(w) * h) {
+        // Few negative pixels for their windows: each window summed and shared directly, then each pixel of them
+        // scaled once (`taken` marked -1 when done).
+        std::vector<double> taken(size_t(w) * h, 0.0);
+        auto box = [&](size_t i, auto&& visit) {
+            const int x = int(i % size_t(width)) - x0, y = int(i / size_t(width)) - y0;
+            for (int v = std::max(0, y - radius); v <= std::min(h - 1, y + radius); ++v)
+                for (int u = std::max(0, x - radius); u <= std::min(w - 1, x + radius); ++u) visit(u, v);
+        };
+        for (size_t i : negative) {
+            double held = 0;
+            box(i, [&](int u, int v) { held += std::max(0.0f, at(u, v)); });
+            if (!(held > 0)) continue;
+            const double share = -double(pixels[i]) / held;
+            box(i, [&](int u, int v) { taken[size_t(v) * w + u] += share; });
+        }
+        for (size_t i : negative)
+            box(i, [&](int u, int v) {
+                double& t = taken[size_t(v) * w + u];
+                if (t < 0) return;
+                at(u, v) = float(std::max(0.0f, at(u, v)) * std::max(0.0, 1.0 - t));
+                t = -1;
+            });
+        return cleared;
+    }
+    std::vector<double> positive(size_t(w) * h), deficit(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) positive[size_t(y) * w + x] = std::max(0.0f, at(x, y)), deficit[size_t(y) * w + x] = std::max(0.0f, -at(x, y));
+    const std::vector<double> held = box_sums(positive, w, h, radius);
+    for (size_t i = 0; i < deficit.size(); ++i) deficit[i] = deficit[i] > 0 && held[i] > 0 ? deficit[i] / held[i] : 0.0;
+    const std::vector<double> taken = box_sums(deficit, w, h, radius);
     // A share above one (no overshoot within reach) leaves that pixel at zero and the rest of the deficit unpaid.
-    for (size_t i = 0; i < n; ++i) pixels[i] = float(positive[i] * std::max(0.0, 1.0 - taken[i]));
-    return negative;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) at(x, y) = float(positive[size_t(y) * w + x] * std::max(0.0, 1.0 - taken[size_t(y) * w + x]));
+    return cleared;
 }
 
 int ringing_reach(const XrayStats& stats) {
@@ -291,8 +340,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         if (cutters[k] && cutters[k]->masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
     std::vector<const Grid*> level_grids;
     for (const Grid& g : levels) level_grids.push_back(&g);
+    // Over the grids' boxes, and for a stream's batches the whole stream's: every batch decides as the grid would.
+    const std::pair<double, double> box_magnification = regular_compensation_range(level_grids, cam, params);
+    splat.phase_tables = box_magnification.first > 0 && box_magnification.second <= kPerspectiveBandRatio * box_magnification.first;
     const Compensation compensation(params, kernel, post_shape, cam, std::move(bands),
-                                    regular ? regular_compensation_range(level_grids, cam, params) : std::pair<double, double>{});
+                                    regular ? box_magnification : std::pair<double, double>{});
     auto to_image = [&](SplatGrid& grid, ImageAccumulator& out) {
         compensation.apply(grid, control);
         if (regular)
@@ -381,8 +433,10 @@ ImageAccumulator render_supersampled(const std::vector<WeightedGrid>& grids, con
     XrayParams at_level_0 = params;
     at_level_0.level = 0;  // what the pixels chose: the sub-pixels would choose no other
     // A node per sub-pixel: the post filter's fractional strides (1.02 and the like here) lost up to 0.09%
-    // of a one-pixel image's mass, stride 1 0.02%.
-    if (at_level_0.stride == 0) at_level_0.stride = 1;
+    // of a one-pixel image's mass, stride 1 0.02%. In perspective the sub-pixels are chosen for the least
+    // magnified voxels and the others span up to a band more (automatic_supersampling): their own strides keep
+    // their footprints in 4 x 4 windows.
+    if (at_level_0.stride == 0 && cam.orthographic()) at_level_0.stride = 1;
     const XrayStats before = stats;
     try {
         ImageAccumulator image = box_averaged(render_splatted(grids, fine, at_level_0, kernel, post_shape, control, stats), sub);
