@@ -129,21 +129,6 @@ private:
 
 namespace {
 
-/// The sum of `values` (width x height) over the (2 radius + 1)^2 box around each pixel, clipped to the image:
-/// running sums along rows, then along columns, whatever the radius.
-std::vector<double> box_sums(const std::vector<double>& values, int width, int height, int radius) {
-    std::vector<double> rows(values.size()), out(values.size());
-    std::vector<double> prefix(size_t(std::max(width, height)) + 1);
-    auto along = [&](const double* in, double* result, int n, size_t step) {
-        prefix[0] = 0;
-        for (int i = 0; i < n; ++i) prefix[size_t(i) + 1] = prefix[size_t(i)] + in[size_t(i) * step];
-        for (int i = 0; i < n; ++i) result[size_t(i) * step] = prefix[size_t(std::min(n, i + radius + 1))] - prefix[size_t(std::max(0, i - radius))];
-    };
-    for (int y = 0; y < height; ++y) along(values.data() + size_t(y) * width, rows.data() + size_t(y) * width, width, 1);
-    for (int x = 0; x < width; ++x) along(rows.data() + x, out.data() + x, height, size_t(width));
-    return out;
-}
-
 }  // namespace
 
 uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
@@ -155,58 +140,52 @@ uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int heigh
     const float peak = *std::max_element(pixels.begin(), pixels.end());
     const float negligible = -1e-6f * std::max(peak, 0.0f);
     uint64_t cleared = 0;
-    std::vector<size_t> negative;
+    std::vector<uint32_t> negative;  // pixel indices, 4 bytes each: an image of 2^32 pixels or more is only set to zero
+    const bool indexable = uint64_t(width) * uint64_t(height) < (uint64_t(1) << 32);
     int x0 = width, x1 = -1, y0 = height, y1 = -1;
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
             float& p = pixels[size_t(y) * width + x];
             if (!(p < 0)) continue;
             ++cleared;
-            if (p >= negligible) {
+            if (p >= negligible || !indexable) {
                 p = 0;
                 continue;
             }
-            negative.push_back(size_t(y) * width + x), x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+            negative.push_back(uint32_t(size_t(y) * width + x)), x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
         }
     if (negative.empty()) return cleared;
     x0 = std::max(0, x0 - radius), x1 = std::min(width - 1, x1 + radius), y0 = std::max(0, y0 - radius), y1 = std::min(height - 1, y1 + radius);
-    const int w = x1 - x0 + 1, h = y1 - y0 + 1;
-    auto at = [&](int u, int v) -> float& { return pixels[size_t(v + y0) * width + u + x0]; };
-    const double window = double(2 * radius + 1) * (2 * radius + 1);
-    if (double(negative.size()) * window < 8.0 * double(w) * h) {
-        // Few negative pixels for their windows: each window summed and shared directly, then each pixel of them
-        // scaled once (`taken` marked -1 when done).
-        std::vector<double> taken(size_t(w) * h, 0.0);
-        auto box = [&](size_t i, auto&& visit) {
-            const int x = int(i % size_t(width)) - x0, y = int(i / size_t(width)) - y0;
-            for (int v = std::max(0, y - radius); v <= std::min(h - 1, y + radius); ++v)
-                for (int u = std::max(0, x - radius); u <= std::min(w - 1, x + radius); ++u) visit(u, v);
-        };
-        for (size_t i : negative) {
-            double held = 0;
-            box(i, [&](int u, int v) { held += std::max(0.0f, at(u, v)); });
-            if (!(held > 0)) continue;
-            const double share = -double(pixels[i]) / held;
-            box(i, [&](int u, int v) { taken[size_t(v) * w + u] += share; });
-        }
-        for (size_t i : negative)
-            box(i, [&](int u, int v) {
-                double& t = taken[size_t(v) * w + u];
-                if (t < 0) return;
-                at(u, v) = float(std::max(0.0f, at(u, v)) * std::max(0.0, 1.0 - t));
-                t = -1;
-            });
-        return cleared;
+    // Each deficit's share of the positive pixels around it (from the pixels as they are), then band by band of
+    // rows the sum of the shares around each pixel: a band's worth of memory, whatever the image.
+    std::vector<float> share(negative.size(), 0.0f);
+    for (size_t n = 0; n < negative.size(); ++n) {
+        const int x = int(negative[n] % size_t(width)), y = int(negative[n] / size_t(width));
+        double held = 0;
+        for (int v = std::max(0, y - radius); v <= std::min(height - 1, y + radius); ++v)
+            for (int u = std::max(0, x - radius); u <= std::min(width - 1, x + radius); ++u) held += std::max(0.0f, pixels[size_t(v) * width + u]);
+        if (held > 0) share[n] = float(-double(pixels[negative[n]]) / held);
     }
-    std::vector<double> positive(size_t(w) * h), deficit(size_t(w) * h);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) positive[size_t(y) * w + x] = std::max(0.0f, at(x, y)), deficit[size_t(y) * w + x] = std::max(0.0f, -at(x, y));
-    const std::vector<double> held = box_sums(positive, w, h, radius);
-    for (size_t i = 0; i < deficit.size(); ++i) deficit[i] = deficit[i] > 0 && held[i] > 0 ? deficit[i] / held[i] : 0.0;
-    const std::vector<double> taken = box_sums(deficit, w, h, radius);
-    // A share above one (no overshoot within reach) leaves that pixel at zero and the rest of the deficit unpaid.
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) at(x, y) = float(positive[size_t(y) * w + x] * std::max(0.0, 1.0 - taken[size_t(y) * w + x]));
+    constexpr int kBandRows = 64;
+    const int w = x1 - x0 + 1;
+    std::vector<double> taken;
+    size_t first = 0;  // the first negative pixel within reach of the band (they are in row order)
+    for (int band = y0; band <= y1; band += kBandRows) {
+        const int rows = std::min(kBandRows, y1 - band + 1);
+        taken.assign(size_t(rows) * w, 0.0);
+        while (first < negative.size() && int(negative[first] / size_t(width)) < band - radius) ++first;
+        for (size_t n = first; n < negative.size() && int(negative[n] / size_t(width)) < band + rows + radius; ++n) {
+            const int x = int(negative[n] % size_t(width)), y = int(negative[n] / size_t(width));
+            for (int v = std::max(band, y - radius); v <= std::min(band + rows - 1, y + radius); ++v)
+                for (int u = std::max(x0, x - radius); u <= std::min(x1, x + radius); ++u) taken[size_t(v - band) * w + u - x0] += share[n];
+        }
+        // A share above one (no overshoot within reach) leaves that pixel at zero and the rest of the deficit unpaid.
+        for (int v = 0; v < rows; ++v)
+            for (int u = 0; u < w; ++u) {
+                float& p = pixels[size_t(band + v) * width + u + x0];
+                p = float(std::max(0.0f, p) * std::max(0.0, 1.0 - taken[size_t(v) * w + u]));
+            }
+    }
     return cleared;
 }
 
@@ -214,7 +193,8 @@ int ringing_reach(const XrayStats& stats) {
     // Regular splatting's taps are about a voxel apart on its stride-1 grid.
     double widest = std::max(1.0, stats.max_magnification);
     for (double s : stats.strides) widest = std::max(widest, s);
-    return int(std::ceil(kRingingNodes * std::min(widest, double(kMaxStride))));
+    // At most 32 pixels (magnifications above 16): each negative pixel's window costs its area twice.
+    return int(std::ceil(kRingingNodes * std::min(widest, 16.0)));
 }
 
 namespace {
