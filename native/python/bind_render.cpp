@@ -116,6 +116,7 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["strides"] = strides;
         stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
         stats["taps"] = xs.taps;
+        stats["pixels_negative_corrected"] = xs.pixels_negative_corrected;
         stats["seconds"] = xs.seconds;
         stats["memory_bytes"] = xs.memory_bytes;
         stats["batches"] = xs.batches;

@@ -165,8 +165,8 @@ def section(results) -> list[str]:
              f"of {results['reps']} (the calling thread's CPU time, which other work only adds to: see "
              "tests/bench/timing.py). The automatic stride puts "
              "a subgrid node every projected voxel spacing, so every orthographic footprint is PCVR's 4 x 4 window "
-             "whatever m; perspective views split into depth bands 2^(1/4) apart, and each block's footprints come "
-             "from its projection linearised (docs/how-it-works.md, *Perspective: depth bands*).", ""]
+             "whatever m; perspective views split into depth bands 2^(1/8) apart, and each block's footprints come "
+             "from its projection linearised and its windows from a shared phase table (docs/how-it-works.md, *Perspective: depth bands*).", ""]
     for key, entry in results["datasets"].items():
         r = ratios(entry["rows"])
         lines += [f"**{entry['name']}** ({entry['active_voxels']:,} active voxels): slowest over fastest magnification "

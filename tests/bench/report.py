@@ -176,11 +176,11 @@ def perspective_section(results: dict) -> list[str]:
            f"{vol_name(v)} through a pinhole camera along the same direction, its eye {cfg['distance_diagonals']:g} volume "
            f"diagonals from the volume's centre, where a voxel spans {cfg['magnification']:g} pixels: from "
            f"{cfg['min_magnification']:.1f} pixels per voxel on the far side to {cfg['max_magnification']:.1f} on the near "
-           "side. Every voxel has its own footprint here (size and shape change with depth and position), computed "
-           "eight voxels at a time and added with per-tap table lookups; pcvr splats each depth band into the subgrid "
-           "of its own stride and post-convolves each band. The bands' strides lie 2^(1/4) apart from the least "
-           "magnification up, so a voxel spans between 1 and 1.19 subgrid nodes instead of exactly 1, and pcvr adds "
-           "4 x 5 taps per voxel on average here instead of 4 x 4.", "",
+           "side. Every voxel has its own footprint here (size and shape change with depth and position), its block's "
+           "linearised in float eight voxels at a time, its window from the phase table of its block's footprint; pcvr "
+           "splats each depth band into the subgrid of its own stride and post-convolves each band. The bands' strides "
+           "lie 2^(1/8) apart from the most magnification down, so a voxel spans between 0.92 and 1 subgrid nodes and "
+           "pcvr adds 4 x 4 taps per voxel, as orthographic views do.", "",
            TABLE_HEAD[0].format("view"), TABLE_HEAD[1]]
     out += method_rows("persp.", cfg)
     out += ["", f"Exact reference (1 pixel in 49) took {cfg['exact_s']:.2g} s. pcvr + bilinear: {pc['speedup']:.1f}x "

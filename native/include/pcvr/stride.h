@@ -22,6 +22,13 @@ int automatic_stride(double pixels_per_voxel);
 /// take coarser bands, whose footprints span at most kStrideBandRatio times the 4 x 4 window's.
 double fractional_stride(double pixels_per_voxel, double least);
 constexpr double kStrideBandRatio = 1.189207115002721;  // 2^(1/4)
+/// A perspective view's stride for blocks whose most magnified voxels have `most_pixels_per_voxel`, in a view
+/// whose most magnified block has `most`: the band at or above it on a ladder that falls from max(1, most) by
+/// kPerspectiveBandRatio, never below 1. Every footprint then spans at most PCVR's 4 x 4 window, whose phase
+/// table a block's voxels share (src/splat/phase_table_cache.h); the nodes lie up to a band's ratio (and a
+/// block's spread of magnification) more than a voxel spacing apart.
+double perspective_stride(double most_pixels_per_voxel, double most);
+constexpr double kPerspectiveBandRatio = 1.0905077326652577;  // 2^(1/8)
 /// The stride closest to one voxel per node (for bilinear spreading).
 int nearest_stride(double pixels_per_voxel);
 

@@ -92,6 +92,9 @@ struct XrayParams {
     /// the grids' boxes. Streams set it to the whole stream's, so that every batch takes the same; Python
     /// has no argument for it.
     std::pair<double, double> compensation_magnification{0.0, 0.0};
+    /// A field >= 0 renders >= 0 (clear_negative_pixels); streams render their batches without (the correction is
+    /// not linear: a batch's faces would show) and correct their sum instead. Python has no argument for it.
+    bool keep_nonnegative = true;
 };
 
 struct XrayStats {
@@ -107,6 +110,10 @@ struct XrayStats {
     int supersampling = 1;         ///< sub-pixels per pixel edge the image was splatted at (then box-averaged)
     int level = 0;                 ///< the coarsest level of detail a grid was rendered from
     uint64_t memory_bytes = 0;     ///< the buffers' estimated peak (checked against the memory limit)
+    /// With a field >= 0 (voxels times density scales): the pixels the passband compensation's ringing or a post
+    /// filter's negative lobes took below zero, cleared (clear_negative_pixels).
+    uint64_t pixels_negative_corrected = 0;
+    bool nonnegative = true;       ///< every grid rendered was >= 0 times its density scale
     uint64_t batches = 0;          ///< renders the streamed grids took (one per batch), and one for the others
     double seconds = 0;
 
@@ -125,6 +132,17 @@ struct XrayImage {
 
 XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& camera, const XrayParams& params,
                       RenderControl& control, XrayStats* stats = nullptr);
+
+/// An X-ray of a field >= 0 must be >= 0: sets a width x height image's pixels below zero to zero and takes what
+/// that adds from the positive pixels within `radius` of each, in proportion to their values (mass stays, where
+/// an undershoot has its overshoot beside it). Returns how many pixels were below zero.
+uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius);
+
+/// Nodes (a projected voxel spacing) from an edge that the passband compensation's ringing reaches in the
+/// image: its own node and the post filter's.
+constexpr double kRingingNodes = 2.0;
+/// The pixels clear_negative_pixels looks around, for an image rendered with these strides and magnifications.
+int ringing_reach(const XrayStats& stats);
 
 /// A grid read from its file a batch at a time (grid_stream.h), and the factor its densities are scaled by.
 struct WeightedStream {

@@ -5,6 +5,8 @@
 #include <optional>
 
 #include "splat/block_linearisation.h"
+#include "splat/phase_splat.h"
+#include "splat/phase_table_cache.h"
 #include "splat/pixel_prefilter.h"
 #include "volume/block_voxels.h"
 
@@ -339,20 +341,40 @@ uint64_t add_tile_window(float* tile, size_t pitch, const ProjectedBatch& b, con
 
 #endif  // PCVR_AVX2
 
+/// The phase table that stands for a linearised block's footprints (at its centre), or none.
+const CachedPhaseTable* block_phase_table(const BlockLinearisation& lin, const FootprintSplatParams& params) {
+    if (!kProjectivePhases || !params.phase_tables || !params.kernel || params.bilinear_spread) return nullptr;
+    thread_local PhaseTableMemo memo;  // consecutive blocks mostly share a table
+    auto centre = [](const AffineInBlock& f) { return double(f.at) + 3.5 * (double(f.di) + f.dj + f.dk); };
+    const double qxx = centre(lin.qxx), qxy = centre(lin.qxy), qyy = centre(lin.qyy), det = qxx * qyy - qxy * qxy;
+    if (!(qxx > 0 && qyy > 0 && det > 0)) return nullptr;
+    const PhaseTableKey key = lin.prefiltered ? PhaseTableCache::pixel_averaged_key(*params.kernel, params.level,
+                                                                                    std::sqrt(params.kernel_variance * qyy / det),
+                                                                                    std::sqrt(params.kernel_variance * qxx / det))
+                                              : PhaseTableCache::footprint_key(*params.kernel, qxx, qxy, qyy);
+    const CachedPhaseTable& cached = memo.get(key, *params.kernel);
+    return cached.table ? &cached : nullptr;
+}
+
 }  // namespace
 
 uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& planned, const FootprintSplatParams& params,
                                 SplatGrid& grid, SplatScratch& scratch) {
     const BlockTarget target = block_target(block, planned, grid);
+#ifdef PCVR_AVX2
+    const std::optional<BlockLinearisation> lin =
+        params.view->orthographic() ? std::nullopt
+                                    : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y,
+                                                      params.antialias, params.kernel_variance);
+    if (const CachedPhaseTable* phases = lin ? block_phase_table(*lin, params) : nullptr)
+        return splat_block_phases(block, {&*lin, target.ref_x, target.ref_y, params.density_scale, phases->table_det},
+                                  *phases->table, grid, scratch);
+#endif
     float* tiles = target.region.tiled ? scratch.tile_copies() : nullptr;
     const TileFlush flush(target.region, tiles, grid);
     uint64_t count = 0;
 #ifdef PCVR_AVX2
     ProjectedBatch b;
-    const std::optional<BlockLinearisation> lin =
-        params.view->orthographic() ? std::nullopt
-                                    : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y,
-                                                      params.antialias, params.kernel_variance);
     for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
         uint32_t todo = 0;
         if (lin) {

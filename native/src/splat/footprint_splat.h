@@ -8,7 +8,9 @@
 /// each footprint is added row by row, its weights gathered from the FootprintTable eight taps at
 /// a time: into the block's tile (block_tile.h) when the block is dense and its footprints fit one,
 /// else straight into the grid. Perspective blocks far enough from the eye take their footprints
-/// from the block's linearised projection instead, in float (block_linearisation.h). Bilinear spreading takes the same pass and puts each footprint's
+/// from the block's linearised projection instead, in float (block_linearisation.h), and their windows from the
+/// phase table of the block's footprint where one stands for it (phase_table_cache.h), as orthographic voxels do.
+/// Bilinear spreading takes the same pass and puts each footprint's
 /// integral on its 2 x 2 nearest nodes. Footprints narrower than a pixel are integrated over each
 /// pixel's area instead, in every mode (pixel_prefilter.h).
 #pragma once
@@ -32,6 +34,11 @@ struct FootprintSplatParams {
     float density_scale = 1.0f;
     bool bilinear_spread = false;  ///< each footprint's integral to its 2 x 2 nearest nodes instead
     bool antialias = true;         ///< footprints narrower than a pixel integrated over pixels (pixel_prefilter.h)
+    /// With the kernel, perspective blocks whose footprints a phase table can stand for take their windows from
+    /// one (src/splat/phase_table_cache.h); the grid's level of detail sets the prefilter's reach.
+    const Kernel* kernel = nullptr;
+    bool phase_tables = false;  ///< the view's footprints are alike enough to share a few tables (SplatParams)
+    int level = 0;
 };
 
 /// Splats the active, finite, non-zero voxels of `block` whose centres lie between the clip planes

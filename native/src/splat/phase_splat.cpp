@@ -1,6 +1,8 @@
 #include "splat/phase_splat.h"
 
 #include <algorithm>
+#include <array>
+#include <optional>
 #include <cmath>
 #include <utility>
 
@@ -65,6 +67,25 @@ struct BlockFrame {
     DepositRegion region;        // the block's tile, or the whole grid
 };
 
+/// The frame's deposit region and window corners, for voxels whose positions, relative to storage node
+/// (origin_x, origin_y), fall in nodes [x0, x1] x [y0, y1] (`nodes`; none: unknown): a tile around their windows,
+/// which reach window - 1 nodes beyond their corner, where they fit one, else the grid.
+void place_region(BlockFrame& f, int origin_x, int origin_y, const std::optional<std::array<int, 4>>& nodes, WindowLayout w,
+                  const SplatGrid& grid) {
+    int shift_x = -origin_x, shift_y = -origin_y;
+    f.region = DepositRegion::whole(grid);
+    if (nodes) {
+        const auto [x0, x1, y0, y1] = *nodes;
+        const int tx = x0 - w.half_width + 1, ty = y0 - w.half_width + 1;
+        f.region = DepositRegion::tile_or_grid(origin_x + tx, origin_y + ty, x1 - x0 + w.window, y1 - y0 + w.window, 0, grid);
+        if (f.region.tiled) shift_x = tx, shift_y = ty;
+    }
+    f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
+    f.corner_y = _mm256_set1_epi32(1 - w.half_width - shift_y);
+    f.last_x = _mm256_set1_epi32(f.region.width - w.window);
+    f.last_y = _mm256_set1_epi32(f.region.height - w.window);
+}
+
 /// The frame of `block`, with a tile around its windows when `Tiled` and they fit one.
 template <bool Tiled>
 BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, WindowLayout w, const SplatGrid& grid) {
@@ -82,9 +103,7 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
     f.gyk = _mm256_set1_ps(float(map.gy.z));
     f.amp_per_value = _mm256_set1_ps(map.amp_per_value);
 
-    // Region (0, 0) relative to the origin's node.
-    int shift_x = -int(node_x), shift_y = -int(node_y);
-    f.region = DepositRegion::whole(grid);
+    std::optional<std::array<int, 4>> nodes;
     if (Tiled && active_count(block) >= kTileMinVoxels) {
         // The nodes the block's voxels fall in, from its corners, one node wider on each side for
         // the rounding of float positions; windows reach window - 1 nodes beyond their corner.
@@ -96,15 +115,9 @@ BlockFrame block_frame(const VoxelBlock& block, const OrthographicMapping& map, 
         };
         const auto [x0, x1] = node_range(x - node_x, map.gx);
         const auto [y0, y1] = node_range(y - node_y, map.gy);
-        const int tx = x0 - w.half_width + 1, ty = y0 - w.half_width + 1;
-        f.region = DepositRegion::tile_or_grid(int(node_x) + tx, int(node_y) + ty, x1 - x0 + w.window,
-                                               y1 - y0 + w.window, 0, grid);
-        if (f.region.tiled) shift_x = tx, shift_y = ty;
+        nodes = std::array<int, 4>{x0, x1, y0, y1};
     }
-    f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
-    f.corner_y = _mm256_set1_epi32(1 - w.half_width - shift_y);
-    f.last_x = _mm256_set1_epi32(f.region.width - w.window);
-    f.last_y = _mm256_set1_epi32(f.region.height - w.window);
+    place_region(f, int(node_x), int(node_y), nodes, w, grid);
     return f;
 }
 
@@ -248,6 +261,66 @@ uint64_t splat_block(const VoxelBlock& block, const OrthographicMapping& map, co
     return count;
 }
 
+/// Eight voxels' values of a block's affine model (block_linearisation.h).
+inline __m256 evaluate(const AffineInBlock& f, __m256 i, __m256 j, __m256 k) {
+    return _mm256_fmadd_ps(_mm256_set1_ps(f.dk), k,
+                           _mm256_fmadd_ps(_mm256_set1_ps(f.dj), j, _mm256_fmadd_ps(_mm256_set1_ps(f.di), i, _mm256_set1_ps(f.at))));
+}
+
+/// The frame of a perspective block whose node positions (relative to storage node (ref_x, ref_y)) are
+/// lin.x / lin.w and lin.y / lin.w: positions go in as they are (the reference node is the frame's), and the
+/// tile covers the projections of the block's corners, which bound its voxels' (a projection keeps convex hulls).
+template <bool Tiled>
+BlockFrame projective_frame(const VoxelBlock& block, const BlockLinearisation& lin, int ref_x, int ref_y, WindowLayout w,
+                            const SplatGrid& grid) {
+    BlockFrame f;
+    f.amp_per_value = _mm256_set1_ps(1.0f);  // the amplitudes come in per voxel
+    std::optional<std::array<int, 4>> nodes;
+    if (Tiled && active_count(block) >= kTileMinVoxels) {
+        double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+        for (int c = 0; c < 8; ++c) {
+            const double i = 7.0 * (c & 1), j = 7.0 * ((c >> 1) & 1), k = 7.0 * ((c >> 2) & 1);
+            auto at = [&](const AffineInBlock& a) { return double(a.at) + a.di * i + a.dj * j + a.dk * k; };
+            const double inv_w = 1.0 / at(lin.w), x = at(lin.x) * inv_w, y = at(lin.y) * inv_w;
+            x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+        }
+        // One node wider on each side for the float positions' rounding (positions far off the tile's size: the grid).
+        if (x1 - x0 < kTileFloats && y1 - y0 < kTileFloats)
+            nodes = std::array<int, 4>{int(std::floor(x0)) - 1, int(std::floor(x1)) + 1, int(std::floor(y0)) - 1, int(std::floor(y1)) + 1};
+    }
+    place_region(f, ref_x, ref_y, nodes, w, grid);
+    return f;
+}
+
+template <WindowKind Kind>
+uint64_t splat_block_projective(const VoxelBlock& block, const ProjectiveBlock& p, const PhaseFootprintTable& table,
+                                SplatGrid& grid, SplatScratch& scratch) {
+    const WindowLayout w = window_layout<Kind>(table);
+    const BlockLinearisation& lin = *p.lin;
+    const BlockFrame f = projective_frame<Kind != WindowKind::Table>(block, lin, p.ref_x, p.ref_y, w, grid);
+    float* tiles = f.region.tiled ? scratch.tile_copies() : nullptr;
+    const TileFlush flush(f.region, tiles, grid);
+    const __m256 one = _mm256_set1_ps(1.0f), density_scale = _mm256_set1_ps(p.density_scale);
+    const __m256 table_det = _mm256_set1_ps(float(p.table_det));
+    VoxelBatch b;
+    uint64_t count = 0;
+    for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
+        const __m256 inv_w = _mm256_div_ps(one, evaluate(lin.w, i, j, k));
+        const __m256 qxx = evaluate(lin.qxx, i, j, k), qxy = evaluate(lin.qxy, i, j, k), qyy = evaluate(lin.qyy, i, j, k);
+        const __m256 det = _mm256_fmsub_ps(qxx, qyy, _mm256_mul_ps(qxy, qxy));
+        // The voxel's own mass: sampled tables hold another form's footprint (of determinant table_det), whose
+        // integral is in proportion to 1 / sqrt(det); pixel-averaged ones hold weights that sum to one.
+        const __m256 to_mass = _mm256_sqrt_ps(_mm256_div_ps(p.table_det > 0 ? table_det : one, det));
+        const __m256 amp = _mm256_mul_ps(_mm256_mul_ps(evaluate(lin.line_scale, i, j, k), density_scale), _mm256_mul_ps(to_mass, v));
+        prepare(_mm256_mul_ps(evaluate(lin.x, i, j, k), inv_w), _mm256_mul_ps(evaluate(lin.y, i, j, k), inv_w), amp, f, w, b);
+        b.live &= uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
+        count += __builtin_popcount(b.live);
+        deposit<Kind>(b, table, w, f, tiles, grid);
+    });
+    scratch.taps += count * uint64_t(w.window) * uint64_t(w.window);
+    return count;
+}
+
 #endif  // PCVR_AVX2
 
 }  // namespace
@@ -270,6 +343,16 @@ uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& 
         ++count;
     });
     return count;
+#endif
+}
+
+uint64_t splat_block_phases(const VoxelBlock& block, const ProjectiveBlock& projected, const PhaseFootprintTable& table,
+                            SplatGrid& grid, SplatScratch& scratch) {
+#ifdef PCVR_AVX2
+    return table.window() == 4 ? splat_block_projective<WindowKind::Table4x4>(block, projected, table, grid, scratch)
+                               : splat_block_projective<WindowKind::Table>(block, projected, table, grid, scratch);
+#else
+    return 0;  // the callers keep their per-voxel footprints without AVX2 (projective_phases_available)
 #endif
 }
 

@@ -16,6 +16,7 @@
 #include "splat/block_tile.h"
 
 #include "pcvr/grid.h"
+#include "splat/block_linearisation.h"
 #include "pcvr/math.h"
 #include "splat/phase_table.h"
 #include "splat/splat_grid.h"
@@ -38,5 +39,29 @@ struct OrthographicMapping {
 /// clip planes count. Returns the number of voxels splatted.
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
                             const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch);
+
+/// A perspective block's voxels (block_linearisation.h): node positions lin.x / lin.w and lin.y / lin.w relative
+/// to storage node (ref_x, ref_y), form and line scale as affine functions of the voxel's offset.
+struct ProjectiveBlock {
+    const BlockLinearisation* lin;
+    int ref_x = 0, ref_y = 0;
+    float density_scale = 1;
+    /// The determinant of the form `table` holds (CachedPhaseTable::table_det; 0: a pixel-averaged table).
+    double table_det = 0;
+};
+
+/// Whether this build splats perspective blocks with phase tables (the batched splat needs AVX2).
+#if defined(__AVX2__) && defined(__FMA__)
+constexpr bool kProjectivePhases = true;
+#else
+constexpr bool kProjectivePhases = false;
+#endif
+
+/// Splats a perspective block's active, finite, non-zero voxels with the windows of `table` (src/splat/
+/// phase_table_cache.h), each at its own centre and with its own mass: a sampled table's footprint scaled by
+/// sqrt(table_det / det) of the voxel's form, a pixel-averaged one's weights by the voxel's footprint integral.
+/// Returns the number of voxels splatted and counts their taps into scratch.taps.
+uint64_t splat_block_phases(const VoxelBlock& block, const ProjectiveBlock& projected, const PhaseFootprintTable& table,
+                            SplatGrid& grid, SplatScratch& scratch);
 
 }  // namespace pcvr

@@ -61,21 +61,39 @@ PhaseFootprintTable PhaseFootprintTable::pixel_averaged(double sigma_x, double s
     return t;
 }
 
-PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width)
-    : PhaseFootprintTable(half_width, phases_for(half_width)) {
+namespace {
+
+/// Fills `t`'s phases with the footprint rho^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2 of `profile(rho^2)`, zero
+/// from `radius2` on.
+template <class Profile>
+void tabulate(std::vector<float>& values, int half_width, int phases, int pitch, size_t entry_size, double qxx, double qxy,
+              double qyy, double radius2, Profile profile) {
     const int window = 2 * half_width;
-    for (int py = 0; py <= phases_; ++py)
-        for (int px = 0; px <= phases_; ++px) {
-            const double fx = double(px) / phases_, fy = double(py) / phases_;
-            float* w = values_.data() + (size_t(py) * (phases_ + 1) + px) * entry_size_;
+    for (int py = 0; py <= phases; ++py)
+        for (int px = 0; px <= phases; ++px) {
+            const double fx = double(px) / phases, fy = double(py) / phases;
+            float* w = values.data() + (size_t(py) * (phases + 1) + px) * entry_size;
             for (int j = 0; j < window; ++j)
                 for (int i = 0; i < window; ++i) {
                     const double dx = i - (half_width - 1) - fx, dy = j - (half_width - 1) - fy;
                     const double rho2 = qxx * dx * dx + 2.0 * qxy * dx * dy + qyy * dy * dy;
-                    if (rho2 < kernel.radius() * kernel.radius())
-                        w[size_t(j) * pitch_ + i] = float(kernel.line_integral(std::sqrt(std::max(0.0, rho2))));
+                    if (rho2 < radius2) w[size_t(j) * pitch + i] = profile(std::max(0.0, rho2));
                 }
         }
+}
+
+}  // namespace
+
+PhaseFootprintTable::PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width)
+    : PhaseFootprintTable(half_width, phases_for(half_width)) {
+    tabulate(values_, half_width, phases_, pitch_, entry_size_, qxx, qxy, qyy, kernel.radius() * kernel.radius(),
+             [&](double rho2) { return float(kernel.line_integral(std::sqrt(rho2))); });
+}
+
+PhaseFootprintTable::PhaseFootprintTable(const FootprintTable& footprint, double qxx, double qxy, double qyy, int half_width)
+    : PhaseFootprintTable(half_width, phases_for(half_width)) {
+    tabulate(values_, half_width, phases_, pitch_, entry_size_, qxx, qxy, qyy, footprint.radius2(),
+             [&](double rho2) { return footprint.at_rho2(float(rho2)); });
 }
 
 }  // namespace pcvr

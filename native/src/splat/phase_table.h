@@ -29,6 +29,9 @@ public:
     /// The footprint rho^2 = qxx dx^2 + 2 qxy dx dy + qyy dy^2 (node units) of `kernel`, for a window
     /// of 2 * half_width taps per axis (half_width >= the footprint's extent in nodes).
     PhaseFootprintTable(const Kernel& kernel, double qxx, double qxy, double qyy, int half_width);
+    /// The same from the kernel's FootprintTable, as perspective footprints take their taps (src/splat/
+    /// phase_table_cache.h): a table in some 0.1 ms instead of the analytic line integral's millisecond.
+    PhaseFootprintTable(const FootprintTable& footprint, double qxx, double qxy, double qyy, int half_width);
 
     /// Bilinear spreading (Westenberg-Roerdink) in the same form: a 2 x 2 window with one phase per
     /// node, whose window at each corner phase holds 1 on the node the centre sits on. Interpolating

@@ -102,6 +102,9 @@ uint64_t splat_blocks(const std::vector<VoxelBlock>& grid_blocks, const std::vec
     footprints.antialias = params.antialias;
     footprints.density_scale = params.density_scale;
     footprints.bilinear_spread = params.mode == SplatMode::BilinearSpread;
+    footprints.kernel = params.kernel;
+    footprints.phase_tables = params.phase_tables;
+    footprints.level = params.level;
 
     tbb::enumerable_thread_specific<SplatGrid> locals([&] { return target.zero_like(); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);

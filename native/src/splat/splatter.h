@@ -52,6 +52,10 @@ struct SplatParams {
     /// what splats the kernels it cuts (required with it).
     const ClipRegion* clip = nullptr;
     const CutSplatter* cuts = nullptr;
+    /// Perspective views whose magnification over the volume stays within a band (a narrow field of view from
+    /// afar): a few phase tables stand for all footprints (src/splat/phase_table_cache.h). A wide view meets
+    /// hundreds of forms, a table each (0.1 ms), and keeps its footprints tap by tap.
+    bool phase_tables = false;
 };
 
 /// Splat `blocks` of `grid_blocks` into `target`. Returns the number of voxels splatted (active, non-zero,

@@ -108,8 +108,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
     }
     if (params.fixed_stride > 0)
         d.stride = params.fixed_stride;
-    else if (mag_max > 0 && wants_fractional_strides(params))
-        d.stride = std::clamp(mag_min, 1.0, double(kMaxStride));  // at least its band's, for the margin below
+    else if (mag_max > 0 && wants_fractional_strides(params))  // at least its band's, for the margin below
+        d.stride = std::clamp(std::max(mag_min, view.orthographic() ? 0.0 : mag_max * kPerspectiveBandRatio), 1.0, double(kMaxStride));
     else if (mag_max > 0)
         d.stride = params.nearest_stride ? nearest_stride(0.5 * (mag_min + mag_max)) : automatic_stride(mag_min);
     const bool exact = needs_exact_footprints(block, view, params.kernel_radius, params.footprint_tolerance);
@@ -168,7 +168,12 @@ BlockPlan plan_blocks(const std::vector<VoxelBlock>& blocks, const ViewProjectio
     }
     for (const BlockDecision& d : decisions) {
         if (d.culled) continue;
-        const double stride = fractional && d.mag_max > 0 ? fractional_stride(d.mag_min, mag_min) : d.stride;
+        // Blocks near a perspective eye, splatted ray by ray (near_eye_splat.h), keep the ladder up from the least
+        // magnification: their most magnified corners may lie at the eye.
+        const bool from_most = !view.orthographic() && !d.planned.exact_footprints;
+        const double stride = !(fractional && d.mag_max > 0) ? d.stride
+                              : from_most                   ? perspective_stride(d.mag_max, mag_max)
+                                                            : fractional_stride(d.mag_min, mag_min);
         plan.by_stride[stride].push_back(d.planned);
     }
     if (mag_max > 0) {

@@ -46,8 +46,9 @@
 /// of the 128^3 blobs (sampled Gaussians, tests/native/test_xray_levels.py), with the default compensated
 /// passband, supersampled 0.36% (1/2) and 0.28% (1/4), integrated per pixel 0.13% and 0.29%, the paper's pair
 /// integrated 1.26% and 1.15%; so the threshold is 1/2, where one core took 13.5 ms supersampled against 110 ms
-/// integrated (m = 1: 13.9 ms). Perspective views
-/// gained 12% at most (the near voxels span many sub-pixels) at 5x the error, so they integrate. Levels above 0
+/// integrated (m = 1: 13.9 ms). Wide perspective views
+/// gained 12% at most (the near voxels span many sub-pixels) at 5x the error, so they integrate; where the
+/// magnification is within a band over the box, below a pixel per voxel, they supersample (issue 37). Levels above 0
 /// are not supersampled: level 1 at 1/64 over 32 sub-pixels was 0.15% / 0.32% off (integrated: 0.08% / 0.17%).
 #pragma once
 
@@ -60,6 +61,7 @@
 
 #include "pcvr/camera.h"
 #include "pcvr/grid.h"
+#include "pcvr/stride.h"
 #include "view/view_projection.h"
 
 namespace pcvr {
@@ -140,11 +142,15 @@ inline int automatic_level(const Grid& grid, const Camera& camera, double pixels
 /// supersampled image stays within kMaxSupersampledSide (the voxels still finer are then integrated over
 /// the sub-pixels' areas, as without supersampling).
 inline int automatic_supersampling(const std::array<int32_t, 6>& box, const Mat4& index_to_world, const Camera& camera) {
-    // In perspective the near voxels span more sub-pixels than the far ones need, and the splats cost
-    // more: measured 12% faster at most on 128^3 blobs, and 5 times as far from the pixel means.
-    if (!camera.orthographic()) return 1;
     const auto most = corner_pixels_per_voxel(box, index_to_world, camera);
-    if (!most || most->second > kSupersampleBelowPixelsPerVoxel * (1 + 1e-6)) return 1;
+    if (!most) return 1;
+    // In a wide perspective the near voxels span more sub-pixels than the far ones need, and the splats cost
+    // more: measured 12% faster at most on 128^3 blobs, and 5 times as far from the pixel means. Where the
+    // magnification is nearly one over the box (within a band: a narrow field of view, from afar) it renders as
+    // orthographic views do, its least magnified voxels taking the threshold: 5 to 7 times faster than
+    // integrating its voxels over pixels (tests/bench/perspective_bench.py).
+    const bool uniform = camera.orthographic() || most->second <= kPerspectiveBandRatio * most->first;
+    if (!uniform || most->first > kSupersampleBelowPixelsPerVoxel * (1 + 1e-6)) return 1;
     const auto least = corner_pixels_per_voxel(box, index_to_world, camera, VoxelAxis::LeastMagnified);
     if (!least) return 1;
     const double wanted = std::ceil(1.0 / least->first * (1 - 1e-9));

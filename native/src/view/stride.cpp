@@ -23,4 +23,12 @@ double fractional_stride(double pixels_per_voxel, double least) {
     return std::min(base * std::pow(kStrideBandRatio, band), double(kMaxStride));
 }
 
+double perspective_stride(double most_pixels_per_voxel, double most) {
+    double top = std::clamp(most, 1.0, double(kMaxStride));
+    if (std::abs(top - std::round(top)) < 1e-6 * top) top = std::round(top);
+    if (!(most_pixels_per_voxel < top)) return top;
+    const double band = std::floor(std::log(top / std::max(most_pixels_per_voxel, 1e-300)) / std::log(kPerspectiveBandRatio) + 1e-9);
+    return std::max(1.0, top / std::pow(kPerspectiveBandRatio, band));
+}
+
 }  // namespace pcvr

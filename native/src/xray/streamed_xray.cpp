@@ -22,7 +22,9 @@ void accumulate(XrayStats& total, const XrayStats& part) {
     total.blocks_clipped += part.blocks_clipped;
     total.voxels_cut += part.voxels_cut;
     total.taps += part.taps;
+    total.pixels_negative_corrected += part.pixels_negative_corrected;
     total.batches += part.batches;
+    total.nonnegative = total.nonnegative && part.nonnegative;
     total.level = std::max(total.level, part.level);
     total.supersampling = std::max(total.supersampling, part.supersampling);
     total.memory_bytes = std::max(total.memory_bytes, part.memory_bytes);
@@ -76,6 +78,8 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
     for (const WeightedStream& s : streams)
         if (s.stream->batch_bytes() > 0) batch_bytes = std::min(batch_bytes, s.stream->batch_bytes());
     XrayParams part_params = params;
+    // The sum of the batches is cleared below zero, not each: a batch's faces are sharp edges of its own.
+    part_params.keep_nonnegative = false;
     if (params.memory_limit > 0) {
         if (batch_bytes >= params.memory_limit)
             throw InvalidArgument("render_xray: memory_limit (" + std::to_string(params.memory_limit) +
@@ -135,6 +139,13 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const std::vector<
         });
     }
     control.set_span(0.0, 1.0);
+    // A field >= 0 renders >= 0: the batches were sharpened unlimited (their images add up to the whole render's),
+    // so the sum's ringing below zero is cleared, its mass taken from the overshoot beside it.
+    // Not for a share of the batches (with_batches): the shares must add up to the whole.
+    bool share = false;
+    for (const WeightedStream& s : streams) share |= !s.stream->only_batches().empty();
+    if (params.keep_nonnegative && stats.nonnegative && !share)
+        stats.pixels_negative_corrected += clear_negative_pixels(image.pixels, image.width, image.height, ringing_reach(stats));
     stats.memory_bytes += batch_bytes;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats_out) *stats_out = stats;

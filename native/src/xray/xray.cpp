@@ -108,9 +108,10 @@ public:
         const auto band = bands_.find(grid.stride());
         if (band == bands_.end() || !(band->second.max_magnification > 0)) return;
         // Orthographic, an automatic stride is its voxels' magnification (from 1 up); a perspective band's
-        // strides climb in steps of 2^(1/4) from its least magnified voxels, which lie about 2^(1/8) above.
+        // strides fall in steps of kPerspectiveBandRatio from its most magnified voxels: they lie about half a
+        // step below.
         const double s = grid.stride();
-        const double m = std::clamp(perspective_ ? s * std::pow(2.0, 0.125) : s, band->second.min_magnification,
+        const double m = std::clamp(perspective_ ? s / std::sqrt(kPerspectiveBandRatio) : s, band->second.min_magnification,
                                     band->second.max_magnification);
         sharpen_nodes(grid, passband_sharpening(kernel_variance_ * (m / s) * (m / s) + post_filter_blur(post_shape_, s, pixel_mean_)), 1, control);
     }
@@ -123,6 +124,89 @@ private:
     std::map<double, XrayStats> bands_;
     std::pair<double, double> regular_range_;
 };
+
+}  // namespace
+
+namespace {
+
+}  // namespace
+
+uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
+    // Pixel p's deficit d_p goes to the positive pixels q within `radius` in proportion to them, q d_p / H_p with
+    // H_p their sum around p: q loses q times the sum of d / H over the negative pixels around it. All at once,
+    // in any order, within the box of the negative pixels widened by `radius` (nothing else changes).
+    // Undershoots within float's rounding of the peak (a Gaussian's cut tails) are set to zero: their mass is below
+    // 1e-6 of a pixel's at the peak each.
+    const float peak = *std::max_element(pixels.begin(), pixels.end());
+    const float negligible = -1e-6f * std::max(peak, 0.0f);
+    uint64_t cleared = 0;
+    std::vector<uint32_t> negative;  // pixel indices, 4 bytes each: an image of 2^32 pixels or more is only set to zero
+    const bool indexable = uint64_t(width) * uint64_t(height) < (uint64_t(1) << 32);
+    int x0 = width, x1 = -1, y0 = height, y1 = -1;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            float& p = pixels[size_t(y) * width + x];
+            if (!(p < 0)) continue;
+            ++cleared;
+            if (p >= negligible || !indexable) {
+                p = 0;
+                continue;
+            }
+            negative.push_back(uint32_t(size_t(y) * width + x)), x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+        }
+    if (negative.empty()) return cleared;
+    x0 = std::max(0, x0 - radius), x1 = std::min(width - 1, x1 + radius), y0 = std::max(0, y0 - radius), y1 = std::min(height - 1, y1 + radius);
+    // Each deficit's share of the positive pixels around it (from the pixels as they are), then band by band of
+    // rows the sum of the shares around each pixel: a band's worth of memory, whatever the image.
+    std::vector<float> share(negative.size(), 0.0f);
+    for (size_t n = 0; n < negative.size(); ++n) {
+        const int x = int(negative[n] % size_t(width)), y = int(negative[n] / size_t(width));
+        double held = 0;
+        for (int v = std::max(0, y - radius); v <= std::min(height - 1, y + radius); ++v)
+            for (int u = std::max(0, x - radius); u <= std::min(width - 1, x + radius); ++u) held += std::max(0.0f, pixels[size_t(v) * width + u]);
+        if (held > 0) share[n] = float(-double(pixels[negative[n]]) / held);
+    }
+    constexpr int kBandRows = 64;
+    const int w = x1 - x0 + 1;
+    std::vector<double> taken;
+    size_t first = 0;  // the first negative pixel within reach of the band (they are in row order)
+    for (int band = y0; band <= y1; band += kBandRows) {
+        const int rows = std::min(kBandRows, y1 - band + 1);
+        taken.assign(size_t(rows) * w, 0.0);
+        while (first < negative.size() && int(negative[first] / size_t(width)) < band - radius) ++first;
+        for (size_t n = first; n < negative.size() && int(negative[n] / size_t(width)) < band + rows + radius; ++n) {
+            const int x = int(negative[n] % size_t(width)), y = int(negative[n] / size_t(width));
+            for (int v = std::max(band, y - radius); v <= std::min(band + rows - 1, y + radius); ++v)
+                for (int u = std::max(x0, x - radius); u <= std::min(x1, x + radius); ++u) taken[size_t(v - band) * w + u - x0] += share[n];
+        }
+        // A share above one (no overshoot within reach) leaves that pixel at zero and the rest of the deficit unpaid.
+        for (int v = 0; v < rows; ++v)
+            for (int u = 0; u < w; ++u) {
+                float& p = pixels[size_t(band + v) * width + u + x0];
+                p = float(std::max(0.0f, p) * std::max(0.0, 1.0 - taken[size_t(v) * w + u]));
+            }
+    }
+    return cleared;
+}
+
+int ringing_reach(const XrayStats& stats) {
+    // Regular splatting's taps are about a voxel apart on its stride-1 grid.
+    double widest = std::max(1.0, stats.max_magnification);
+    for (double s : stats.strides) widest = std::max(widest, s);
+    // At most 32 pixels (magnifications above 16): each negative pixel's window costs its area twice.
+    return int(std::ceil(kRingingNodes * std::min(widest, 16.0)));
+}
+
+namespace {
+
+/// Whether every voxel of every grid, times its density scale, is >= 0 (from the grids' value ranges, read
+/// when they were built or mapped): then every splat is, and so must every pixel be.
+bool nonnegative_field(const std::vector<WeightedGrid>& grids) {
+    return std::all_of(grids.begin(), grids.end(), [](const WeightedGrid& g) {
+        const auto [lo, hi] = g.grid->value_range();
+        return g.density_scale >= 0 ? lo >= 0 : hi <= 0;
+    });
+}
 
 /// The least and most pixels per voxel (least magnified direction) over the boxes of the grids rendered:
 /// what regular splatting compensates for, the same for a grid read whole and for its batches (which set
@@ -236,8 +320,11 @@ ImageAccumulator render_splatted(const std::vector<WeightedGrid>& grids, const C
         if (cutters[k] && cutters[k]->masks()) masked[k] = std::make_unique<ImageAccumulator>(cam.width(), cam.height());
     std::vector<const Grid*> level_grids;
     for (const Grid& g : levels) level_grids.push_back(&g);
+    // Over the grids' boxes, and for a stream's batches the whole stream's: every batch decides as the grid would.
+    const std::pair<double, double> box_magnification = regular_compensation_range(level_grids, cam, params);
+    splat.phase_tables = box_magnification.first > 0 && box_magnification.second <= kPerspectiveBandRatio * box_magnification.first;
     const Compensation compensation(params, kernel, post_shape, cam, std::move(bands),
-                                    regular ? regular_compensation_range(level_grids, cam, params) : std::pair<double, double>{});
+                                    regular ? box_magnification : std::pair<double, double>{});
     auto to_image = [&](SplatGrid& grid, ImageAccumulator& out) {
         compensation.apply(grid, control);
         if (regular)
@@ -326,8 +413,10 @@ ImageAccumulator render_supersampled(const std::vector<WeightedGrid>& grids, con
     XrayParams at_level_0 = params;
     at_level_0.level = 0;  // what the pixels chose: the sub-pixels would choose no other
     // A node per sub-pixel: the post filter's fractional strides (1.02 and the like here) lost up to 0.09%
-    // of a one-pixel image's mass, stride 1 0.02%.
-    if (at_level_0.stride == 0) at_level_0.stride = 1;
+    // of a one-pixel image's mass, stride 1 0.02%. In perspective the sub-pixels are chosen for the least
+    // magnified voxels and the others span up to a band more (automatic_supersampling): their own strides keep
+    // their footprints in 4 x 4 windows.
+    if (at_level_0.stride == 0 && cam.orthographic()) at_level_0.stride = 1;
     const XrayStats before = stats;
     try {
         ImageAccumulator image = box_averaged(render_splatted(grids, fine, at_level_0, kernel, post_shape, control, stats), sub);
@@ -390,6 +479,7 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
 
     XrayStats stats;
     stats.batches = 1;
+    stats.nonnegative = nonnegative_field(grids);
     XrayImage out;
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
     arena.execute([&] {
@@ -413,6 +503,11 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids_in, const Camera& c
         const int sub = supersampling(grids, cam, params);
         ImageAccumulator image = sub > 1 ? render_supersampled(grids, cam, params, kernel, post_shape, control, stats, sub)
                                          : render_splatted(grids, cam, params, kernel, post_shape, control, stats);
+        // The passband compensation rings below zero beside a sharp edge, and so do Catmull-Rom's lobes: a field
+        // >= 0 must not (a negative line integral is a transmission above 100%). After the sub-pixels' mean, as a
+        // stream's sum of batches is.
+        if (params.keep_nonnegative && stats.nonnegative)
+            stats.pixels_negative_corrected += clear_negative_pixels(image.pixels, image.width, image.height, ringing_reach(stats));
         out.width = image.width;
         out.height = image.height;
         out.pixels = std::move(image.pixels);
