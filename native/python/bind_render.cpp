@@ -117,6 +117,8 @@ nb::object render_xray_py(nb::handle grid_arg, const Camera& camera, const std::
         stats["stride"] = xs.strides.empty() ? 0 : xs.strides.front();
         stats["taps"] = xs.taps;
         stats["pixels_negative_corrected"] = xs.pixels_negative_corrected;
+        stats["nonnegative"] = xs.nonnegative;
+        stats["ringing_reach"] = ringing_reach(xs);
         stats["seconds"] = xs.seconds;
         stats["memory_bytes"] = xs.memory_bytes;
         stats["batches"] = xs.batches;
@@ -200,6 +202,18 @@ void bind_render(nb::module_& m) {
     m.def("default_memory_limit", &default_memory_limit,
           "Bytes a render may use when memory_limit is None: the memory this machine (or its cgroup) has available.");
 
+    m.def("clear_negative_pixels",
+          [](nb::ndarray<float, nb::ndim<2>, nb::c_contig, nb::device::cpu> image, int reach) {
+              if (reach < 0) throw nb::value_error("clear_negative_pixels: reach must be >= 0 pixels");
+              const int height = int(image.shape(0)), width = int(image.shape(1));
+              nb::gil_scoped_release release;
+              return clear_negative_pixels(image.data(), width, height, reach);
+          },
+          "image"_a, "reach"_a,
+          "Clears, in place, the pixels below zero of a float32 (height, width) X-ray of a field >= 0, taking what\n"
+          "that adds from the positive pixels within `reach` of each, in proportion to them, as render_xray does to\n"
+          "its own image. For images added up from parts rendered apart (each part's stats['nonnegative'] true;\n"
+          "reach: the largest of their stats['ringing_reach']). Returns how many pixels were below zero.");
     m.def("kernel_info", [](const std::string& name) {
         const Kernel k = Kernel::from_name(name);
         nb::dict d;

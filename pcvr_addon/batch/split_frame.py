@@ -21,6 +21,7 @@ import dataclasses
 import numpy as np
 
 from ..render import native_render, prepared_scene
+from . import split_xray
 
 
 def render_share(planned, part, parts):
@@ -39,9 +40,8 @@ def composite(shares):
     raws = [raw for raw, _ in shares]
     raw = dict(raws[0])
     if "integral" in raw:
-        raw["integral"] = np.array(raws[0]["integral"], dtype=np.float32)
-        for other in raws[1:]:
-            raw["integral"] += other["integral"]
+        raw["integral"] = split_xray.nonnegative_sum([other["integral"] for other in raws],
+                                                     [share_stats for _, share_stats in shares])
     if "rgba" in raw:
         rgba = np.array(raws[0]["rgba"], dtype=np.float32)
         depth = None if raws[0]["depth"] is None else np.array(raws[0]["depth"], dtype=np.float32)

@@ -24,14 +24,18 @@ def _camera_values(camera):
 
 
 def render_batches(path, camera_values, batches, size, grid=None, **xray_options):
-    """{batch: image} of the batches `batches` (of `size` bytes each) of grid `grid` of `path`, each rendered
-    alone as render_xray renders it within the whole stream."""
+    """{batch: (image, stats)} of the batches `batches` (of `size` bytes each) of grid `grid` of `path`, each
+    rendered alone as render_xray renders it within the whole stream (uncorrected: see nonnegative_sum)."""
     import pcvr_native
 
     stream = pcvr_native.stream_vdb(path, grid)
     camera = pcvr_native.Camera(*camera_values)
-    return {batch: pcvr_native.render_xray(stream.with_batches([batch], size), camera, **xray_options)
-            for batch in batches}
+    rendered = {}
+    for batch in batches:
+        stats = {}
+        image = pcvr_native.render_xray(stream.with_batches([batch], size), camera, stats=stats, **xray_options)
+        rendered[batch] = image, stats
+    return rendered
 
 
 def render_xray_split(client, path, camera, grid=None, parts=None, memory_limit=None, level=0, **xray_options):
@@ -58,7 +62,7 @@ def render_xray_split(client, path, camera, grid=None, parts=None, memory_limit=
     images = {}
     for future in futures:
         images.update(future.result())
-    return summed_in_order([images[batch] for batch in range(count)])
+    return nonnegative_sum(*zip(*(images[batch] for batch in range(count))))
 
 
 def _render_whole(path, camera_values, grid, options):
@@ -72,4 +76,16 @@ def summed_in_order(images):
     total = np.array(images[0], dtype=np.float32, copy=True)
     for image in images[1:]:
         total += image
+    return total
+
+
+def nonnegative_sum(images, stats):
+    """The parts' images summed in order and, where every part was of a field >= 0 (their stats), the sum's
+    ringing below zero cleared as one streamed render clears its own: parts render uncorrected so that they add
+    up (the correction is not linear)."""
+    import pcvr_native
+
+    total = summed_in_order(images)
+    if all(part.get("nonnegative", False) for part in stats):
+        pcvr_native.clear_negative_pixels(total, max(part["ringing_reach"] for part in stats))
     return total

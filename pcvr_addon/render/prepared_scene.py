@@ -214,7 +214,7 @@ def bricks_refused(inputs):
     if inputs.sheets is not None and inputs.sheets.shadows:
         return "shadows need every voxel at once"
     for volume in inputs.volumes:
-        if volume.material is not None and volume.material[-1]:
+        if volume.material is not None and volume.material.ambient_occlusion:
             return "ambient occlusion needs every voxel at once"
         if volume.medium is not None and volume.medium.colour_grid:
             return "a Color Attribute needs every voxel at once"

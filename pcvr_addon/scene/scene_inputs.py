@@ -21,6 +21,7 @@ Call `read` on Blender's main thread (or in RenderEngine.render).
 
 import dataclasses
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,6 +29,18 @@ from . import lighting, transfer_function, volume_material, volumes
 from .clipping import ClipError, Clipping, volume_clipping
 from .defaults import NATIVE_NAMES
 from .typed import as_typed
+
+
+class Material(NamedTuple):
+    """A volume's shading settings as the native Shading takes them (anisotropy None: Blinn-Phong)."""
+    use_shading: bool
+    ambient: float
+    diffuse: float
+    specular: float
+    shininess: float
+    anisotropy: float | None
+    ambient_occlusion: bool
+    scattering_octaves: int
 
 
 @dataclass(frozen=True)
@@ -51,7 +64,7 @@ class VolumeInputs:
     density_scale: float
     error: str = ""          # why the volume cannot be read, "" when it can
     ramp: RampInputs | None = None     # shaded mode
-    material: tuple | None = None      # shaded mode: see material()
+    material: Material | None = None   # shaded mode: see material()
     mu_water_per_cm: float | None = None  # X-ray of a CT in Hounsfield units: water's attenuation; None: densities
     clipping: Clipping = Clipping()  # what of it is kept (crop box, clip planes)
     # Shaded mode with volume.pcvr.source 'MATERIAL': the part of the material this grid renders (None: the
@@ -180,12 +193,11 @@ def gradient_opacity_inputs(settings):
 
 
 def material(settings):
-    """A volume's material: (use_shading, ambient, diffuse, specular, shininess, anisotropy, ambient_occlusion,
-    scattering_octaves), anisotropy None for Blinn-Phong (a number: scattering)."""
+    """A volume's Material, anisotropy None for Blinn-Phong (a number: scattering)."""
     anisotropy = float(settings.anisotropy) if settings.shading_model == 'SCATTER' else None
-    return (settings.use_shading, *(as_typed(getattr(settings, name))
-                                    for name in ("ambient", "diffuse", "specular", "shininess")), anisotropy,
-            bool(settings.ambient_occlusion), int(settings.scattering_octaves))
+    return Material(settings.use_shading, *(as_typed(getattr(settings, name))
+                                            for name in ("ambient", "diffuse", "specular", "shininess")), anisotropy,
+                    bool(settings.ambient_occlusion), int(settings.scattering_octaves))
 
 
 def object_units_per_world(object_to_world, direction=None):

@@ -136,7 +136,10 @@ XrayImage render_xray(const std::vector<WeightedGrid>& grids, const Camera& came
 /// An X-ray of a field >= 0 must be >= 0: sets a width x height image's pixels below zero to zero and takes what
 /// that adds from the positive pixels within `radius` of each, in proportion to their values (mass stays, where
 /// an undershoot has its overshoot beside it). Returns how many pixels were below zero.
-uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius);
+uint64_t clear_negative_pixels(float* pixels, int width, int height, int radius);
+inline uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
+    return clear_negative_pixels(pixels.data(), width, height, radius);
+}
 
 /// Nodes (a projected voxel spacing) from an edge that the passband compensation's ringing reaches in the
 /// image: its own node and the post filter's.

@@ -131,13 +131,13 @@ namespace {
 
 }  // namespace
 
-uint64_t clear_negative_pixels(ZeroedBuffer<float>& pixels, int width, int height, int radius) {
+uint64_t clear_negative_pixels(float* pixels, int width, int height, int radius) {
     // Pixel p's deficit d_p goes to the positive pixels q within `radius` in proportion to them, q d_p / H_p with
     // H_p their sum around p: q loses q times the sum of d / H over the negative pixels around it. All at once,
     // in any order, within the box of the negative pixels widened by `radius` (nothing else changes).
     // Undershoots within float's rounding of the peak (a Gaussian's cut tails) are set to zero: their mass is below
     // 1e-6 of a pixel's at the peak each.
-    const float peak = *std::max_element(pixels.begin(), pixels.end());
+    const float peak = width > 0 && height > 0 ? *std::max_element(pixels, pixels + size_t(width) * height) : 0.0f;
     const float negligible = -1e-6f * std::max(peak, 0.0f);
     uint64_t cleared = 0;
     std::vector<uint32_t> negative;  // pixel indices, 4 bytes each: an image of 2^32 pixels or more is only set to zero
