@@ -18,10 +18,12 @@
 /// only the ambient term remains (VTK does the same).
 ///
 /// Single scattering (Shading::Model::Scatter) needs no normal: the transfer function's colour is the
-/// albedo, and a sample's radiance is c * (ambient colour + sum over lights of E * T * p(cos theta)),
-/// p the Henyey-Greenstein phase function (1 - g^2) / (4 pi (1 + g^2 - 2 g cos theta)^1.5), normalised
+/// albedo, and a sample's radiance is c * (ambient colour + sum over lights of pi E * T * p(cos theta)),
+/// pi E the light's irradiance (Light::irradiance), p the Henyey-Greenstein phase function (1 - g^2) / (4 pi (1 + g^2 - 2 g cos theta)^1.5), normalised
 /// over the sphere as Cycles' is, theta the angle between the light's direction of travel and the
 /// direction to the eye, g the anisotropy (> 0 scatters forwards: bright looking into the light).
+/// The ambient colour is the world's radiance, arriving from all around: the phase function integrates to 1
+/// over the sphere, so it enters without a phase and without pi.
 ///
 /// T is the fraction of a light's energy that reaches the sample through the volumes (1 without shadows):
 /// each light that casts shadows has a LightTransmittance, which the renderer builds once per render.
@@ -57,7 +59,9 @@ struct Light {
     Kind kind = Kind::Sun;
     Vec3 vector{0, 0, -1};  ///< Sun: the direction the light travels (any length). Point: its position.
     Vec3 color{1, 1, 1};    ///< linear RGB
-    double strength = 1.0;  ///< Sun: irradiance. Point: intensity (irradiance at distance 1).
+    /// Sun: the radiance of a white diffuse surface facing it, its irradiance over pi (Lambert's law), so
+    /// that Blinn-Phong's kd * strength is that surface's radiance. Point: the same at distance 1.
+    double strength = 1.0;
     Shadow shadow = Shadow::Default;
     /// Sun: the angular diameter of its disc in radians (Blender's Angle), which softens its shadows: a
     /// point sees the part of the disc the volumes leave uncovered. 0: a hard shadow.
@@ -66,6 +70,9 @@ struct Light {
     static Light sun(const Vec3& direction, const Vec3& color, double strength) { return {Kind::Sun, direction, color, strength}; }
     static Light point(const Vec3& position, const Vec3& color, double strength) { return {Kind::Point, position, color, strength}; }
     bool casts_shadow(bool render_shadows) const { return shadow == Shadow::Default ? render_shadows : shadow == Shadow::On; }
+    /// What scattering media receive (sun; point: at distance 1): pi times the strength, since a phase
+    /// function normalised over the sphere, unlike Lambert's cosine, spreads irradiance without a 1/pi.
+    double irradiance() const { return M_PI * strength; }
 };
 
 /// The material: Blinn-Phong coefficients (VTK's volume property, Slicer's shading presets), or single
@@ -170,7 +177,7 @@ private:
     struct PreparedLight {
         bool point;
         Vec3f vector;  // sun: unit vector towards the light; point: position
-        Vec3f energy;  // colour * strength
+        Vec3f energy;  // colour * strength (scattering: * irradiance())
         const LightTransmittance* transmittance;  // null: no shadow
     };
     static constexpr int kPowerSteps = 1024;

@@ -85,7 +85,7 @@ Shader::Shader(const Lighting& lighting, const Vec3& origin, std::vector<const L
         const bool point = l.kind == Light::Kind::Point;
         // A sun's direction is where its light goes: towards the light is the opposite way.
         const Vec3 vector = point ? l.vector - origin : -l.vector / length(l.vector);
-        lights_.push_back({point, to_float(vector), capped(l.color * l.strength), transmittance.empty() ? nullptr : transmittance[i]});
+        lights_.push_back({point, to_float(vector), capped(l.color * (scatter_ ? l.irradiance() : l.strength)), transmittance.empty() ? nullptr : transmittance[i]});
         modulated_ = modulated_ || lights_.back().transmittance != nullptr;
     }
 }

@@ -126,7 +126,7 @@ Vec3 trace(const Medium& medium, const Lighting& lighting, const Vec3& origin, d
             l = l / distance;
             const double reach = light.kind == Light::Kind::Sun ? INFINITY : distance;
             const double falloff = light.kind == Light::Kind::Sun ? 1.0 : 1.0 / (distance * distance);
-            const double energy = light.strength * falloff * medium.transmittance(x, l, reach) * henyey_greenstein(g, dot(l, d));
+            const double energy = light.irradiance() * falloff * medium.transmittance(x, l, reach) * henyey_greenstein(g, dot(l, d));
             radiance = radiance + times(throughput, light.color) * energy;
         }
         const double most = std::max({throughput.x, throughput.y, throughput.z});
