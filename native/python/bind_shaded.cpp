@@ -415,7 +415,8 @@ void bind_shaded(nb::module_& m) {
             },
             "direction"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0, "shadow"_a = nb::none(),
             "angle"_a = 0.0,
-            "Parallel light travelling along `direction` (world space) with irradiance `strength`; `angle`: the\n"
+            "Parallel light travelling along `direction` (world space) of `strength` E: a white diffuse surface\n"
+            "facing it shows E, so its irradiance is pi E, which scattering media receive; `angle`: the\n"
             "angular diameter of its disc in radians (Blender's sun Angle), which softens its shadows.\n" SHADOW_DOC)
         .def_static(
             "point",
@@ -423,7 +424,7 @@ void bind_shaded(nb::module_& m) {
                 return make_light(Light::Kind::Point, position, color, strength, shadow);
             },
             "position"_a, "color"_a = nb::make_tuple(1.0, 1.0, 1.0), "strength"_a = 1.0, "shadow"_a = nb::none(),
-            "Point light at `position` (world space): irradiance strength / distance^2.\n" SHADOW_DOC)
+            "Point light at `position` (world space): as a sun of strength / distance^2.\n" SHADOW_DOC)
         .def_prop_ro("kind", [](const Light& l) { return l.kind == Light::Kind::Sun ? "sun" : "point"; })
         .def_prop_ro("vector", [](const Light& l) { return vec3_to_python(l.vector); },
                      "The sun's direction of travel, or the point light's position.")

@@ -6,7 +6,9 @@ as in Cycles (docs/shaded-rendering-in-blender.md has the measurements behind ea
 pcvr_native lights a sample with kd * E * max(0, n.l) * colour, E the light's colour times its strength:
 a white opaque surface facing a light of strength E shows E (times kd). Cycles' white diffuse surface shows
 its irradiance divided by pi (Lambert's law). So each light's strength here is the irradiance Blender's
-light gives, divided by pi:
+light gives, divided by pi. A scattering medium receives the irradiance itself: pcvr_native multiplies the
+strength by pi for it (its phase function, normalised over the sphere, has no 1/pi to cancel), so one
+light lights Blinn-Phong and scattering volumes each as Cycles does:
 
 | Blender light           | irradiance at distance d (Cycles, measured)  | pcvr_native strength          |
 |-------------------------|----------------------------------------------|-------------------------------|
@@ -36,7 +38,7 @@ class LightSpec:
     kind: str           # "sun" or "point"
     vector: tuple       # sun: the direction its light travels; point: its position (world)
     color: tuple        # linear RGB
-    strength: float     # sun: irradiance; point: irradiance at distance 1 (both already divided by pi)
+    strength: float     # sun: irradiance / pi; point: irradiance at distance 1, / pi (scattering: times pi again)
     name: str = ""
     shadow: bool = True  # Blender's Cast Shadow: with the scene's shadows on, the volumes attenuate it
     angle: float = 0.0   # sun: Blender's Angle, the angular diameter of its disc (radians): soft shadows
