@@ -101,10 +101,13 @@ def ct_bone(job, directory):
     scene.pcvr.mode = 'SHADED'
     voxel_size = transfer_function.smallest_voxel_spacing(grid.index_to_world)
 
-    def pcvr(shading_model, shadows):
+    default_octaves = obj.data.pcvr.bl_rna.properties["scattering_octaves"].default
+
+    def pcvr(shading_model, shadows, octaves=default_octaves):
         def use():
             scene.render.engine = 'PCVR'
             obj.data.pcvr.shading_model, scene.pcvr.shadows = shading_model, shadows
+            obj.data.pcvr.scattering_octaves = octaves
         return use
 
     def cycles():
@@ -113,7 +116,10 @@ def ct_bone(job, directory):
         scene.render.engine = 'CYCLES'
 
     return scene, int(grid.active_voxel_count), {"pcvr": pcvr('BLINN_PHONG', False),
-                                                   "pcvr_scattering": pcvr('SCATTER', True), "cycles": cycles}
+                                                   "pcvr_scattering": pcvr('SCATTER', True),
+                                                   # Cycles' volume bounces stay at the default 0: single scattering
+                                                   "pcvr_scattering_single": pcvr('SCATTER', True, octaves=1),
+                                                   "cycles": cycles}
 
 
 def side_view_scene(name, vdb_path, pixels, ortho_scale, camera_at):
@@ -170,10 +176,15 @@ def plume(style, coloured=False):
         scene.pcvr.mode = 'SHADED'
         scene.pcvr.shadows = True
 
-        def engine(name):
-            return lambda: setattr(scene.render, "engine", name)
+        def engine(name, octaves=obj.data.pcvr.bl_rna.properties["scattering_octaves"].default):
+            def use():
+                scene.render.engine = name
+                obj.data.pcvr.scattering_octaves = octaves
+            return use
 
-        return scene, int(np.count_nonzero(grids["density"])), {"pcvr": engine('PCVR'), "cycles": engine('CYCLES')}
+        # Cycles' volume bounces stay at the default 0 here: it scatters once, as pcvr_single does.
+        return scene, int(np.count_nonzero(grids["density"])), {"pcvr": engine('PCVR'), "pcvr_single": engine('PCVR', 1),
+                                                                "cycles": engine('CYCLES')}
     return make
 
 

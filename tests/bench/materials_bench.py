@@ -43,7 +43,9 @@ IMAGE_DIR = REPO / "docs" / "img"
 # What a reader compares, scene by scene: (scene, variant, label).
 ROWS = [("ct_bone", "pcvr", "CT head, CT Bone preset: PCVR's Blinn-Phong (the preset)"),
         ("ct_bone", "pcvr_scattering", "CT head, CT Bone preset: PCVR scattering with shadows"),
+        ("ct_bone", "pcvr_scattering_single", "CT head, CT Bone preset: PCVR single scattering with shadows"),
         ("smoke", "pcvr", "plume, Quick Smoke: PCVR scattering with shadows"),
+        ("smoke", "pcvr_single", "plume, Quick Smoke: PCVR single scattering with shadows"),
         ("fire", "pcvr", "plume, Quick Fire: PCVR scattering with shadows"),
         ("coloured_smoke", "pcvr", "plume, Quick Smoke with a `color` grid as its Color Attribute: PCVR scattering "
                                    "with shadows"),
