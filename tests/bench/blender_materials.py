@@ -7,12 +7,14 @@ module, run as
 |---------|---------------------------------------------------------------------------------------------------|
 | ct_bone | tools/ct_head.py's head in Hounsfield units, a quarter cut away, opened towards an orthographic     |
 |         | camera above (the command line's scene of a .vdb: a sun of pi W/m^2, Blender's default grey world), |
-|         | the CT Bone preset. PCVR renders it twice: the preset's Blinn-Phong shading (`pcvr`), and as a      |
-|         | scattering medium with shadows (`pcvr_scattering`); Cycles renders a Principled Volume whose colour  |
+|         | the CT Bone preset. PCVR renders the preset's Blinn-Phong shading (`pcvr`), and a scattering       |
+|         | medium with shadows (`pcvr_scattering`; one octave: `pcvr_scattering_single`, as Cycles' default   |
+|         | of 0 volume bounces scatters); Cycles renders a Principled Volume whose colour                      |
 |         | is the same ramp over the same range and whose density is the ramp's opacity per voxel as an        |
 |         | extinction, -ln(1 - alpha) / voxel size (what pcvr_native makes of it)                              |
 | smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
 | fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
+|         | (`pcvr`; one octave: `pcvr_single`); Cycles at its default 0 volume bounces                        |
 | coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
 | cloud   | tools/cumulus.py's cumulus (procedural), a Principled Volume of colour 0.98, density 40, anisotropy    |
 |         | 0.5, from the side at 160 x 120, a sun of strength 4 from above, a pale blue world (issue 39); PCVR  |
