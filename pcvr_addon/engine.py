@@ -59,7 +59,7 @@ def render(engine, depsgraph):
         _fail(engine, f"PCVR: {ex}")
         return
 
-    passes.write_result(engine, depsgraph, view, passes.finish(prepared, display, raw))
+    passes.write_result(engine, depsgraph, view, passes.finish(display, raw))
     if prepared.streamed:
         stats["streamed"] = prepared.streamed
     stream_level = max((volume.level for volume in prepared.volumes), default=0)

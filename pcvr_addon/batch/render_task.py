@@ -19,7 +19,6 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from ..cli import drr
 from ..io import image_io
 from ..render import native_render, passes, prepared_scene
 
@@ -69,22 +68,22 @@ def render_job(planned, run_id, prepare=prepared_scene.prepare, rendered=None):
         return JobResult(planned.index, output, "kept", worker=worker)
     start = time.perf_counter()
     try:
-        prepared = prepare(planned.inputs)
-        if prepared.errors:
-            # Unlike F12, which shows the volumes it could read, a batch writes no image without them:
-            # --skip-existing then renders it again once its files are there.
-            return JobResult(planned.index, output, "failed", time.perf_counter() - start,
-                             errors=list(prepared.errors), worker=worker)
         if rendered is None:
+            prepared = prepare(planned.inputs)
+            if prepared.errors:
+                # Unlike F12, which shows the volumes it could read, a batch writes no image without them:
+                # --skip-existing then renders it again once its files are there.
+                return JobResult(planned.index, output, "failed", time.perf_counter() - start,
+                                 errors=list(prepared.errors), worker=worker)
             stats = {}
             raw = native_render.render_raw(prepared, planned.view, stats=stats)
         else:
             raw, stats = rendered
-        pixels = passes.finish(prepared, planned.display, raw)
+        pixels = passes.finish(planned.display, raw)
         directory = os.path.dirname(os.path.abspath(output))
         os.makedirs(directory, exist_ok=True)
         if planned.job.options.get("cone_beam") is not None:
-            drr.write(output, pixels["XRay"][:, :, 0], planned.job.options.get("intensity"), description=description)
+            image_io.write_drr(output, pixels["XRay"][:, :, 0], planned.job.options.get("intensity"), description=description)
         else:
             image_io.write_passes(output, pixels, description=description)
     except (OSError, ValueError, RuntimeError, MemoryError, pcvr_native.RenderCancelled) as ex:

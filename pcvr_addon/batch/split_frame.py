@@ -7,7 +7,7 @@ volume's bricks in visibility order (pcvr_native's `brick_share`: bricks are cub
 back from the camera), X-ray a run of its batches (GridStream.with_batches). The client composites the shares'
 native results in share order: X-ray integrals summed, shaded premultiplied RGBA front to back with the over
 operator, MIP maxima the largest; then a worker finishes the passes and writes the image with the batch's own
-code (render_task.render_job). A worker lost mid-frame loses nothing: the scheduler runs its share again elsewhere.
+code (render_task.render_job), reading no volume again: the native results carry what finishing needs. A worker lost mid-frame loses nothing: the scheduler runs its share again elsewhere.
 
 Volumes read whole (at most Stream Above) are not split: the first share renders them (MIP: every share, a
 maximum taken twice is the same). The image equals one process's to within float rounding, except that a

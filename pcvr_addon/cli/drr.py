@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 
 """C-arm (cone-beam) DRRs from the command line: the --cone-beam options, the scene camera they make (the operator
-pcvr.c_arm_view, pcvr_native.cameras.cone_beam's geometry) and the images they write.
+pcvr.c_arm_view, pcvr_native.cameras.cone_beam's geometry); io.image_io.write_drr writes the images.
 
     python -m pcvr_addon render ct_study/ -o drr.tif --cone-beam 1000 1500 --detector 512x512 --pixel-spacing 0.8 0.8
     python -m pcvr_addon render ct.vdb -o drr/ct_###.png --cone-beam 1000 1500 --angles 0:360:2 --intensity 60000
@@ -15,7 +15,6 @@ import math
 import os
 
 import bpy
-import numpy as np
 
 from ..io import image_io
 
@@ -23,7 +22,6 @@ from ..io import image_io
 OPTIONS = ("cone_beam", "detector", "pixel_spacing", "gantry", "tilt", "isocentre", "detector_offset", "intensity")
 # Options of the render command that place an orthographic camera, which a C-arm replaces.
 FRAMING_OPTIONS = ("view", "view_direction", "magnification")
-UINT16_MAX = 65535
 
 
 def add_arguments(render, detector_type):
@@ -113,17 +111,3 @@ def c_arm_view(scene, options, gantry=None):
         bpy.context.view_layer.objects.active = volumes[0]
     bpy.ops.pcvr.c_arm_view(**properties)
 
-
-def write(filepath, line_integrals, intensity=None, description=None):
-    """Write a DRR: the line integrals (float32 (height, width), row 0 on top), or I0 exp(-line integral) with
-    `intensity` I0 (16-bit integers, rounded and clipped, where the format holds no floats)."""
-    values = np.asarray(line_integrals, dtype=np.float64)
-    pixel_type = image_io.FORMATS[os.path.splitext(filepath)[1].lower()]
-    if intensity is not None:
-        values = intensity * np.exp(-values)
-        if pixel_type != "float":
-            pixel_type = "uint16"
-            values = np.clip(np.rint(values), 0, UINT16_MAX)
-    elif pixel_type != "float":
-        pixel_type = "float"  # a .tif of line integrals: 32-bit float
-    image_io.write_values(filepath, values, pixel_type, description=description)

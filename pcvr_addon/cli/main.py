@@ -214,7 +214,7 @@ def render(args):
 def _write_output(scene, view_layer, args):
     passes = image_io.render_result_passes(scene)
     if args.cone_beam is not None:
-        drr.write(args.output, passes[f"{view_layer.name}.XRay"][:, :, 0], args.intensity)
+        image_io.write_drr(args.output, passes[f"{view_layer.name}.XRay"][:, :, 0], args.intensity)
         return
     filepath = args.output
     combined = passes.get("Composite.Combined", passes[f"{view_layer.name}.Combined"])

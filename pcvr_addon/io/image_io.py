@@ -9,7 +9,7 @@
 | .tif / .tiff  | 16-bit, colour divided by alpha (straight alpha) and sRGB-encoded            |
 
 Pixels come in as Blender's render results hold them: linear, colour premultiplied by alpha (write_values
-stores one channel as it is instead, float or 16-bit, whatever the extension: DRRs). Files
+stores one channel as it is instead, float or 16-bit, whatever the extension; write_drr a DRR through it). Files
 are written next to their destination and renamed into place, so a reader never sees a
 half-written image.
 """
@@ -29,6 +29,7 @@ FORMATS = {
     ".tif": "uint16",
     ".tiff": "uint16",
 }
+UINT16_MAX = 65535
 
 
 def openimageio():
@@ -106,6 +107,21 @@ def write_values(filepath, values, pixel_type, channel_name="Y", description=Non
         spec.attribute("ImageDescription", description)
     _write_atomically(filepath, spec, values.astype(np.float32 if pixel_type == "float" else np.uint16)[:, :, None])
 
+
+
+def write_drr(filepath, line_integrals, intensity=None, description=None):
+    """Write a DRR: the line integrals (float32 (height, width), row 0 on top), or I0 exp(-line integral) with
+    `intensity` I0 (16-bit integers, rounded and clipped, where the format holds no floats)."""
+    values = np.asarray(line_integrals, dtype=np.float64)
+    pixel_type = FORMATS[os.path.splitext(filepath)[1].lower()]
+    if intensity is not None:
+        values = intensity * np.exp(-values)
+        if pixel_type != "float":
+            pixel_type = "uint16"
+            values = np.clip(np.rint(values), 0, UINT16_MAX)
+    elif pixel_type != "float":
+        pixel_type = "float"  # a .tif of line integrals: 32-bit float
+    write_values(filepath, values, pixel_type, description=description)
 
 def _write_atomically(filepath, spec, pixels):
     """Write `pixels` under `spec` beside `filepath` and rename the file into place."""

@@ -95,7 +95,8 @@ def _render_mip(prepared, view, control, stats, sheets, level):
             **prepared.brick_arguments(volume.grid),
             **control.arguments(prepared.inputs.threads, index, len(prepared.volumes))))
         _add_stats(stats, volume_stats)
-    return {"maxima": maxima, "shape": (view.height, view.width)}
+    return {"maxima": maxima, "volumes": [volume.finishing for volume in prepared.volumes],
+            "shape": (view.height, view.width)}
 
 
 def _add_stats(total, stats):
@@ -112,7 +113,7 @@ RENDERERS = {
 
 def render_raw(prepared, view, control=None, stats=None, sheet_spacing_factor=1.0, level=None):
     """The native results of a PreparedScene seen by `view` (a CameraView): {"integral"}, {"rgba", "depth"} or
-    {"maxima"}, and the integral too where the XRay pass is on. `sheet_spacing_factor` times the sheet spacing
+    {"maxima", "volumes"}, and the integral too where the XRay pass is on. `sheet_spacing_factor` times the sheet spacing
     of shaded and MIP modes, `level` the level of detail (None: the native renderers' default), for the
     viewport's coarse images. Raises pcvr_native.RenderCancelled."""
     control = Control() if control is None else control

@@ -84,13 +84,13 @@ def automatic_gain(integral, fallback):
     return float(-np.log1p(-EXPOSURE_GREY) / np.percentile(reached, EXPOSURE_PERCENTILE))
 
 
-def _finish_xray(prepared, display, raw):
+def _finish_xray(display, raw):
     integral = raw["integral"]
     gain = automatic_gain(integral, display.xray_gain) if display.auto_exposure else display.xray_gain
     return pass_pixels(gain, display.film_transparent, integral)
 
 
-def _finish_shaded(prepared, display, raw):
+def _finish_shaded(display, raw):
     pixels = {"Combined": over_background(raw["rgba"], display.world, display.film_transparent)}
     if raw["depth"] is not None:
         depth = raw["depth"]
@@ -98,15 +98,14 @@ def _finish_shaded(prepared, display, raw):
     return pixels
 
 
-def _finish_mip(prepared, display, raw):
+def _finish_mip(display, raw):
     """Each volume's maximum through its own transfer function; where volumes overlap on the image, the
     brighter of their colours in each channel (a maximum of the colours, as the mode's name says)."""
     rgba = None
-    for volume, maximum in zip(prepared.volumes, raw["maxima"]):
+    for volume, maximum in zip(raw["volumes"], raw["maxima"]):
         ramp = display.ramps[volume.index]
-        background = volume.grid.background * volume.inputs.density_scale
         colours = mip_colours(maximum, control_points(ramp, volume), density_range(ramp, volume), display.mip_color,
-                              background)
+                              volume.background)
         rgba = colours if rgba is None else np.maximum(rgba, colours)
     if rgba is None:
         rgba = np.zeros(raw["shape"] + (4,), dtype=np.float32)
@@ -120,17 +119,18 @@ FINISHERS = {
 }
 
 
-def finish(prepared, display, raw):
-    """The passes of native results `raw` under DisplayInputs: {name: float32 (height, width, channels)}."""
-    pixels = FINISHERS[display.mode](prepared, display, raw)
+def finish(display, raw):
+    """The passes of native results `raw` (native_render.render_raw's) under DisplayInputs: {name: float32
+    (height, width, channels)}."""
+    pixels = FINISHERS[display.mode](display, raw)
     if "integral" in raw and "XRay" not in pixels:
         pixels["XRay"] = raw["integral"][:, :, None]
     return pixels
 
 
-def viewport_pixels(prepared, display, raw):
+def viewport_pixels(display, raw):
     """The Combined pass of a viewport render."""
-    return finish(prepared, display, raw)["Combined"]
+    return finish(display, raw)["Combined"]
 
 
 def write_result(engine, depsgraph, view, pixels):

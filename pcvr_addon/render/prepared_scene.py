@@ -102,6 +102,23 @@ class LoadedVolume:
         """The attenuation map render_xray applies itself: a stream's, whose batches it maps as it reads them."""
         return self.attenuation if self.attenuated is None else None
 
+    @property
+    def finishing(self):
+        """What finishing its passes needs of it: a FinishingVolume."""
+        return FinishingVolume(self.index, self.inputs, self.value_range,
+                               self.grid.background * self.inputs.density_scale)
+
+
+@dataclass(frozen=True)
+class FinishingVolume:
+    """What the finish stage needs of a LoadedVolume, without its grid: MIP colours a volume's maxima over its
+    densities' range, rays that meet no voxel return its background. Small and picklable, it travels with the native
+    results, so that a split frame's finishing task (batch.split_frame) reads no volume again."""
+    index: int                          # in RenderInputs.volumes
+    inputs: scene_inputs.VolumeInputs
+    value_range: tuple
+    background: float                   # the grid's background times its density scale
+
 
 @dataclass
 class PreparedScene:
@@ -339,13 +356,13 @@ def _attenuate(volume, mu_water):
 
 
 def density_range(ramp, volume):
-    """The densities a LoadedVolume's ramp (RampInputs) spans: (tf_min, tf_max), or its grid's."""
+    """The densities a LoadedVolume's (or FinishingVolume's) ramp (RampInputs) spans: (tf_min, tf_max), or its grid's."""
     return transfer_function.density_range(ramp, volume.value_range, volume.inputs.density_scale)
 
 
 def control_points(ramp, volume):
-    """A LoadedVolume's ramp (RampInputs) as ControlPoints over its density range. ValueError names the
-    volume."""
+    """A LoadedVolume's (or FinishingVolume's) ramp (RampInputs) as ControlPoints over its density range.
+    ValueError names the volume."""
     low, high = density_range(ramp, volume)
     try:
         return transfer_function.points_over_range(ramp.positions, ramp.rgba, low, high)

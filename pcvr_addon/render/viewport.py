@@ -156,7 +156,6 @@ class Schedule:
 class _Rendered:
     """The latest render's results, kept to finish them again under another display."""
     inputs: object
-    prepared: object
     raw: object
     step: Step
     seconds: float
@@ -177,7 +176,7 @@ class ProgressiveRenderer:
 
     prepare(inputs) -> prepared              grids and native objects; raises on bad input
     render(prepared, view, step, cancel)     -> raw results, or None when `cancel` (a threading.Event) stopped it
-    finish(prepared, display, raw)           -> float32 (height, width, 4) premultiplied RGBA
+    finish(display, raw)                     -> float32 (height, width, 4) premultiplied RGBA
     on_image()                               called on the worker thread after each new image
     cost_key(inputs)                         what render times depend on (timings are kept per key)
 
@@ -339,7 +338,7 @@ class ProgressiveRenderer:
                 return
             self.counts["renders"] += 1
             self.schedule.finished(job, seconds)
-            self._rendered = rendered = _Rendered(inputs, prepared, raw, step, seconds, view)
+            self._rendered = rendered = _Rendered(inputs, raw, step, seconds, view)
             display = self._display
         self._publish(rendered, display)
 
@@ -356,7 +355,7 @@ class ProgressiveRenderer:
 
     def _publish(self, rendered, display):
         try:
-            pixels = self._finish(rendered.prepared, display, rendered.raw)
+            pixels = self._finish(display, rendered.raw)
         except Exception as ex:  # noqa: BLE001 - as in _render_job
             self._fail(ex)
             return

@@ -20,3 +20,17 @@ def test_a_frame_in_three_shares_is_one_process_frame(tmp_path, volume, mode):
     stats = document["jobs"][0]["stats"]
     assert document["split"] == 3 and stats["split"] == 3 and stats["batches"] >= 3  # the volume was cut
     bh.assert_close_images(bh.images(tmp_path / "split"), bh.images(tmp_path / "one"), mode)
+
+
+@pytest.mark.parametrize("mode", ["SHADED", "MIP"])
+def test_finishing_a_split_frame_reads_no_volume_again(tmp_path, volume, mode, monkeypatch):
+    """Each share prepares (reads) the volume once; the frame is finished from the composited native results
+    alone, which carry what finishing needs (MIP: each volume's density range and background)."""
+    from pcvr_addon.render import prepared_scene
+
+    open_grid, opened = prepared_scene._grid, []
+    monkeypatch.setattr(prepared_scene, "_grid", lambda volume, *args: opened.append(volume.name) or
+                        open_grid(volume, *args))
+    bh.render_split(volume, tmp_path / "split" / "f_#.exr", mode, split=2)
+    assert len(opened) == 2  # one per share
+    assert bh.images(tmp_path / "split")

@@ -120,7 +120,7 @@ def time_step(prepared, display, views, step):
     for view in views:
         start = time.perf_counter()
         raw = native_render.render_viewport_step(prepared, view, step, never)
-        passes.viewport_pixels(prepared, display, raw)
+        passes.viewport_pixels(display, raw)
         seconds.append(time.perf_counter() - start)
     return seconds
 
