@@ -312,8 +312,13 @@ def clinical(view_count, log):
         first = time_step(prepared, display, views[:1], viewport.STEPS[-1])[0]
         prepare_s = time.perf_counter() - start
         stats = []
+        # The process's CPU seconds count only while its threads run: on a loaded machine, half of them per redraw
+        # is what two idle cores would take at best, where the wall time counts the waits too.
+        cpu_before = time.process_time()
         seconds = time_step(prepared, display, views, viewport.STEPS[-1], stats)
+        cpu_per_redraw = (time.process_time() - cpu_before) / len(views)
         out["transfer_functions"][name] = {"median_s": statistics.median(seconds), "min_s": min(seconds),
+                                           "cpu_s": cpu_per_redraw,
                                            "first_render_s": first, "prepare_and_first_s": prepare_s,
                                            "stages": stage_medians(stats)}
     out["load_after"] = os.getloadavg()[0]
@@ -373,15 +378,17 @@ def clinical_section(clinical_results):
              "the InVesalius head of the shaded benchmark upsampled, as no public CT of that size could be fetched "
              f"here) shaded at full resolution ({REGION[0]} x {REGION[1]}) on {c['threads']} threads with ct_head.py's "
              f"transfer functions, once the scene is prepared and has rendered once; load average "
-             f"{c['load_before']:.1f} before and {c['load_after']:.1f} after. The native render's wall time and its "
+             f"{c['load_before']:.1f} before and {c['load_after']:.1f} after. *CPU ms / 2*: the process's CPU time per "
+             "redraw over the two threads, what two idle cores would take at best. The native render's wall time and its "
              "stages are medians of its `stats` in ms (plan and shadows wall time, the other stages summed over the "
              "threads):", "",
-             "| transfer function | median ms | least ms | first render ms | " + " | ".join(stage_names)
-             + " | samples classified | aim |", "|---|---|---|---|" + "---|" * len(stage_names) + "---|---|"]
+             "| transfer function | median ms | least ms | CPU ms / 2 | first render ms | " + " | ".join(stage_names)
+             + " | samples classified | aim |", "|---|---|---|---|---|" + "---|" * len(stage_names) + "---|---|"]
     for name, row in c["transfer_functions"].items():
         stages = " | ".join(_ms(row["stages"][key]) for key in STAGE_SECONDS)
         met = "met" if row["median_s"] * 1000 <= AIM_CLINICAL_MS else "missed"
-        lines.append(f"| {name} | {_ms(row['median_s'])} | {_ms(row['min_s'])} | {_ms(row['first_render_s'])} | {stages} | "
+        lines.append(f"| {name} | {_ms(row['median_s'])} | {_ms(row['min_s'])} | {_ms(row['cpu_s'] / 2)} | "
+                     f"{_ms(row['first_render_s'])} | {stages} | "
                      f"{row['stages']['samples_classified'] / 1e6:.1f}M | {met} (<= {AIM_CLINICAL_MS:.0f}) |")
     return lines + [""]
 
