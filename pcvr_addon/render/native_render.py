@@ -125,10 +125,10 @@ def render_raw(prepared, view, control=None, stats=None, sheet_spacing_factor=1.
     return raw
 
 
-def render_viewport_step(prepared, view, step, cancel):
+def render_viewport_step(prepared, view, step, cancel, stats=None):
     """render_raw of a viewport.Step: at 1/step.scale of the view's pixels, from the level of detail
     viewport.step_level picks, with step.sheet_spacing times the sheet spacing in voxels of level 0. None when
-    `cancel` (a threading.Event) stopped it."""
+    `cancel` (a threading.Event) stopped it. `stats`: a dict the native renderer fills, as render_raw's."""
     import pcvr_native
 
     scaled = view.scaled(step.scale)
@@ -137,7 +137,7 @@ def render_viewport_step(prepared, view, step, cancel):
     # but never closer than one voxel of the level.
     spacing = step.sheet_spacing if level is None else max(1.0, step.sheet_spacing / 2 ** level)
     try:
-        return render_raw(prepared, scaled, Control(cancel=cancel), sheet_spacing_factor=spacing, level=level)
+        return render_raw(prepared, scaled, Control(cancel=cancel), stats=stats, sheet_spacing_factor=spacing, level=level)
     except pcvr_native.RenderCancelled:
         return None
 

@@ -85,8 +85,9 @@ class BrickVisibilityCache;  // src/volume/brick_visibility.h
 /// taps'): with w from a Gaussian kernel's variance it stands in for that kernel's sum over the voxels.
 /// Element (i, j, k) is index origin + (i, j, k), k fastest.
 struct PrefilteredLattice {
-    /// Larger grids get none (4 bytes an element: 256 MiB).
-    static constexpr size_t kMostElements = size_t(1) << 26;
+    /// Larger grids get none (4 GiB of values). The sampler's element offsets are int32 and reach at most
+    /// twice the elements; renderers bound it by the memory limit first (bytes()).
+    static constexpr size_t kMostElements = size_t(1) << 30;
     static constexpr int kMargin = 2;  ///< elements beyond the active box: the taps' and the tent's reach
 
     /// Value ranges per brick of kBrick^3 elements, over every element within kRangeReach elements
@@ -115,6 +116,13 @@ struct PrefilteredLattice {
         size_t n = 1;
         for (int a = 0; a < 3; ++a) n *= size_t(int64_t(box[a + 3]) - box[a] + 1 + 2 * kMargin);
         return n;
+    }
+    /// The bytes a lattice over `box` keeps: 4 an element for its values and 2 a brick for its ranges (4.25 a
+    /// voxel), besides its build's scratch of 1.5 a voxel.
+    static size_t bytes(const std::array<int32_t, 6>& box) {
+        size_t bricks = 1;
+        for (int a = 0; a < 3; ++a) bricks *= size_t((int64_t(box[a + 3]) - box[a] + 1 + 2 * kMargin + kBrick - 1) / kBrick);
+        return elements(box) * sizeof(float) + bricks * sizeof(uint16_t);
     }
 };
 

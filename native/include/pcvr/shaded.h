@@ -54,8 +54,8 @@ ShadedMethod shaded_method_from_name(const std::string& name);
 /// How the sheet renderer fills a grid's sheets (src/shaded/sheets/sheet_sampling.h).
 enum class SheetFill {
     /// `pcvr`'s shaded renders sample a grid's sheets where every block of it is splatted at stride 1
-    /// (no post-convolution: the footprints are a few pixels) and its lattice fits
-    /// (PrefilteredLattice::kMostElements); they splat elsewhere, and other methods and MIP always do.
+    /// (no post-convolution: the footprints are a few pixels) and its lattice fits (PrefilteredLattice::bytes
+    /// at most a quarter of default_memory_limit()); they splat elsewhere, and other methods and MIP always do.
     Automatic,
     Splat,   ///< always splat
     Sample,  ///< `pcvr`'s shaded renders sample every grid whose lattice fits, at stride 1
