@@ -24,12 +24,15 @@ using namespace nb::literals;
     "whatever render_shaded says)."
 
 #define BRICKS_DOC                                                                                                \
-    "A GridStream (stream_vdb) renders in bricks of voxels whose values take at most half of memory_limit\n"     \
-    "(None: 64 MiB a brick), each read from the file with the margin its kernels reach, front to back; the\n"    \
-    "image equals the grid's read whole to within float rounding (stats['batches']: bricks read,\n"           \
-    "stats['memory_bytes']: the most values one held). Not with shadows, ambient occlusion, albedo_grids or\n"  \
-    "method 'raycast'. brick_share=(k, n): only share k of n of the bricks in visibility order; the shares'\n"   \
-    "images composited front to back in k's order (over; MIP: maximum) make the whole image."
+    "A GridStream (stream_vdb) renders in bricks of voxels, each read from the file with the margin its\n"        \
+    "kernels reach, front to back, as large as memory_limit lets the render's working set be (the image, the\n" \
+    "threads' tile buffers, one brick's values and what is built over them; refused, naming the least that\n"   \
+    "serves, where even bricks of 16^3 voxels do not fit) and, with brick_bytes, of at most that many bytes of\n" \
+    "values (None: 64 MiB where no memory_limit is given). The image equals the grid's read whole to within\n"   \
+    "float rounding (stats['batches']: bricks read, stats['memory_bytes']: the most the render held at once as\n" \
+    "counted). Not with shadows, ambient occlusion, albedo_grids or method 'raycast'. brick_share=(k, n): only\n" \
+    "share k of n of the bricks in visibility order; the shares' images composited front to back in k's order\n" \
+    "(over; MIP: maximum) make the whole image."
 
 namespace pcvr::python {
 
@@ -143,15 +146,20 @@ struct CallParts {
     const Grid* grid(size_t i) const { return stream ? nullptr : &grids[i]; }
 };
 
-/// A GridStream's memory_limit (None: the default batch) and brick_share ((k, n): share k of n), refused for Grids.
-void bricked_from_python(CallParts& parts, nb::handle memory_limit, nb::handle brick_share, const char* function) {
+/// A GridStream's memory_limit and brick_bytes (None: no limit, bricks of the default batch) and brick_share
+/// ((k, n): share k of n), refused for Grids.
+void bricked_from_python(CallParts& parts, nb::handle memory_limit, nb::handle brick_bytes, nb::handle brick_share,
+                         const char* function) {
     const std::string name(function);
-    if (!parts.stream && (!memory_limit.is_none() || !brick_share.is_none()))
-        throw InvalidArgument(name + ": memory_limit and brick_share are for a GridStream (stream_vdb); Grids are in memory already");
-    if (!memory_limit.is_none()) {
-        const int64_t bytes = nb::cast<int64_t>(memory_limit);
-        if (bytes <= 0) throw InvalidArgument(name + ": memory_limit must be a positive number of bytes, or None");
-        parts.bricked.memory_limit = uint64_t(bytes);
+    if (!parts.stream && (!memory_limit.is_none() || !brick_bytes.is_none() || !brick_share.is_none()))
+        throw InvalidArgument(name + ": memory_limit, brick_bytes and brick_share are for a GridStream (stream_vdb); Grids are in "
+                              "memory already");
+    for (auto [arg, into, what] : {std::tuple{memory_limit, &parts.bricked.memory_limit, "memory_limit"},
+                                   std::tuple{brick_bytes, &parts.bricked.brick_bytes, "brick_bytes"}}) {
+        if (arg.is_none()) continue;
+        const int64_t bytes = nb::cast<int64_t>(arg);
+        if (bytes <= 0) throw InvalidArgument(name + ": " + what + " must be a positive number of bytes, or None");
+        *into = uint64_t(bytes);
     }
     if (!brick_share.is_none()) {
         const std::vector<int64_t> share = nb::cast<std::vector<int64_t>>(brick_share);
@@ -289,7 +297,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
                             int samples_per_sheet, bool cull_transparent, bool return_depth, nb::handle level,
                             nb::handle clip_planes, nb::handle clip_box, nb::handle shadows, nb::handle albedo_grids,
                             const std::string& sheet_fill, const std::string& classification, nb::handle memory_limit,
-                            nb::handle brick_share, int paths, uint64_t seed) {
+                            nb::handle brick_share, int paths, uint64_t seed, nb::handle brick_bytes) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_shaded", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, opacity_cutoff, threads, tile_size, pixel_step, samples_per_sheet, cull_transparent,
                                  level);
@@ -318,7 +326,7 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
     }
 
     const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.count(), "render_shaded");
-    bricked_from_python(parts, memory_limit, brick_share, "render_shaded");
+    bricked_from_python(parts, memory_limit, brick_bytes, brick_share, "render_shaded");
     std::vector<ShadedVolume> volumes;
     for (size_t i = 0; i < parts.count(); ++i)
         volumes.push_back({parts.grid(i), &tfs[i], parts.scales[i], materials.empty() ? nullptr : &materials[i], &clips[i]});
@@ -353,11 +361,12 @@ nb::object render_shaded_py(nb::handle grid_arg, const Camera& camera, nb::handl
 nb::object render_mip_py(nb::handle grid_arg, const Camera& camera, const std::string& method, const std::string& splat_kernel,
                          const std::string& post_filter, int stride, double sheet_spacing, int threads, nb::handle progress,
                          nb::handle cancel, nb::handle stats, nb::handle density_scale, int tile_size, int pixel_step,
-                         nb::handle level, nb::handle clip_planes, nb::handle clip_box, nb::handle memory_limit, nb::handle brick_share) {
+                         nb::handle level, nb::handle clip_planes, nb::handle clip_box, nb::handle memory_limit, nb::handle brick_share,
+                         nb::handle brick_bytes) {
     CallParts parts = call_parts(grid_arg, density_scale, "render_mip", method, splat_kernel, post_filter, stride,
                                  sheet_spacing, 1.0, threads, tile_size, pixel_step, 1, false, level);
     const std::vector<ClipRegion> clips = clip_regions_from_python(clip_planes, clip_box, parts.count(), "render_mip");
-    bricked_from_python(parts, memory_limit, brick_share, "render_mip");
+    bricked_from_python(parts, memory_limit, brick_bytes, brick_share, "render_mip");
     std::vector<ShadedVolume> volumes;
     for (size_t i = 0; i < parts.count(); ++i) volumes.push_back({parts.grid(i), nullptr, parts.scales[i], nullptr, &clips[i]});
     RenderControl control;
@@ -490,7 +499,7 @@ void bind_shaded(nb::module_& m) {
           "samples_per_sheet"_a = 2, "cull_transparent"_a = true, "return_depth"_a = false, "level"_a = 0,
           "clip_planes"_a = nb::none(), "clip_box"_a = nb::none(), nb::arg("shadows").none() = false, "albedo_grids"_a = nb::none(),
           "sheet_fill"_a = "auto", "classification"_a = "auto", "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(),
-          "paths"_a = 0, "seed"_a = 0,
+          "paths"_a = 0, "seed"_a = 0, "brick_bytes"_a = nb::none(),
           "Shaded volume rendering (image-aligned sheet-buffered splatting): float32 (height, width, 4)\n"
           "premultiplied linear RGBA, row 0 on top, alpha 0 where nothing was hit. With return_depth, a\n"
           "tuple (rgba, depth): depth (camera units along the view axis) where opacity first reached 0.5,\n"
@@ -523,7 +532,7 @@ void bind_shaded(nb::module_& m) {
           "post_filter"_a = "catmull_rom", "stride"_a = 0, "sheet_spacing"_a = 1.0, "threads"_a = 0,
           "progress"_a = nb::none(), "cancel"_a = nb::none(), "stats"_a = nb::none(), nb::kw_only(),
           "density_scale"_a = 1.0, "tile_size"_a = 0, "pixel_step"_a = 1, "level"_a = 0, "clip_planes"_a = nb::none(),
-          "clip_box"_a = nb::none(), "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(),
+          "clip_box"_a = nb::none(), "memory_limit"_a = nb::none(), "brick_share"_a = nb::none(), "brick_bytes"_a = nb::none(),
           "Maximum intensity projection over the same sheets: float32 (height, width), the largest\n"
           "reconstructed density along each ray, never below the largest grid background\n"
           "(times its density_scale; 0 for fog volumes), which a ray that meets no voxel returns.\n"

@@ -158,13 +158,13 @@ class PreparedScene:
         return shared
 
     def brick_arguments(self, grid):
-        """render_shaded's and render_mip's memory_limit and brick_share for `grid`: a stream renders in bricks of
+        """render_shaded's and render_mip's brick_bytes and brick_share for `grid`: a stream renders in bricks of
         at most Stream Above's bytes of values; nothing for a Grid."""
         import pcvr_native
 
         if not isinstance(grid, pcvr_native.GridStream):
             return {}
-        return {"memory_limit": self.stream_memory_limit, **({"brick_share": self.share} if self.share else {})}
+        return {"brick_bytes": self.stream_memory_limit // 2, **({"brick_share": self.share} if self.share else {})}
 
     @property
     def stream_memory_limit(self):

@@ -181,13 +181,14 @@ def shaded_section(results) -> list[str]:
              f"values, a {results['file_bytes'] / MiB:.0f} MiB file) rendered shaded and as a MIP, orthographic and tilted, "
              "at about a pixel per voxel (shaded sheets splatted), read whole (`read_vdb`), or streamed in bricks under a "
              f"{results['limit'] // MiB} MiB memory limit (`stream_vdb`, then `render_shaded(stream, ..., memory_limit=...)`: "
-             "bricks whose values take at most half the limit, each read with its margin and rendered front to back). "
+             "bricks as large as the limit lets the render's working set be, each read with its margin and rendered front "
+             "to back; *counted*: that working set as the render counts it against the limit, stats `memory_bytes`). "
              "Each in a fresh process, whole and bricks alternated; *process peak* is the process's peak resident "
              "memory (VmHWM), *render peak* that above the memory held once the file was open. *Difference*: the "
              "largest and RMS difference between the two images. "
              f"Measured {results['date']}, load average {results['load_before']:.1f} before and "
              f"{results['load_after']:.1f} after (2 cores shared with other sessions).", "",
-             "| mode | case | round | process peak | render peak | open s | render s | bricks | largest brick | difference (max, RMS) |",
+             "| mode | case | round | process peak | render peak | open s | render s | bricks | counted | difference (max, RMS) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["rows"]:
         bricks = str(r["batches"]) if r["batches"] else "-"

@@ -195,7 +195,8 @@ struct ShadedStats {
     uint64_t shadow_texels = 0;       ///< texels of the lights' transmittance volumes
     double seconds_shadows = 0;       ///< building them (wall seconds)
     uint64_t batches = 0;             ///< a GridStream's bricks read and rendered (0: grids in memory)
-    uint64_t memory_bytes = 0;        ///< a GridStream's: the most bytes of values one brick held
+    /// A GridStream's: the most bytes the render held at once, as counted against BrickedParams::memory_limit.
+    uint64_t memory_bytes = 0;
     /// Octaves of multiple scattering built (Shading::scattering_octaves; 1: single scattering only).
     int scattering_octaves = 1;
 };
@@ -226,14 +227,17 @@ RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& 
 MipImage render_mip(const std::vector<ShadedVolume>& volumes, const Camera& camera, const ShadedParams& params,
                     RenderControl& control, ShadedStats* stats = nullptr);
 
-/// How a GridStream renders shaded or MIP: in bricks (cubes of voxels, each read with the margin its
-/// kernels, filters and gradients reach across its faces) whose values take at most half of
-/// `memory_limit` (0: GridStream::kDefaultBatchBytes, or the stream's own batch_bytes), front to back in
-/// visibility order, each continuing the image the ones before it left. `shares` > 1 renders only share
-/// `share` of the bricks in that order: the shares' images composited front to back in share order (over
-/// for shaded, the maximum for MIP) make the whole image (pcvr_addon/batch splits a frame so).
+/// How a GridStream renders shaded or MIP: in bricks (boxes of voxels, each read with the margin its
+/// kernels, filters and gradients reach across its faces), front to back in visibility order, each continuing
+/// the image the ones before it left; bricks as large as `memory_limit` (0: none) lets the render's working set
+/// be (the image, the threads' tile buffers, one brick's values and what the renderer builds over them) and
+/// of at most `brick_bytes` of values (0: the stream's batch_bytes, or GridStream::kDefaultBatchBytes where
+/// there is no memory_limit either). `shares` > 1 renders only share `share` of the bricks in that order: the
+/// shares' images composited front to back in share order (over for shaded, the maximum for MIP) make the whole
+/// image (pcvr_addon/batch splits a frame so).
 struct BrickedParams {
     uint64_t memory_limit = 0;
+    uint64_t brick_bytes = 0;
     size_t share = 0, shares = 1;
 };
 

@@ -22,6 +22,10 @@
 #include "pcvr/memory_budget.h"
 #include "pcvr/stride.h"
 #include "shaded/classify/shaded_levels.h"
+#include "shaded/classify/transparency_culling.h"
+#include "view/block_plan.h"
+#include "view/level_of_detail.h"
+#include "view/tile_set.h"
 
 namespace pcvr {
 
@@ -125,23 +129,140 @@ struct StreamVolume {
     }
 };
 
+/// Whether the grid read whole would cull its voxels one by one: it has voxel value ranges only up to
+/// VoxelValueRanges::kMostBlocks blocks (a leaf, or 8^3 voxels of a tile, a block). Bricks, each far
+/// smaller, follow it: the same voxels culled, and no ranges built per brick that the whole grid skips
+/// (they took 4.8 of the 17 s a 512 x 512 x 361 CT's 48 bricks took).
+bool whole_grid_culls_voxels(const std::vector<std::array<int32_t, 6>>& value_boxes) {
+    uint64_t blocks = 0;
+    for (const auto& b : value_boxes)
+        blocks += (uint64_t(b[3] - b[0] + 1) * uint64_t(b[4] - b[1] + 1) * uint64_t(b[5] - b[2] + 1) + VoxelBlock::kSize - 1) /
+                  VoxelBlock::kSize;
+    return blocks <= VoxelValueRanges::kMostBlocks;
+}
+
+/// The memory a bricked render holds at once: the image (and the Depth pass) all along, each thread's tile
+/// and sheet buffers, and one brick's values with what the renderer builds over them.
+struct WorkingSet {
+    uint64_t image = 0;
+    uint64_t threads = 0;        ///< the threads' tile planes and sheet rings, and kUnmodelledBytes
+    double per_value_byte = 1;   ///< bytes a brick holds per byte of its values
+    uint64_t per_box_voxel = 0;  ///< bytes per voxel of a brick's read box (its prefiltered lattice)
+
+    uint64_t with_brick(const BrickSides& sides, int margin, uint64_t values) const {
+        uint64_t box = 1;
+        for (int side : sides) box *= uint64_t(side + 2 * margin + 2 * PrefilteredLattice::kMargin);
+        return image + threads + uint64_t(std::ceil(double(values) * per_value_byte)) + box * per_box_voxel;
+    }
+};
+
+/// Per 8^3 block of a brick's values (2 KiB of them): its VoxelBlock, its value ranges and the halves they
+/// are built from, its splat mask, plan, culling and tile entries, the tree's leaf and the blocks' index.
+constexpr uint64_t kBytesPerBlock = sizeof(VoxelBlock) + sizeof(BlockValueRange) + 8 * 2 * sizeof(float) + sizeof(VoxelMask) +
+                                    sizeof(BlockCulling) + sizeof(PlannedBlock) + 2 * sizeof(TileBlock) + 128;
+/// A thread's buffers (sheet_walk.cpp): per pixel of its tile, four colour planes, the depth and the MIP's
+/// maximum; per pixel of the tile grown by the gradient's halo and the splat windows' margins (16 at most at
+/// the strides bricks render), each layer's ring of sheets and the grid's four slots of post-convolved ones.
+uint64_t thread_bytes(const GridStream& stream, const Camera& camera, const ShadedParams& params) {
+    int smallest_stride = std::max(params.stride, 1), layers = 1;
+    if (params.stride == 0) {
+        // The most magnified voxels take the largest stride: the tile grows with the smallest.
+        const auto corners = corner_pixels_per_voxel(stream.index_bbox(), stream.index_to_world(), camera);
+        const int least = corners ? automatic_stride(corners->first) : 1, most = corners ? automatic_stride(corners->second) : 1;
+        smallest_stride = most;
+        layers = int(std::floor(std::log2(double(most) / least))) + 1;  // strides a band of kStrideBandRatio apart, at most
+    }
+    const int tile = params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride, camera.width(), camera.height());
+    const uint64_t tile_pixels = uint64_t(std::min(tile, camera.width())) * uint64_t(std::min(tile, camera.height()));
+    const uint64_t grown = uint64_t(std::min(tile, camera.width()) + 32) * uint64_t(std::min(tile, camera.height()) + 32);
+    const Kernel kernel = Kernel::from_name(params.splat_kernel);
+    const uint64_t ring = uint64_t(std::ceil(2.0 * kernel.radius() / std::min(1.0, params.sheet_spacing))) + 8;
+    return sizeof(float) * (6 * tile_pixels + grown * (uint64_t(layers) * ring + 4));
+}
+
+/// What the model above leaves out (the reads' leaf lists, the allocator's headers, the caller's stats): the
+/// measured peak above the open file exceeded the model by 1.3 to 3 MiB at 32 to 64 MiB limits on the
+/// 512 x 512 x 361 CT of tests/bench/big_volume_bench.py (heaptrack: the rest is as modelled).
+constexpr uint64_t kUnmodelledBytes = uint64_t(4) << 20;
+
+WorkingSet working_set(const GridStream& stream, const Camera& camera, const ShadedParams& params, bool mip, bool voxel_culling) {
+    WorkingSet set;
+    const uint64_t pixels = uint64_t(camera.width()) * uint64_t(camera.height());
+    set.image = pixels * sizeof(float) * (mip ? 1 : params.depth ? 5 : 4);
+    const int threads = params.threads > 0 ? params.threads : tbb::this_task_arena::max_concurrency();
+    set.threads = uint64_t(threads) * thread_bytes(stream, camera, params) + kUnmodelledBytes;
+    const bool culls = !mip && params.cull_transparent;
+    set.per_value_byte = 1.0 + double(kBytesPerBlock + (culls && voxel_culling ? 2 * VoxelBlock::kSize : 0)) /
+                                   double(VoxelBlock::kSize * sizeof(float));
+    if (!mip && params.sheet_fill == SheetFill::Sample) set.per_box_voxel = sizeof(float);
+    return set;
+}
+
+/// The bricks a stream renders in, and the memory their render holds.
+struct BrickCut {
+    BrickSides sides{0, 0, 0};
+    int margin = 0;
+    std::vector<Brick> bricks;
+    BrickRender render;          ///< what every brick's render shares (its `owned` set per brick)
+    WorkingSet memory;
+    uint64_t planning_bytes = 0; ///< held while cutting: the image and the boxes of the grid's values
+
+    uint64_t most_bytes() const {
+        uint64_t most = planning_bytes;
+        for (const Brick& brick : bricks) most = std::max(most, memory.with_brick(sides, margin, brick.bytes));
+        return most;
+    }
+};
+
+/// Bricks as large as `bricked.memory_limit` lets a brick's render be (WorkingSet; without a limit, of the
+/// stream's batch bytes of values, or the default's). The grid's value boxes (24 bytes a leaf) are freed
+/// before any brick is read.
+BrickCut cut_stream(const GridStream& stream, const Camera& camera, const ShadedParams& params, const BrickedParams& bricked,
+                    bool mip, const std::string& function) {
+    BrickCut cut;
+    cut.margin = brick_margin(stream, camera, params, mip);
+    const int margin = cut.margin;
+    const std::vector<std::array<int32_t, 6>> boxes = stream.value_boxes();
+    cut.render.voxel_culling = whole_grid_culls_voxels(boxes);
+    cut.memory = working_set(stream, camera, params, mip, cut.render.voxel_culling);
+    cut.planning_bytes = cut.memory.image + boxes.capacity() * sizeof(boxes[0]);
+    const WorkingSet& memory = cut.memory;
+    uint64_t most_values = bricked.brick_bytes > 0 ? bricked.brick_bytes : stream.batch_bytes();
+    if (most_values == 0 && bricked.memory_limit == 0) most_values = GridStream::kDefaultBatchBytes;
+    cut.sides = brick_sides(boxes, margin, [&](const BrickSides& at, uint64_t values) {
+        if (most_values > 0 && values > most_values) return false;
+        return bricked.memory_limit == 0 || memory.with_brick(at, margin, values) <= bricked.memory_limit;
+    });
+    if (cut.sides[0] == 0) {
+        // At most this many whole leaves (8^3 voxels) meet a side of 16 and its margins.
+        const uint64_t leaves = uint64_t((16 + 2 * margin + 7) / 8 + 1);
+        const uint64_t least_values = leaves * leaves * leaves * VoxelBlock::kSize * sizeof(float);
+        const uint64_t least = memory.with_brick({16, 16, 16}, margin, least_values);
+        if (bricked.memory_limit == 0 || least <= bricked.memory_limit)
+            throw InvalidArgument(function + ": " + named(stream) + ": bricks of at most " + std::to_string(most_values) +
+                                  " bytes of values (brick_bytes, or the stream's batch_bytes) are too few for 16^3 voxels and the " +
+                                  std::to_string(margin) + " voxels around them that its kernels reach; allow at least " +
+                                  std::to_string(least_values));
+        throw InvalidArgument(function + ": " + named(stream) + ": memory_limit of " + std::to_string(bricked.memory_limit) +
+                              " bytes is below what one brick's render holds: the image (" + std::to_string(memory.image) +
+                              " bytes), the threads' tile buffers and what reading takes (" + std::to_string(memory.threads) + ") and a brick of 16^3 voxels "
+                              "with the " + std::to_string(margin) + " voxels around it that its kernels reach, and what is built over "
+                              "them; raise memory_limit to at least " + std::to_string(least) + " bytes (or render fewer pixels or "
+                              "threads)");
+    }
+    cut.bricks = cut_into_bricks(boxes, cut.sides, margin);
+    return cut;
+}
+
 /// Renders the stream's share of bricks into `image` (and `depth`), which hold the empty image.
 void render_bricks(const GridStream& stream, const ShadedVolume& volume, const Camera& camera, const Lighting* lighting,
                    const ShadedParams& params, const BrickedParams& bricked, RenderControl& control, ShadedStats& stats,
                    float* image, float* depth) {
-    const std::string function = lighting ? "render_shaded" : "render_mip";
-    uint64_t budget = bricked.memory_limit > 0 ? bricked.memory_limit / 2 : GridStream::kDefaultBatchBytes;
-    if (stream.batch_bytes() > 0) budget = std::min(budget, stream.batch_bytes());
-    const int margin = brick_margin(stream, camera, params, lighting == nullptr);
-    const std::vector<std::array<int32_t, 6>> boxes = stream.value_boxes();
-    const int side = brick_side(boxes, margin, budget);
-    if (side == 0)
-        throw InvalidArgument(function + ": " + named(stream) + ": memory_limit leaves " + std::to_string(budget) +
-                              " bytes for a brick's values, too few for 16^3 voxels and the " + std::to_string(margin) +
-                              " voxels around them that its kernels reach; raise memory_limit");
     const ShadedParams brick_params = bricks_fill_sheets_as_whole(stream, camera, params);
-    const std::vector<Brick> bricks = cut_into_bricks(boxes, side, margin);
-    const std::vector<size_t> order = visibility_order(bricks, side, camera, stream.index_to_world());
+    BrickCut cut = cut_stream(stream, camera, brick_params, bricked, lighting == nullptr, lighting ? "render_shaded" : "render_mip");
+    const std::vector<Brick>& bricks = cut.bricks;
+    BrickRender& render = cut.render;
+    const std::vector<size_t> order = visibility_order(bricks, cut.sides, camera, stream.index_to_world());
     const size_t first = order.size() * bricked.share / bricked.shares, last = order.size() * (bricked.share + 1) / bricked.shares;
     tbb::task_arena arena(params.threads > 0 ? params.threads : tbb::task_arena::automatic);
     for (size_t k = first; k < last; ++k) {
@@ -152,11 +273,12 @@ void render_bricks(const GridStream& stream, const ShadedVolume& volume, const C
         ShadedVolume at_brick = volume;
         at_brick.grid = &part;
         ShadedStats part_stats;
-        arena.execute([&] { render_brick({at_brick}, camera, lighting, brick_params, brick.owned, control, part_stats, image, depth); });
+        render.owned = brick.owned;
+        arena.execute([&] { render_brick({at_brick}, camera, lighting, brick_params, render, control, part_stats, image, depth); });
         accumulate(stats, part_stats);
         ++stats.batches;
-        stats.memory_bytes = std::max(stats.memory_bytes, brick.bytes);
     }
+    stats.memory_bytes = cut.most_bytes();
     control.set_span(0.0, 1.0);
 }
 

@@ -63,19 +63,6 @@ using Clock = std::chrono::steady_clock;
 /// What "auto" means: see docs/how-it-works.md, "Pre-integrated classification".
 bool preintegrates(Classification c) { return c == Classification::Preintegrated; }
 
-/// Tiles are squares of 128 to 256 pixels: several times a block's footprint, so that few voxels are
-/// splatted by more than one tile (a voxel near a tile's edge is splatted by each tile it reaches), and
-/// enough of them that threads share the work. At least 64 subgrid nodes (PCVR at magnification 4: 256
-/// pixels), and as large as leaves some 32 tiles to an image: the CT head at 1024^2 on two threads
-/// deposits 5.67M voxels in tiles of 128 pixels, 5.18M in tiles of 181 (bone: 3.16M and 2.92M), while
-/// 512^2 in 4 tiles of 256 left a thread idle (tiles are taken busiest first, render_sheets). Not from
-/// the thread count: tiles decide which voxels the occlusion map culls, and an image should not change
-/// with the threads that rendered it.
-int automatic_tile_size(int smallest_stride, const Camera& camera) {
-    const double area = double(camera.width()) * camera.height();
-    return std::clamp(std::max(64 * smallest_stride, int(std::sqrt(area / 32.0))), 128, 256);
-}
-
 /// The tiles in the order of the blocks they list, most first.
 std::vector<size_t> busiest_first(const TileSet& tiles) {
     std::vector<size_t> order(tiles.size());
@@ -163,10 +150,10 @@ std::pair<double, double> clip_depths(const Camera& camera) {
 }
 
 /// The sheet renderer: shaded (lighting given) or MIP (lighting null). Writes 4 or 1 floats per pixel.
-/// `owned`: a brick of a bricked render (bricked_render.h), continuing `image`.
+/// `brick`: a brick of a bricked render (bricked_render.h), continuing `image`.
 void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting,
                    const ShadedParams& params, RenderControl& control, ShadedStats& stats, float* image, float* depth,
-                   const IndexBox* owned = nullptr) {
+                   const BrickRender* brick = nullptr) {
     const auto start = Clock::now();
     const bool mip = lighting == nullptr;
     const Kernel kernel = Kernel::from_name(params.splat_kernel);
@@ -271,7 +258,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         stats.seconds_shadows = std::chrono::duration<double>(Clock::now() - shadows_start).count();
     }
 
-    TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride, camera));
+    TileSet tiles(camera.width(), camera.height(), params.tile_size > 0 ? params.tile_size : automatic_tile_size(smallest_stride, camera.width(), camera.height()));
     SheetWalkSetup setup;
     std::vector<std::unique_ptr<SlabView>> views;
     std::vector<std::unique_ptr<ClassificationTable>> classifications;
@@ -364,7 +351,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
             std::vector<BlockCulling> culled(cull_transparent ? list.size() : 0);
             if (cull_transparent) {
                 // Sampled layers splat no voxel: their blocks only say where to sample.
-                const TransparencyCulling transparency(grid, volume.density_scale, culling, *classification, !sampler);
+                const bool single_voxels = !sampler && (!brick || brick->voxel_culling);
+                const TransparencyCulling transparency(grid, volume.density_scale, culling, *classification, single_voxels);
                 std::vector<VoxelMask>& masks = splat_masks.emplace_back(list.size());
                 tbb::parallel_for(size_t(0), list.size(), [&](size_t i) { culled[i] = transparency.cull(list[i].index, masks[i]); });
             }
@@ -415,7 +403,7 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
     setup.far_depth = float(far_depth);
     setup.mip_background = float(mip_background(volumes));
     std::optional<SampleOwnership> ownership;
-    if (owned) setup.owned = &ownership.emplace(*owned, volumes.front().grid->index_to_world(), geometry.origin0);
+    if (brick) setup.owned = &ownership.emplace(brick->owned, volumes.front().grid->index_to_world(), geometry.origin0);
     stats.seconds_plan = std::chrono::duration<double>(Clock::now() - start).count();
 
     control.begin_phase(tiles.size(), 0.02, 1.0);
@@ -493,10 +481,10 @@ void validate_call(const std::vector<ShadedVolume>& volumes, const Lighting* lig
 }  // namespace
 
 void render_brick(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting* lighting, const ShadedParams& params,
-                  const IndexBox& owned, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
+                  const BrickRender& brick, RenderControl& control, ShadedStats& stats, float* image, float* depth) {
     validate_call(volumes, lighting, params);
     const LevelledVolumes levelled(volumes, camera, 0, lighting ? LevelReduction::MeanOverBackground : LevelReduction::MaxOverBackground);
-    render_sheets(levelled.volumes(), camera, lighting, params, control, stats, image, depth, &owned);
+    render_sheets(levelled.volumes(), camera, lighting, params, control, stats, image, depth, &brick);
 }
 
 RgbaImage render_shaded(const std::vector<ShadedVolume>& volumes, const Camera& camera, const Lighting& lighting,

@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "pcvr/camera.h"
@@ -34,17 +35,23 @@ struct Brick {
     uint64_t bytes = 0;              ///< values read: whole leaves and tiles' voxels that meet read_box
 };
 
-/// The bricks (cubes of `side` voxels at multiples of `side`, the outer ones open outwards) over the
+/// A brick's voxels along each index axis.
+using BrickSides = std::array<int, 3>;
+
+/// The bricks (boxes of `side` voxels at multiples of `side`, the outer ones open outwards) over the
 /// values in `value_boxes` (inclusive index boxes, GridStream::value_boxes), each with `margin` voxels
 /// more on every side to read; only those that read some value.
-std::vector<Brick> cut_into_bricks(const std::vector<std::array<int32_t, 6>>& value_boxes, int side, int margin);
+std::vector<Brick> cut_into_bricks(const std::vector<std::array<int32_t, 6>>& value_boxes, const BrickSides& side, int margin);
 
-/// The largest power-of-two side (16 to 4096) whose bricks each read at most `most_bytes`; 0 where even
-/// 16 voxels a side read more.
-int brick_side(const std::vector<std::array<int32_t, 6>>& value_boxes, int margin, uint64_t most_bytes);
+/// Sides at which every brick `fits(sides, bytes)`, `bytes` being the most values one reads: the largest
+/// power-of-two cube (16 to 4096), then each axis grown in steps of 16 up to twice that while all still
+/// fit; zeros where even cubes of 16 do not.
+BrickSides brick_sides(const std::vector<std::array<int32_t, 6>>& value_boxes, int margin,
+                       const std::function<bool(const BrickSides& sides, uint64_t bytes)>& fits);
 
 /// Indices into `bricks` (cut_into_bricks at `side`) front to back as `camera` sees the grid with this
 /// index-to-world transform: every ray meets them in this order (ties: no ray meets both).
-std::vector<size_t> visibility_order(const std::vector<Brick>& bricks, int side, const Camera& camera, const Mat4& index_to_world);
+std::vector<size_t> visibility_order(const std::vector<Brick>& bricks, const BrickSides& side, const Camera& camera,
+                                     const Mat4& index_to_world);
 
 }  // namespace pcvr

@@ -16,6 +16,10 @@
 
 namespace pcvr {
 
+/// The sheet renderer's tile side for an image of width x height pixels whose finest splatted stride is
+/// `smallest_stride`: 128 to 256 pixels (why: tile_set.cpp).
+int automatic_tile_size(int smallest_stride, int width, int height);
+
 /// Pixels [x0, x1) x [y0, y1).
 struct PixelRect {
     int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
