@@ -436,9 +436,10 @@ class PCVRVolumeSettings(DatablockSettings, bpy.types.PropertyGroup):
         name="Scattering Octaves",
         description="Light scattered more than once (Scattering model, and Source: Material): octaves of the lights' "
                     "shadows at lower extinction add the light a dense cloud diffuses into its shade, as Cycles' "
-                    "volume bounces do; needs Shadows (and Ambient Occlusion for the world's light). 1: single "
-                    "scattering only",
-        min=1, max=16, default=6,
+                    "volume bounces do; needs Shadows (and Ambient Occlusion for the world's light). 0: from the "
+                    "scene's Light Paths, as Cycles renders it (0 Volume Bounces, Blender's default: single "
+                    "scattering; each bounce one octave more, up to 6). 1: single scattering only",
+        min=0, max=16, default=0,
         update=tag_changed,
     )
     ambient_occlusion: BoolProperty(

@@ -233,6 +233,15 @@ def test_object_space_along_the_view_for_a_non_uniform_scale():
 # 5. Defaults for a good first image
 
 
+def test_octaves_from_light_paths_without_cycles_take_its_default_of_no_bounces():
+    from types import SimpleNamespace
+
+    from pcvr_addon.scene.scene_inputs import light_paths_octaves
+
+    assert light_paths_octaves(SimpleNamespace()) == 1  # Cycles disabled: no scene.cycles
+    assert light_paths_octaves(SimpleNamespace(cycles=SimpleNamespace(volume_bounces=3, max_bounces=12))) == 4
+
+
 def test_ambient_occlusion_stays_off_by_default_for_materials():
     """Measured both ways (docs/shaded-rendering-in-blender.md): on the materials bench's Quick Smoke plume, ambient
     occlusion on by default took PCVR further from Cycles (36.9 to 34.7 dB, darkest pixel 0.145 against Cycles'
