@@ -177,7 +177,10 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
     lights = lit_blob_lights()
     expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
                                 lights=lights, ambient=WORLD, method="regular",
-                                shading=pn.Shading(model="scatter", anisotropy=0.5))
+                                # the world's light shadowed, as a scattering volume has it by default, and
+                                # single scattering, as Cycles' default of 0 volume bounces
+                                shading=pn.Shading(model="scatter", anisotropy=0.5, ambient_occlusion=True,
+                                                   scattering_octaves=1))
     assert expected[..., 3].max() > 0.9
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
     # Not Blinn-Phong's image: the model reached the renderer.
@@ -185,10 +188,12 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
 
 
 def scattering_blob(blob, octaves):
-    """render_shaded's image of the lit blob scattering at anisotropy 0.5 with `octaves`, shadows on."""
+    """render_shaded's image of the lit blob scattering at anisotropy 0.5 with `octaves`, shadows and ambient
+    occlusion on (a scattering volume's default)."""
     return pn.render_shaded(bs.world_grid(blob), bs.reference_camera(), ls.reference_transfer_function(),
                             lights=lit_blob_lights(), ambient=WORLD, method="regular", shadows=True,
-                            shading=pn.Shading(model="scatter", anisotropy=0.5, scattering_octaves=octaves))
+                            shading=pn.Shading(model="scatter", anisotropy=0.5, scattering_octaves=octaves,
+                                               ambient_occlusion=True))
 
 
 def test_scattering_octaves_reach_render_shaded(blob_object):
