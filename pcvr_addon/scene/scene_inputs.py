@@ -192,7 +192,9 @@ def gradient_opacity_inputs(settings):
     return {"gradient": tuple(map(float, gradient)), "gradient_opacity": tuple(map(float, factors))}
 
 
-# The most octaves Light Paths give: more added under 0.1 dB against the path tracer (docs/how-it-works.md).
+# The most octaves Light Paths give: against the path tracer (docs/how-it-works.md), 8 octaves instead of 6 gained
+# at most 0.4 dB on clouds of optical depth 1.4 to 56 across (ambient occlusion on; off, they lost up to 1.9 dB on
+# the thin ones); against Cycles, Quick Smoke at 1 and 2 volume bounces matched 2 and 3 octaves best.
 MOST_SCENE_OCTAVES = 6
 
 
