@@ -14,7 +14,8 @@ module, run as
 |         | extinction, -ln(1 - alpha) / voxel size (what pcvr_native makes of it)                              |
 | smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
 | fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
-|         | (`pcvr`; one octave: `pcvr_single`); Cycles at its default 0 volume bounces                        |
+|         | (`pcvr`, as set up by default; one octave: `pcvr_single`; six: `pcvr_six`; ambient occlusion on  |
+|         | and off: `pcvr_ao`, `pcvr_no_ao`); Cycles at its default 0 volume bounces                          |
 | coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
 | cloud   | tools/cumulus.py's cumulus (procedural), a Principled Volume of colour 0.98, density 40, anisotropy    |
 |         | 0.5, from the side at 160 x 120, a sun of strength 4 from above, a pale blue world (issue 39); PCVR  |
