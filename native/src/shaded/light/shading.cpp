@@ -149,9 +149,10 @@ Vec3x8 Shader::scatter_octaves(const Vec3x8& single, const Vec3x8& colour, const
     const bool surrounded = !occluders_.empty();
     const float8 occluded = max8(1.0f - ambient_share, broadcast8(0.0f));
     float8 meets_again = broadcast8(1.0f);
+    const float forgets = surrounded ? OctaveFactors::weighted_anisotropy : OctaveFactors::anisotropy;
     for (const ScatteringOctave& octave : octaves_) {
         weight = times(weight, colour) * OctaveFactors::contribution;
-        g *= OctaveFactors::anisotropy;
+        g *= forgets;
         meets_again *= occluded;
         for (size_t i = 0; i < lights_.size(); ++i) {
             const LightTransmittance* t = octave.per_light[i];
