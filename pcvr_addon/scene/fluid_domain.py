@@ -143,7 +143,8 @@ def frame_file(directory, kind, name, frame, extension=".vdb"):
 @functools.lru_cache(maxsize=1)
 def default_settings():
     """The PCVR settings of an object without a Volume datablock: the Volume settings' defaults (read from their
-    properties, once), Source 'Material'. Shared: read it, never change it."""
+    properties, once), Source 'Material' with its ambient occlusion, as a Volume switched to Material has it.
+    Shared: read it, never change it."""
     values = {}
     for prop in bpy.types.Volume.bl_rna.properties["pcvr"].fixed_type.properties:
         if prop.identifier == "rna_type":
@@ -156,7 +157,8 @@ def default_settings():
             values[prop.identifier] = tuple(prop.default_array)
         else:
             values[prop.identifier] = prop.default
-    return types.SimpleNamespace(**{**values, "source": 'MATERIAL', "ramp": None, "gradient_ramp": None})
+    return types.SimpleNamespace(**{**values, "source": 'MATERIAL', "ambient_occlusion": True, "ramp": None,
+                                     "gradient_ramp": None})
 
 
 def cells_to_object(low, high, res):

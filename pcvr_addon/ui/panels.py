@@ -8,7 +8,7 @@ from bpy.types import Panel, UIList
 from bl_ui.utils import PresetPanel
 
 from ..render import native_render, statistics
-from ..scene import lighting
+from ..scene import lighting, scene_inputs
 from . import presets
 
 
@@ -299,6 +299,13 @@ class PCVR_DATA_PT_gradient_opacity(VolumeSheetPanel, Panel):
         layout.operator("pcvr.gradient_max_from_grid", icon='IMPORT')
 
 
+def light_paths_label(scene):
+    """What Scattering Octaves 0 renders: the octaves the scene's Light Paths give."""
+    octaves = scene_inputs.light_paths_octaves(scene)
+    return ("From Light Paths: single scattering" if octaves == 1 else
+            f"From Light Paths: {octaves} octaves")
+
+
 class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
     bl_label = "Shading"
     modes = {'SHADED'}
@@ -315,6 +322,8 @@ class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
         col = layout.column(align=True)
         if settings.shading_model == 'SCATTER' or settings.source == 'MATERIAL':
             col.prop(settings, "scattering_octaves")
+            if settings.scattering_octaves == 0:
+                col.label(text=light_paths_label(context.scene), icon='INFO')
         if settings.shading_model == 'SCATTER':
             col.prop(settings, "anisotropy")
             return

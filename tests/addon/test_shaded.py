@@ -177,31 +177,56 @@ def test_a_scattering_volume_renders_as_render_shaded_with_its_phase_function(bl
     lights = lit_blob_lights()
     expected = pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
                                 lights=lights, ambient=WORLD, method="regular",
-                                shading=pn.Shading(model="scatter", anisotropy=0.5))
+                                # the world's light shadowed, as a scattering volume has it by default, and
+                                # single scattering, as Cycles' default of 0 volume bounces
+                                shading=pn.Shading(model="scatter", anisotropy=0.5, ambient_occlusion=True,
+                                                   scattering_octaves=1))
     assert expected[..., 3].max() > 0.9
     np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
     # Not Blinn-Phong's image: the model reached the renderer.
     assert np.abs(image - reference(blob_object)).max() > 0.05 * expected.max()
 
 
+def scattering_blob(blob, octaves):
+    """render_shaded's image of the lit blob scattering at anisotropy 0.5 with `octaves`, shadows and ambient
+    occlusion on (a scattering volume's default)."""
+    return pn.render_shaded(bs.world_grid(blob), bs.reference_camera(), ls.reference_transfer_function(),
+                            lights=lit_blob_lights(), ambient=WORLD, method="regular", shadows=True,
+                            shading=pn.Shading(model="scatter", anisotropy=0.5, scattering_octaves=octaves,
+                                               ambient_occlusion=True))
+
+
 def test_scattering_octaves_reach_render_shaded(blob_object):
     scene = lit_blob_scene(blob_object)
     scene.pcvr.shadows = True
     settings = blob_object.data.pcvr
-    assert settings.scattering_octaves == 6
     settings.shading_model, settings.anisotropy, settings.scattering_octaves = 'SCATTER', 0.5, 2
+    scene.cycles.volume_bounces = 0  # an explicit number overrides the Light Paths
     image = ls.combined(bs.render(scene))
-
-    def expected(octaves):
-        return pn.render_shaded(bs.world_grid(blob_object), bs.reference_camera(), ls.reference_transfer_function(),
-                                lights=lit_blob_lights(), ambient=WORLD, method="regular", shadows=True,
-                                shading=pn.Shading(model="scatter", anisotropy=0.5, scattering_octaves=octaves))
-    np.testing.assert_allclose(image, expected(2), atol=TOLERANCE * expected(2).max())
+    expected = scattering_blob(blob_object, 2)
+    np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max())
     # The octaves reached the renderer: they brighten the blob's shade.
-    assert image[..., :3].sum() > 1.01 * expected(1)[..., :3].sum()
+    assert image[..., :3].sum() > 1.01 * scattering_blob(blob_object, 1)[..., :3].sum()
     mode, stats = statistics.last_render[scene.session_uid]
     assert dict(statistics.statistics_rows(mode, stats))["Scattering octaves"] == "2"
     assert "Multiple scattering (2 octaves)" in statistics.status_line(mode, stats)
+
+
+def test_scattering_octaves_follow_cycles_volume_bounces_by_default(blob_object):
+    """Octaves 0 (the default) render as Cycles would the scene's Light Paths: its default of 0 Volume Bounces
+    scatters once, each bounce adds an octave, Total caps them."""
+    scene = lit_blob_scene(blob_object)
+    scene.pcvr.shadows = True
+    settings = blob_object.data.pcvr
+    assert settings.scattering_octaves == 0
+    settings.shading_model, settings.anisotropy = 'SCATTER', 0.5
+    for volume_bounces, total, octaves in ((0, 12, 1), (2, 12, 3), (64, 12, 6), (64, 1, 2)):
+        scene.cycles.volume_bounces, scene.cycles.max_bounces = volume_bounces, total
+        image = ls.combined(bs.render(scene))
+        expected = scattering_blob(blob_object, octaves)
+        np.testing.assert_allclose(image, expected, atol=TOLERANCE * expected.max(), err_msg=f"{volume_bounces}")
+        mode, stats = statistics.last_render[scene.session_uid]
+        assert stats["scattering_octaves"] == octaves
 
 
 def test_ambient_occlusion_reaches_render_shaded(blob_object):

@@ -179,6 +179,12 @@ def test_panels_of_each_mode(tmp_path, mode):
         assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "ambient", "diffuse",
                                                           "specular", "shininess"]
         obj.data.pcvr.shading_model = 'SCATTER'
+        scene.cycles.volume_bounces = 0
+        assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "scattering_octaves",
+                                                          "From Light Paths: single scattering", "anisotropy"]
+        scene.cycles.volume_bounces, scene.cycles.max_bounces = 3, 12
+        assert "From Light Paths: 4 octaves" in draw(ui.PCVR_DATA_PT_shading, context)
+        obj.data.pcvr.scattering_octaves = 2  # an explicit number: nothing derived to show
         assert draw(ui.PCVR_DATA_PT_shading, context) == ["shading_model", "ambient_occlusion", "scattering_octaves",
                                                           "anisotropy"]
         assert draw(ui.PCVR_DATA_PT_gradient_opacity, context, "draw_header") == ["use_gradient_opacity"]

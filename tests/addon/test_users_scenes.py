@@ -233,16 +233,33 @@ def test_object_space_along_the_view_for_a_non_uniform_scale():
 # 5. Defaults for a good first image
 
 
-def test_ambient_occlusion_stays_off_by_default_for_materials():
-    """Measured both ways (docs/shaded-rendering-in-blender.md): on the materials bench's Quick Smoke plume, ambient
-    occlusion on by default took PCVR further from Cycles (36.9 to 34.7 dB, darkest pixel 0.145 against Cycles'
-    0.196 sRGB, 0.200 without), so Source: Material leaves it as the user set it, off by default."""
+def test_octaves_from_light_paths_without_cycles_take_its_default_of_no_bounces():
+    from types import SimpleNamespace
+
+    from pcvr_addon.scene.scene_inputs import light_paths_octaves
+
+    assert light_paths_octaves(SimpleNamespace()) == 1  # Cycles disabled: no scene.cycles
+    assert light_paths_octaves(SimpleNamespace(cycles=SimpleNamespace(volume_bounces=3, max_bounces=12))) == 4
+
+
+def test_ambient_occlusion_follows_scattering_until_set():
+    """On where the volume scatters (Source: Material, the Scattering model), as Cycles shadows the world's light
+    through a medium: measured against Cycles on the materials bench (docs/shaded-rendering-in-blender.md), Quick
+    Smoke went from 45.5 to 62.9 dB, the CT head scattering from 39.8 to 49.7 dB. Off for Blinn-Phong."""
     settings = bpy.data.volumes.new("Smoke").pcvr
+    assert not settings.ambient_occlusion
+    settings.source = 'MATERIAL'
+    assert settings.ambient_occlusion
+    settings.source = 'TRANSFER_FUNCTION'
+    assert not settings.ambient_occlusion
+    settings.shading_model = 'SCATTER'
+    assert settings.ambient_occlusion
+    settings.ambient_occlusion = False  # the user's choice stays
+    settings.shading_model = 'BLINN_PHONG'
     settings.source = 'MATERIAL'
     assert not settings.ambient_occlusion
-    settings.ambient_occlusion = True
-    settings.source = 'TRANSFER_FUNCTION'
-    assert settings.ambient_occlusion
+    from pcvr_addon.scene import fluid_domain
+    assert fluid_domain.default_settings().ambient_occlusion  # a fluid domain renders its material
 
 
 def test_switching_to_xray_shows_it_through_the_standard_view_transform():

@@ -14,7 +14,8 @@ module, run as
 |         | extinction, -ln(1 - alpha) / voxel size (what pcvr_native makes of it)                              |
 | smoke   | tools/smoke_plume.py's plume with Blender's Quick Smoke material (volume.pcvr.source = 'MATERIAL'),  |
 | fire    | and with Quick Fire; from the side, a sun from the left, a dark grey world; PCVR with shadows        |
-|         | (`pcvr`; one octave: `pcvr_single`); Cycles at its default 0 volume bounces                        |
+|         | (`pcvr`, as set up by default; one octave: `pcvr_single`; six: `pcvr_six`; ambient occlusion on  |
+|         | and off: `pcvr_ao`, `pcvr_no_ao`); Cycles at its default 0 volume bounces                          |
 | coloured_smoke | the smoke with a `color` vector grid (orange rising to violet) that its Color Attribute names |
 | cloud   | tools/cumulus.py's cumulus (procedural), a Principled Volume of colour 0.98, density 40, anisotropy    |
 |         | 0.5, from the side at 160 x 120, a sun of strength 4 from above, a pale blue world (issue 39); PCVR  |
@@ -46,6 +47,7 @@ from pcvr_addon.cli import command_scene  # noqa: E402
 from pcvr_addon.io import image_io  # noqa: E402
 from pcvr_addon.render import cache  # noqa: E402
 from pcvr_addon.scene import lighting, transfer_function  # noqa: E402
+from pcvr_addon.ui import properties  # noqa: E402
 from tools import ct_head, cumulus, smoke_plume  # noqa: E402
 
 
@@ -103,13 +105,11 @@ def ct_bone(job, directory):
     scene.pcvr.mode = 'SHADED'
     voxel_size = transfer_function.smallest_voxel_spacing(grid.index_to_world)
 
-    default_octaves = obj.data.pcvr.bl_rna.properties["scattering_octaves"].default
-
-    def pcvr(shading_model, shadows, octaves=default_octaves):
+    def pcvr(shading_model, shadows, **settings):
         def use():
             scene.render.engine = 'PCVR'
             obj.data.pcvr.shading_model, scene.pcvr.shadows = shading_model, shadows
-            obj.data.pcvr.scattering_octaves = octaves
+            set_pcvr_settings(obj.data.pcvr, **settings)
         return use
 
     def cycles():
@@ -121,7 +121,20 @@ def ct_bone(job, directory):
                                                    "pcvr_scattering": pcvr('SCATTER', True),
                                                    # Cycles' volume bounces stay at the default 0: single scattering
                                                    "pcvr_scattering_single": pcvr('SCATTER', True, octaves=1),
+                                                   "pcvr_scattering_six": pcvr('SCATTER', True, octaves=6),
+                                                   "pcvr_scattering_ao": pcvr('SCATTER', True, ao=True),
+                                                   "pcvr_scattering_no_ao": pcvr('SCATTER', True, ao=False),
                                                    "cycles": cycles}
+
+
+def set_pcvr_settings(settings, octaves=None, ao=None):
+    """A volume's Scattering Octaves and Ambient Occlusion, each None for what a new volume of this model and
+    source has (octaves: the property's default; ambient occlusion: on where it scatters, until set)."""
+    settings.scattering_octaves = settings.bl_rna.properties["scattering_octaves"].default if octaves is None else octaves
+    if ao is None:
+        settings.ambient_occlusion, settings.ambient_occlusion_set = properties.scatters(settings), False
+    else:
+        settings.ambient_occlusion = ao
 
 
 def side_view_scene(name, vdb_path, pixels, ortho_scale, camera_at):
@@ -178,15 +191,16 @@ def plume(style, coloured=False):
         scene.pcvr.mode = 'SHADED'
         scene.pcvr.shadows = True
 
-        def engine(name, octaves=obj.data.pcvr.bl_rna.properties["scattering_octaves"].default):
+        def engine(name, **settings):
             def use():
                 scene.render.engine = name
-                obj.data.pcvr.scattering_octaves = octaves
+                set_pcvr_settings(obj.data.pcvr, **settings)
             return use
 
         # Cycles' volume bounces stay at the default 0 here: it scatters once, as pcvr_single does.
-        return scene, int(np.count_nonzero(grids["density"])), {"pcvr": engine('PCVR'), "pcvr_single": engine('PCVR', 1),
-                                                                "cycles": engine('CYCLES')}
+        return scene, int(np.count_nonzero(grids["density"])), {
+            "pcvr": engine('PCVR'), "pcvr_single": engine('PCVR', octaves=1), "pcvr_six": engine('PCVR', octaves=6),
+            "pcvr_ao": engine('PCVR', ao=True), "pcvr_no_ao": engine('PCVR', ao=False), "cycles": engine('CYCLES')}
     return make
 
 
@@ -225,14 +239,15 @@ def cloud(light):
         scene.pcvr.mode = 'SHADED'
         scene.cycles.max_bounces = scene.cycles.volume_bounces = 64
 
-        def pcvr(octaves, shadows):
+        def pcvr(shadows, **settings):
             def use():
                 scene.render.engine = 'PCVR'
-                obj.data.pcvr.scattering_octaves, scene.pcvr.shadows = octaves, shadows
+                scene.pcvr.shadows = shadows
+                set_pcvr_settings(obj.data.pcvr, **settings)
             return use
 
-        default = obj.data.pcvr.bl_rna.properties["scattering_octaves"].default
-        variants = {"pcvr": pcvr(default, True), "pcvr_single": pcvr(1, True), "pcvr_no_shadows": pcvr(default, False),
+        variants = {"pcvr": pcvr(True), "pcvr_single": pcvr(True, octaves=1), "pcvr_no_shadows": pcvr(False),
+                    "pcvr_ao": pcvr(True, ao=True), "pcvr_no_ao": pcvr(True, ao=False),
                     "cycles": lambda: setattr(scene.render, "engine", 'CYCLES')}
         if light != 'SUN':
             del variants["pcvr_no_shadows"]
@@ -252,6 +267,28 @@ def timed_render(scene):
     return image_io.render_result_passes(scene)["ViewLayer.Combined"], seconds
 
 
+def render_variant(scene, use, samples, rounds):
+    """(image, seconds) of one variant: Cycles once at `samples`, PCVR the least time of `rounds`."""
+    use()
+    if samples:
+        scene.cycles.samples = samples
+    best = None
+    for _ in range(1 if samples else rounds):
+        image, seconds = timed_render(scene)
+        if best is None or seconds < best[1]:
+            best = (image, seconds)
+    return best
+
+
+def cycles_cache_path(job, name, samples, rec):
+    """Where a Cycles render is kept between runs (path without extension), or None: only with the job's
+    `cycles_cache` folder (PCVR_MATERIALS_CYCLES_CACHE), for iterating on PCVR beside a reference that takes
+    minutes; the scene's make-up is not in the key, so empty the folder when a scene changes."""
+    if not samples or not job.get("cycles_cache"):
+        return None
+    return os.path.join(job["cycles_cache"], f"{name}_{samples}spp_{rec['width']}x{rec['height']}")
+
+
 def render_scene(key, job, directory):
     """One scene's record: each variant's least time over its runs, its image paths; Cycles also at a quarter
     of the samples."""
@@ -262,17 +299,21 @@ def render_scene(key, job, directory):
     runs = [(variant, None) for variant in variants if variant != "cycles"]
     runs += [("cycles", job["samples"]), ("cycles_quarter", max(1, job["samples"] // 4))]
     for variant, samples in runs:
-        variants[variant.removesuffix("_quarter")]()
-        if samples:
-            scene.cycles.samples = samples
-        best = None
-        for _ in range(1 if samples else job["rounds"]):
-            image, seconds = timed_render(scene)
-            if best is None or seconds < best[1]:
-                best = (image, seconds)
-        image, seconds = best
         name = f"{key}_{variant}"
         npy = os.path.join(job["work_dir"], name + ".npy")
+        cached = cycles_cache_path(job, name, samples, rec)
+        if cached and os.path.exists(cached + ".json"):
+            with open(cached + ".json") as f:
+                seconds = json.load(f)["seconds"]
+            image = np.load(cached + ".npy")
+            print(f"[blender {time.strftime('%H:%M:%S')}] {name}: {seconds:.2f} s, cached", file=sys.stderr, flush=True)
+        else:
+            image, seconds = render_variant(scene, variants[variant.removesuffix("_quarter")], samples, job["rounds"])
+            if cached:
+                os.makedirs(os.path.dirname(cached), exist_ok=True)
+                np.save(cached + ".npy", np.asarray(image, dtype=np.float32))
+                with open(cached + ".json", "w") as f:
+                    json.dump({"seconds": seconds}, f)
         np.save(npy, np.asarray(image, dtype=np.float32))
         png = None if variant == "cycles_quarter" else os.path.join(job["image_dir"], name + ".png")  # for scale only
         if png:

@@ -11,7 +11,8 @@ in the same run, same material, same sun, Cycles at high samples as the referenc
 |         | SAMPLES samples and at a quarter of them (quick: 48^3 and 32^3 volumes, fewer pixels and samples)   |
 | timing  | each render as a whole (bpy.ops.render.render, the file read included); PCVR the least of ROUNDS    |
 | error   | PSNR of linear RGB (peak 1) against Cycles at SAMPLES: over the whole frame, and over the volume's    |
-|         | pixels (those where either image leaves the world's colour by more than a PNG step, 1/255)        |
+|         | pixels (those where either image leaves the world's colour by more than a PNG step, 1/255); the    |
+|         | mean luminance over the volume's pixels as a share of Cycles'                                     |
 | images  | docs/img/{ct_bone,smoke,fire,coloured_smoke}_{pcvr,cycles}.png, ct_bone_pcvr_scattering.png (quick: under |
 |         | out/bench/materials), linked from docs/shaded-rendering-in-blender.md                              |
 
@@ -44,16 +45,24 @@ IMAGE_DIR = REPO / "docs" / "img"
 ROWS = [("ct_bone", "pcvr", "CT head, CT Bone preset: PCVR's Blinn-Phong (the preset)"),
         ("ct_bone", "pcvr_scattering", "CT head, CT Bone preset: PCVR scattering with shadows"),
         ("ct_bone", "pcvr_scattering_single", "CT head, CT Bone preset: PCVR single scattering with shadows"),
-        ("smoke", "pcvr", "plume, Quick Smoke: PCVR scattering with shadows"),
-        ("smoke", "pcvr_single", "plume, Quick Smoke: PCVR single scattering with shadows"),
-        ("fire", "pcvr", "plume, Quick Fire: PCVR scattering with shadows"),
-        ("coloured_smoke", "pcvr", "plume, Quick Smoke with a `color` grid as its Color Attribute: PCVR scattering "
-                                   "with shadows"),
+        ("ct_bone", "pcvr_scattering_six", "CT head, CT Bone preset: PCVR scattering, six octaves"),
+        ("ct_bone", "pcvr_scattering_ao", "CT head, CT Bone preset: PCVR scattering, ambient occlusion on"),
+        ("ct_bone", "pcvr_scattering_no_ao", "CT head, CT Bone preset: PCVR scattering, ambient occlusion off"),
+        *((key, variant, f"plume, {material}: PCVR {what}")
+          for key, material in (("smoke", "Quick Smoke"), ("fire", "Quick Fire"),
+                                ("coloured_smoke", "Quick Smoke with a `color` grid as its Color Attribute"))
+          for variant, what in (("pcvr", "scattering with shadows (the default)"),
+                                ("pcvr_single", "single scattering"), ("pcvr_six", "six octaves"),
+                                ("pcvr_ao", "ambient occlusion on"), ("pcvr_no_ao", "ambient occlusion off"))),
         ("cloud", "pcvr", "cumulus, dense white (density 40), sun: PCVR multiple scattering (the default)"),
         ("cloud", "pcvr_single", "cumulus, sun: PCVR single scattering (one octave)"),
         ("cloud", "pcvr_no_shadows", "cumulus, sun: PCVR without shadows"),
+        ("cloud", "pcvr_ao", "cumulus, sun: PCVR, ambient occlusion on"),
+        ("cloud", "pcvr_no_ao", "cumulus, sun: PCVR, ambient occlusion off"),
         ("cloud_point", "pcvr", "cumulus, point light: PCVR multiple scattering"),
-        ("cloud_point", "pcvr_single", "cumulus, point light: PCVR single scattering")]
+        ("cloud_point", "pcvr_single", "cumulus, point light: PCVR single scattering"),
+        ("cloud_point", "pcvr_ao", "cumulus, point light: PCVR, ambient occlusion on"),
+        ("cloud_point", "pcvr_no_ao", "cumulus, point light: PCVR, ambient occlusion off")]
 PNG_STEP = 1.0 / 255.0
 
 
@@ -66,7 +75,10 @@ def job(quick: bool) -> dict:
             "plume_size": 32 if quick else 64, "plume_pixels": 128 if quick else 256,
             "cloud_size": 48 if quick else 128, "cloud_pixels": (80, 60) if quick else (160, 120),
             "work_dir": str(work_dir), "image_dir": str(work_dir / "img" if quick else IMAGE_DIR),
-            "result": str(work_dir / "result.json"), **({"scenes": scenes} if scenes else {})}
+            "result": str(work_dir / "result.json"), **({"scenes": scenes} if scenes else {}),
+            # PCVR_MATERIALS_CYCLES_CACHE=folder keeps Cycles' renders there and reuses them (blender_materials.py)
+            **({"cycles_cache": os.environ["PCVR_MATERIALS_CYCLES_CACHE"]}
+               if os.environ.get("PCVR_MATERIALS_CYCLES_CACHE") else {})}
 
 
 def render_in_blender(spec: dict, log) -> dict:
@@ -98,8 +110,11 @@ def compare(image, reference, world) -> dict:
     image, reference = (np.asarray(a, dtype=np.float64)[..., :3] for a in (image, reference))
     background = np.asarray(world, dtype=np.float64)
     volume = ((np.abs(image - background) > PNG_STEP) | (np.abs(reference - background) > PNG_STEP)).any(axis=-1)
+    luminance = np.array([0.2126, 0.7152, 0.0722])  # linear Rec. 709
     return {"psnr_frame": psnr(image, reference), "psnr_volume": psnr(image[volume], reference[volume]),
-            "volume_pixels": float(volume.mean())}
+            "volume_pixels": float(volume.mean()),
+            "luminance_ratio": float((image[volume] @ luminance).mean() / max((reference[volume] @ luminance).mean(),
+                                                                              1e-12))}
 
 
 def run(quick: bool, log) -> dict:
@@ -121,7 +136,8 @@ def run(quick: bool, log) -> dict:
             continue
         rec = out["scenes"][key]["variants"][variant]
         log(f"  {label}: {rec['seconds']:.2f} s, Cycles {rec['cycles_ratio']:.0f}x as long; PSNR "
-            f"{rec['psnr_frame']:.1f} dB (frame), {rec['psnr_volume']:.1f} dB (volume)")
+            f"{rec['psnr_frame']:.1f} dB (frame), {rec['psnr_volume']:.1f} dB (volume); mean luminance "
+            f"{rec['luminance_ratio']:.2f} of Cycles' (volume)")
     return out
 
 
@@ -147,16 +163,17 @@ def section(res: dict | None) -> list[str]:
         "the volume's pixels (where either image leaves the world's colour by more than 1/255); *Cycles at a "
         "quarter*: Cycles' own image at a quarter of the samples against the reference, for scale. The images: "
         "[docs/shaded-rendering-in-blender.md](shaded-rendering-in-blender.md#against-cycles).", "",
-        "| scene | PCVR (s) | Cycles (s) | Cycles / PCVR | PSNR frame (dB) | PSNR volume (dB) | volume pixels "
-        f"| Cycles at {max(1, res['samples'] // 4)} samples: s, PSNR volume (dB) |",
-        "|---|---|---|---|---|---|---|---|"]
+        "| scene | PCVR (s) | Cycles (s) | Cycles / PCVR | PSNR frame (dB) | PSNR volume (dB) | luminance / Cycles' "
+        f"| volume pixels | Cycles at {max(1, res['samples'] // 4)} samples: s, PSNR volume (dB) |",
+        "|---|---|---|---|---|---|---|---|---|"]
     for key, variant, label in ROWS:
         if key not in scenes:
             continue
         scene = scenes[key]["variants"]
         rec, cycles, quarter = scene[variant], scene["cycles"], scene["cycles_quarter"]
         lines.append(f"| {label} | {rec['seconds']:.2f} | {cycles['seconds']:.1f} | {rec['cycles_ratio']:.0f} "
-                     f"| {rec['psnr_frame']:.1f} | {rec['psnr_volume']:.1f} | {100 * rec['volume_pixels']:.0f}% "
+                     f"| {rec['psnr_frame']:.1f} | {rec['psnr_volume']:.1f} | {rec['luminance_ratio']:.2f} "
+                     f"| {100 * rec['volume_pixels']:.0f}% "
                      f"| {quarter['seconds']:.1f}, {quarter['psnr_volume']:.1f} |")
     return lines + [""]
 

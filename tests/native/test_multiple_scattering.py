@@ -78,45 +78,67 @@ def test_a_thin_medium_path_traces_as_the_ray_caster_scatters_once():
 
 
 # Octaves against the path tracer on the dense cloud (optical depth about 17 across, albedo 0.98, anisotropy 0.5),
-# lit by a sun (with and without the world's light, ambient occlusion on) or a point light: (minimum PSNR, least and
-# most mean over the path tracer's), measured at the default 6 octaves (PSNR 25.1, 25.4 and 27.7 dB, means 0.74, 0.88
-# and 0.72; the path tracer's own noise at 192 paths: 43 dB) less 1 dB and +-0.05. Single scattering measured 20.9,
-# 17.6 and 23.8 dB, means 0.15, 0.24 and 0.14: the octaves must beat it by 3 dB.
+# lit by a sun (with and without the world's light) or a point light, without ambient occlusion (each octave adds
+# the light the first misses) and with it (octave k weighted by the occluded share of directions to the k-th
+# power, scattering isotropically): (minimum PSNR, least and most mean over the path tracer's), measured at the
+# default 6 octaves less 1 dB and +-0.05 (the path tracer's own noise at 192 paths: 43 dB):
+#   without: sun 25.1 dB, 0.74; point 27.7 dB, 0.72.  With: sun 28.1 dB, 0.75; sun and world 28.7 dB, 0.89;
+#   point 30.4 dB, 0.78.
+# Single scattering measured 20.9, 17.6 and 23.8 dB, means 0.15, 0.24 and 0.14: the octaves must beat it by 3 dB.
 DENSE = 12.0
 WORLD = (0.1, 0.15, 0.25)
-CASES = {"sun": (24.1, 0.69, 0.79), "sun-world": (24.4, 0.83, 0.93), "point": (26.7, 0.67, 0.77)}
+CASES = {("sun", False): (24.1, 0.69, 0.79), ("point", False): (26.7, 0.67, 0.77),
+         ("sun", True): (27.1, 0.70, 0.80), ("sun-world", True): (27.7, 0.84, 0.94), ("point", True): (29.4, 0.73, 0.83)}
 
 
 def point_lamp(grid):
     return pn.Light.point(position=(-1.2, -1.5, 1.6), strength=12.0 / math.pi)
 
 
-@pytest.mark.parametrize("case", list(CASES))
-def test_octaves_approach_the_path_tracer(case):
+@pytest.mark.parametrize("case, occlusion", list(CASES))
+def test_octaves_approach_the_path_tracer(case, occlusion):
     grid, cam = cloud()
     tf = white_cloud_tf(DENSE)
     lights = [point_lamp(grid) if case == "point" else SUN]
     world = WORLD if case == "sun-world" else (0, 0, 0)
     reference = traced(grid, cam, tf, lights, ambient=world, anisotropy=0.5)
-    multiple, single = (octaves(grid, cam, tf, lights, n, anisotropy=0.5, ambient=world, ambient_occlusion=world != (0, 0, 0))
+    multiple, single = (octaves(grid, cam, tf, lights, n, anisotropy=0.5, ambient=world, ambient_occlusion=occlusion)
                         for n in (6, 1))
-    least_psnr, least_mean, most_mean = CASES[case]
+    least_psnr, least_mean, most_mean = CASES[case, occlusion]
     mean = multiple[..., :3].mean() / reference[..., :3].mean()
     assert psnr(multiple, reference) >= least_psnr and least_mean <= mean <= most_mean, (psnr(multiple, reference), mean)
     assert psnr(multiple, reference) >= psnr(single, reference) + 3
 
 
+def test_occluded_octaves_follow_the_path_tracer_from_thin_to_dense():
+    """Weighting octave k by the occluded share of directions to the k-th power, isotropically (ambient occlusion on),
+    was measured nearer the path tracer than adding the light the first octave misses at every density, thin to
+    dense (at 2048 paths, 6 octaves, a sun: 40.0 to 45.2, 31.6 to 36.7, 25.3 to 28.5 and 22.3 to 24.2 dB at optical
+    depths 1.4, 5.6, 17 and 56 across); here at 192 paths on the thinnest and the densest (measured 4.6 and 1.9 dB
+    ahead): it must stay 1 dB ahead."""
+    grid, cam = cloud()
+    for density in (1.0, 40.0):
+        tf = white_cloud_tf(density)
+        reference = traced(grid, cam, tf, [SUN], ambient=(0, 0, 0), anisotropy=0.5)
+        occluded, missed = (octaves(grid, cam, tf, [SUN], 6, anisotropy=0.5, ambient=(0, 0, 0),
+                                    ambient_occlusion=occlusion) for occlusion in (True, False))
+        assert psnr(occluded, reference) > psnr(missed, reference) + 1.0, (density, psnr(occluded, reference),
+                                                                           psnr(missed, reference))
+
+
 def test_the_sheets_octaves_match_the_ray_casters():
-    """The ray caster reads each octave through shadow rays at the octave's extinction (the world's light through
-    six more per octave): pcvr's light volumes, at twice the spacing beyond octave 0, measured 37.7 dB from it with
-    the world's light occluded (one octave alone: 20.6 dB); the threshold sits 2 dB below."""
+    """The ray caster reads each octave through shadow rays at the octave's extinction (the world's light and the
+    occluded share that weights the octaves through six more per octave): pcvr's light volumes, at twice the
+    spacing beyond octave 0, measured 37.7 dB from it with each octave adding the light the first misses, 35.3 dB
+    with the octaves weighted by the occluded share and isotropic (one octave alone: 20.6 dB); the threshold sits
+    2 dB below."""
     grid, cam = cloud(16)
     tf = white_cloud_tf(DENSE)
     kw = dict(lights=[SUN], ambient=WORLD, shadows=True, opacity_cutoff=1.0,
               shading=pn.Shading(model="scatter", anisotropy=0.5, ambient_occlusion=True))
     image = pn.render_shaded(grid, cam, tf, **kw)[::4, ::4]
     reference = pn.render_shaded(grid, cam, tf, method="raycast", sheet_spacing=0.25, pixel_step=4, **kw)
-    assert psnr(image, reference) >= 35.7, psnr(image, reference)
+    assert psnr(image, reference) >= 33.3, psnr(image, reference)
 
 
 def test_albedo_zero_scatters_nothing():

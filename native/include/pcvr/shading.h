@@ -35,7 +35,9 @@
 /// Multiple scattering (Scatter, Shading::scattering_octaves n > 1): light that scattered more than once,
 /// by Wrenninge's octaves (OctaveFactors; docs/how-it-works.md, "Multiple scattering"): octave k adds a^k c^k
 /// times the single scattering term with the extinction scaled by b^k and the anisotropy by d^k, c the albedo,
-/// read from transmittances built at that extinction (ScatteringOctave). Lights without shadows scatter once;
+/// read from transmittances built at that extinction (ScatteringOctave), and with ambient occlusion times
+/// (1 - A)^k, A the mean of the occluders (how often scattered light meets the medium again), else only the
+/// light octave 0 misses (Tk - T0). Lights without shadows scatter once;
 /// the ambient light's octaves need ambient occlusion, and its sum never passes the ambient colour times c
 /// (the white furnace: an unoccluded world lights no medium brighter than itself).
 #pragma once
@@ -97,8 +99,10 @@ constexpr int kMostScatteringOctaves = 16;
 /// Wrenninge's factors per octave of multiple scattering: a (contribution), b (extinction), d (anisotropy).
 /// Chosen against the path tracer on a white cloud of optical depths 1.4 to 56 across (docs/how-it-works.md,
 /// "Multiple scattering"): 0.5, 0.5, 0.5 (the paper's example) left a dense cloud half as bright as it is.
+/// Octaves weighted by the occluded share (ambient occlusion on) scatter isotropically, d = 0: measured 1.3 to
+/// 3.1 dB nearer the path tracer than d = 0.5 at every density; without the weighting d = 0 lost 2 dB on thin media.
 struct OctaveFactors {
-    static constexpr float contribution = 0.7f, extinction = 0.5f, anisotropy = 0.5f;
+    static constexpr float contribution = 0.7f, extinction = 0.5f, anisotropy = 0.5f, weighted_anisotropy = 0.0f;
 };
 
 class LightTransmittance;

@@ -144,14 +144,23 @@ Vec3x8 Shader::scatter_octaves(const Vec3x8& single, const Vec3x8& colour, const
                                const float8* transmittance, float8 ambient_share) const {
     Vec3x8 radiance = single, weight = lanes({1, 1, 1}), ambient = lanes({1, 1, 1}) * ambient_share;
     float g = anisotropy_;
+    // With ambient occlusion, the share of the directions the medium occludes: light scattered once meets the
+    // medium again about that often, so octave k (k more scatterings) takes it to the k-th power.
+    const bool surrounded = !occluders_.empty();
+    const float8 occluded = max8(1.0f - ambient_share, broadcast8(0.0f));
+    float8 meets_again = broadcast8(1.0f);
+    const float forgets = surrounded ? OctaveFactors::weighted_anisotropy : OctaveFactors::anisotropy;
     for (const ScatteringOctave& octave : octaves_) {
         weight = times(weight, colour) * OctaveFactors::contribution;
-        g *= OctaveFactors::anisotropy;
+        g *= forgets;
+        meets_again *= occluded;
         for (size_t i = 0; i < lights_.size(); ++i) {
             const LightTransmittance* t = octave.per_light[i];
             if (!t || !lights_[i].transmittance) continue;
-            // Only the light the first octave misses: a medium too thin to shadow scatters too little to add.
-            const float8 extra = max8(t->at(position) - transmittance[i], broadcast8(0.0f));
+            // Without the occluders, only the light the first octave misses: a medium too thin to shadow scatters
+            // too little to add.
+            const float8 extra = surrounded ? t->at(position) * meets_again
+                                            : max8(t->at(position) - transmittance[i], broadcast8(0.0f));
             const auto [l, energy] = arriving(lights_[i], position, &extra);
             radiance = radiance + times(weight, energy * henyey_greenstein(g, l, to_eye));
         }
