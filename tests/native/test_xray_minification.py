@@ -102,7 +102,8 @@ def test_anisotropic_voxels_minified(linear, magnification):
     assert rel_rmse(render(grid, cam, "pcvr", level=0), reference) < 5e-3
 
 
-# Perspective: each voxel decides for itself; far voxels are prefiltered, near ones sampled.
+# Perspective from 3 half-diagonals: blocks this near are projected voxel by voxel, and each voxel decides for
+# itself (far voxels prefiltered, near ones sampled); farther views decide per block (below).
 @pytest.mark.parametrize("magnification", [1 / 16])
 def test_perspective_minified(cubic, magnification):
     ph, grid = cubic

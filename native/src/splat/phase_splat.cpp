@@ -331,22 +331,27 @@ uint64_t splat_block_projective(const VoxelBlock& block, const ProjectiveBlock& 
     return count;
 }
 
-/// A separable window (x row `wx`, already times the amplitude, and y column from phases y0, y1 blended by ay)
-/// added at `out`, row pitch `pitch`, in whole rows of eight lanes.
+/// A separable window (x row `wx`, already times the amplitude, and y column `wy`) added at `out`, row pitch
+/// `pitch`, in whole rows of eight lanes.
 template <class T>
-inline void add_separable(T* out, size_t pitch, __m256 wx, const float* y0, const float* y1, float ay, int rows) {
-    for (int j = 0; j < rows; ++j, out += pitch) accumulate8(out, _mm256_mul_ps(wx, _mm256_set1_ps(y0[j] + ay * (y1[j] - y0[j]))));
+inline void add_separable(T* out, size_t pitch, __m256 wx, const float* wy, int rows) {
+    for (int j = 0; j < rows; ++j, out += pitch) accumulate8(out, _mm256_mul_ps(wx, _mm256_broadcast_ss(wy + j)));
 }
 
 /// The same tap by tap, clipped to the grid (windows that stick out of it).
-void add_separable_clipped(SplatGrid& g, int col, int row, const float* wx, const float* y0, const float* y1, float ay, int window) {
+void add_separable_clipped(SplatGrid& g, int col, int row, const float* wx, const float* wy, int window) {
     const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
     const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
     for (int j = j0; j < j1; ++j) {
         double* out = g.row(row + j) + col;
-        const double wy = y0[j] + ay * (y1[j] - y0[j]);
-        for (int i = i0; i < i1; ++i) out[i] += wy * wx[i];
+        for (int i = i0; i < i1; ++i) out[i] += double(wy[j]) * wx[i];
     }
+}
+
+/// Row `p` of a separable table's phases blended with the next by `a`.
+inline __m256 blend_phases(const float* p, float a) {
+    const __m256 at = _mm256_loadu_ps(p), next = _mm256_loadu_ps(p + SeparableFootprintTable::kMaxWindow);
+    return _mm256_fmadd_ps(_mm256_set1_ps(a), _mm256_sub_ps(next, at), at);
 }
 
 uint64_t splat_separable(const VoxelBlock& block, const ProjectiveBlock& p, const SeparableFootprintTable& table, SplatGrid& grid,
@@ -371,21 +376,18 @@ uint64_t splat_separable(const VoxelBlock& block, const ProjectiveBlock& p, cons
             const int l = __builtin_ctz(todo);
             const float sx = b.fx[l] * kPhases, sy = b.fy[l] * kPhases;
             const int px = std::min(kPhases - 1, int(sx)), py = std::min(kPhases - 1, int(sy));
-            const float* x0 = table.x(px);
-            const __m256 row0 = _mm256_loadu_ps(x0), row1 = _mm256_loadu_ps(x0 + kLanes);
-            const __m256 wx = _mm256_mul_ps(_mm256_fmadd_ps(_mm256_set1_ps(sx - float(px)), _mm256_sub_ps(row1, row0), row0),
-                                            _mm256_set1_ps(b.amp[l]));
-            const float *y0 = table.y(py), *y1 = table.y(py + 1), ay = sy - float(py);
+            const __m256 wx = _mm256_mul_ps(blend_phases(table.x(px), sx - float(px)), _mm256_set1_ps(b.amp[l]));
+            alignas(32) float wy[kLanes];
+            _mm256_store_ps(wy, blend_phases(table.y(py), sy - float(py)));
             if (!((b.inside >> l) & 1)) {
                 alignas(32) float lanes[kLanes];
                 _mm256_store_ps(lanes, wx);
-                add_separable_clipped(grid, f.region.col0 + b.col[l], f.region.row0 + b.row[l], lanes, y0, y1, ay, w.window);
+                add_separable_clipped(grid, f.region.col0 + b.col[l], f.region.row0 + b.row[l], lanes, wy, w.window);
             } else if (f.region.tiled) {
-                add_separable(tile_copy(tiles, l) + size_t(b.row[l]) * f.region.pitch + b.col[l], size_t(f.region.pitch), wx, y0, y1,
-                              ay, w.window);
-            } else {
-                add_separable(grid.row(0) + size_t(b.row[l]) * grid.columns() + b.col[l], size_t(grid.columns()), wx, y0, y1, ay,
+                add_separable(tile_copy(tiles, l) + size_t(b.row[l]) * f.region.pitch + b.col[l], size_t(f.region.pitch), wx, wy,
                               w.window);
+            } else {
+                add_separable(grid.row(0) + size_t(b.row[l]) * grid.columns() + b.col[l], size_t(grid.columns()), wx, wy, w.window);
             }
         }
     });
