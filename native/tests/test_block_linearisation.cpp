@@ -94,9 +94,17 @@ TEST(blocks_narrower_than_a_pixel_are_linearised_as_prefiltered) {
     const auto sampled = linearise_block(block, far, grid, 0, 0, false, kVariance);
     CHECK(sampled.has_value() && !sampled->prefiltered);
     if (lin) CHECK(model_error(*lin, block, far, grid).form < kLinearisedTolerance);
-    // A block whose voxels span a pixel at one end and less at the other keeps exact footprints:
-    // a voxel of 0.01 units spans 1 pixel at 384 / (2 tan 20 deg) / 100 = 5.275 units from the eye,
-    // and the block's voxels lie 5.23 to 5.30 units away.
-    const ViewProjection straddling(cam, voxels_at(-0.035, -0.035, -5.30));
-    CHECK(!linearise_block(block_at(0, 0, 0), straddling, grid, 0, 0, true, kVariance).has_value());
+    // A block whose voxels span a pixel at one end and less at the other is linearised too, all its
+    // footprints sampled or all prefiltered as its centre is (block_prefiltered): a voxel of 0.01 units
+    // spans 1 pixel at 384 / (2 tan 20 deg) / 100 = 5.275 units from the eye, and the block's voxels lie
+    // 5.23 to 5.30 (5.25 to 5.32) units away.
+    for (double depth : {5.30, 5.32}) {
+        const ViewProjection straddling(cam, voxels_at(-0.035, -0.035, -depth));
+        const auto both = linearise_block(block_at(0, 0, 0), straddling, grid, 0, 0, true, kVariance);
+        CHECK(both.has_value());
+        if (both) CHECK(both->prefiltered == block_prefiltered(block_at(0, 0, 0), straddling));
+    }
+    // The centre lies 5.265 units away (sampled) at the first depth, 5.285 (averaged) at the second.
+    CHECK(!block_prefiltered(block_at(0, 0, 0), ViewProjection(cam, voxels_at(-0.035, -0.035, -5.30))));
+    CHECK(block_prefiltered(block_at(0, 0, 0), ViewProjection(cam, voxels_at(-0.035, -0.035, -5.32))));
 }

@@ -341,19 +341,20 @@ uint64_t add_tile_window(float* tile, size_t pitch, const ProjectedBatch& b, con
 
 #endif  // PCVR_AVX2
 
-/// The phase table that stands for a linearised block's footprints (at its centre), or none.
-const CachedPhaseTable* block_phase_table(const BlockLinearisation& lin, const FootprintSplatParams& params) {
-    if (!kProjectivePhases || !params.phase_tables || !params.kernel || params.bilinear_spread) return nullptr;
+/// The phase table that stands for a linearised block's footprints (at its centre), or none: pixel-averaged
+/// ones in every view (a view meets few), sampled ones where the view's are alike (SplatParams::phase_tables).
+const CachedPhaseTable* block_phase_table(const BlockLinearisation& lin, const FootprintSplatParams& params, double stride) {
+    if (!kProjectivePhases || !params.kernel || params.bilinear_spread || !(lin.prefiltered || params.phase_tables)) return nullptr;
     thread_local PhaseTableMemo memo;  // consecutive blocks mostly share a table
     auto centre = [](const AffineInBlock& f) { return double(f.at) + 3.5 * (double(f.di) + f.dj + f.dk); };
     const double qxx = centre(lin.qxx), qxy = centre(lin.qxy), qyy = centre(lin.qyy), det = qxx * qyy - qxy * qxy;
     if (!(qxx > 0 && qyy > 0 && det > 0)) return nullptr;
     const PhaseTableKey key = lin.prefiltered ? PhaseTableCache::pixel_averaged_key(*params.kernel, params.level,
                                                                                     std::sqrt(params.kernel_variance * qyy / det),
-                                                                                    std::sqrt(params.kernel_variance * qxx / det))
+                                                                                    std::sqrt(params.kernel_variance * qxx / det), stride)
                                               : PhaseTableCache::footprint_key(*params.kernel, qxx, qxy, qyy);
     const CachedPhaseTable& cached = memo.get(key, *params.kernel);
-    return cached.table ? &cached : nullptr;
+    return cached.table || cached.separable ? &cached : nullptr;
 }
 
 }  // namespace
@@ -366,9 +367,11 @@ uint64_t splat_block_footprints(const VoxelBlock& block, const PlannedBlock& pla
         params.view->orthographic() ? std::nullopt
                                     : linearise_block(block, *params.view, grid, target.ref_x, target.ref_y,
                                                       params.antialias, params.kernel_variance);
-    if (const CachedPhaseTable* phases = lin ? block_phase_table(*lin, params) : nullptr)
-        return splat_block_phases(block, {&*lin, target.ref_x, target.ref_y, params.density_scale, phases->table_det},
-                                  *phases->table, grid, scratch);
+    if (const CachedPhaseTable* phases = lin ? block_phase_table(*lin, params, grid.stride()) : nullptr) {
+        const ProjectiveBlock projected{&*lin, target.ref_x, target.ref_y, params.density_scale, phases->table_det};
+        return phases->separable ? splat_block_separable(block, projected, *phases->separable, grid, scratch)
+                                 : splat_block_phases(block, projected, *phases->table, grid, scratch);
+    }
 #endif
     float* tiles = target.region.tiled ? scratch.tile_copies() : nullptr;
     const TileFlush flush(target.region, tiles, grid);

@@ -71,13 +71,13 @@ struct BlockFrame {
 /// (origin_x, origin_y), fall in nodes [x0, x1] x [y0, y1] (`nodes`; none: unknown): a tile around their windows,
 /// which reach window - 1 nodes beyond their corner, where they fit one, else the grid.
 void place_region(BlockFrame& f, int origin_x, int origin_y, const std::optional<std::array<int, 4>>& nodes, WindowLayout w,
-                  const SplatGrid& grid) {
+                  const SplatGrid& grid, int slack = 0) {
     int shift_x = -origin_x, shift_y = -origin_y;
     f.region = DepositRegion::whole(grid);
     if (nodes) {
         const auto [x0, x1, y0, y1] = *nodes;
         const int tx = x0 - w.half_width + 1, ty = y0 - w.half_width + 1;
-        f.region = DepositRegion::tile_or_grid(origin_x + tx, origin_y + ty, x1 - x0 + w.window, y1 - y0 + w.window, 0, grid);
+        f.region = DepositRegion::tile_or_grid(origin_x + tx, origin_y + ty, x1 - x0 + w.window, y1 - y0 + w.window, slack, grid);
         if (f.region.tiled) shift_x = tx, shift_y = ty;
     }
     f.corner_x = _mm256_set1_epi32(1 - w.half_width - shift_x);
@@ -272,7 +272,7 @@ inline __m256 evaluate(const AffineInBlock& f, __m256 i, __m256 j, __m256 k) {
 /// tile covers the projections of the block's corners, which bound its voxels' (a projection keeps convex hulls).
 template <bool Tiled>
 BlockFrame projective_frame(const VoxelBlock& block, const BlockLinearisation& lin, int ref_x, int ref_y, WindowLayout w,
-                            const SplatGrid& grid) {
+                            const SplatGrid& grid, int slack = 0) {
     BlockFrame f;
     f.amp_per_value = _mm256_set1_ps(1.0f);  // the amplitudes come in per voxel
     std::optional<std::array<int, 4>> nodes;
@@ -288,8 +288,21 @@ BlockFrame projective_frame(const VoxelBlock& block, const BlockLinearisation& l
         if (x1 - x0 < kTileFloats && y1 - y0 < kTileFloats)
             nodes = std::array<int, 4>{int(std::floor(x0)) - 1, int(std::floor(x1)) + 1, int(std::floor(y0)) - 1, int(std::floor(y1)) + 1};
     }
-    place_region(f, ref_x, ref_y, nodes, w, grid);
+    place_region(f, ref_x, ref_y, nodes, w, grid, slack);
     return f;
+}
+
+/// The node positions (lx, ly) relative to the frame and amplitudes of eight voxels of a linearised block, each
+/// amplitude its line scale times its value and `to_mass` of its form's determinant.
+template <class ToMass>
+inline void project_batch(const BlockLinearisation& lin, __m256 i, __m256 j, __m256 k, __m256 v, float density_scale,
+                          ToMass to_mass, __m256& lx, __m256& ly, __m256& amp) {
+    const __m256 inv_w = _mm256_div_ps(_mm256_set1_ps(1.0f), evaluate(lin.w, i, j, k));
+    const __m256 qxx = evaluate(lin.qxx, i, j, k), qxy = evaluate(lin.qxy, i, j, k), qyy = evaluate(lin.qyy, i, j, k);
+    const __m256 det = _mm256_fmsub_ps(qxx, qyy, _mm256_mul_ps(qxy, qxy));
+    amp = _mm256_mul_ps(_mm256_mul_ps(evaluate(lin.line_scale, i, j, k), _mm256_set1_ps(density_scale)), _mm256_mul_ps(to_mass(det), v));
+    lx = _mm256_mul_ps(evaluate(lin.x, i, j, k), inv_w);
+    ly = _mm256_mul_ps(evaluate(lin.y, i, j, k), inv_w);
 }
 
 template <WindowKind Kind>
@@ -300,19 +313,16 @@ uint64_t splat_block_projective(const VoxelBlock& block, const ProjectiveBlock& 
     const BlockFrame f = projective_frame<Kind != WindowKind::Table>(block, lin, p.ref_x, p.ref_y, w, grid);
     float* tiles = f.region.tiled ? scratch.tile_copies() : nullptr;
     const TileFlush flush(f.region, tiles, grid);
-    const __m256 one = _mm256_set1_ps(1.0f), density_scale = _mm256_set1_ps(p.density_scale);
-    const __m256 table_det = _mm256_set1_ps(float(p.table_det));
+    // The voxel's own mass: sampled tables hold another form's footprint (of determinant table_det), whose
+    // integral is in proportion to 1 / sqrt(det); pixel-averaged ones hold weights that sum to one.
+    const __m256 over = _mm256_set1_ps(p.table_det > 0 ? float(p.table_det) : 1.0f);
+    auto to_mass = [over](__m256 det) { return _mm256_sqrt_ps(_mm256_div_ps(over, det)); };
     VoxelBatch b;
     uint64_t count = 0;
     for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
-        const __m256 inv_w = _mm256_div_ps(one, evaluate(lin.w, i, j, k));
-        const __m256 qxx = evaluate(lin.qxx, i, j, k), qxy = evaluate(lin.qxy, i, j, k), qyy = evaluate(lin.qyy, i, j, k);
-        const __m256 det = _mm256_fmsub_ps(qxx, qyy, _mm256_mul_ps(qxy, qxy));
-        // The voxel's own mass: sampled tables hold another form's footprint (of determinant table_det), whose
-        // integral is in proportion to 1 / sqrt(det); pixel-averaged ones hold weights that sum to one.
-        const __m256 to_mass = _mm256_sqrt_ps(_mm256_div_ps(p.table_det > 0 ? table_det : one, det));
-        const __m256 amp = _mm256_mul_ps(_mm256_mul_ps(evaluate(lin.line_scale, i, j, k), density_scale), _mm256_mul_ps(to_mass, v));
-        prepare(_mm256_mul_ps(evaluate(lin.x, i, j, k), inv_w), _mm256_mul_ps(evaluate(lin.y, i, j, k), inv_w), amp, f, w, b);
+        __m256 lx, ly, amp;
+        project_batch(lin, i, j, k, v, p.density_scale, to_mass, lx, ly, amp);
+        prepare(lx, ly, amp, f, w, b);
         b.live &= uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
         count += __builtin_popcount(b.live);
         deposit<Kind>(b, table, w, f, tiles, grid);
@@ -321,9 +331,82 @@ uint64_t splat_block_projective(const VoxelBlock& block, const ProjectiveBlock& 
     return count;
 }
 
+/// A separable window (x row `wx`, already times the amplitude, and y column `wy`) added at `out`, row pitch
+/// `pitch`, in whole rows of eight lanes.
+template <class T>
+inline void add_separable(T* out, size_t pitch, __m256 wx, const float* wy, int rows) {
+    for (int j = 0; j < rows; ++j, out += pitch) accumulate8(out, _mm256_mul_ps(wx, _mm256_broadcast_ss(wy + j)));
+}
+
+/// The same tap by tap, clipped to the grid (windows that stick out of it).
+void add_separable_clipped(SplatGrid& g, int col, int row, const float* wx, const float* wy, int window) {
+    const int j0 = std::max(0, -row), j1 = std::min(window, g.rows() - row);
+    const int i0 = std::max(0, -col), i1 = std::min(window, g.columns() - col);
+    for (int j = j0; j < j1; ++j) {
+        double* out = g.row(row + j) + col;
+        for (int i = i0; i < i1; ++i) out[i] += double(wy[j]) * wx[i];
+    }
+}
+
+/// Row `p` of a separable table's phases blended with the next by `a`.
+inline __m256 blend_phases(const float* p, float a) {
+    const __m256 at = _mm256_loadu_ps(p), next = _mm256_loadu_ps(p + SeparableFootprintTable::kMaxWindow);
+    return _mm256_fmadd_ps(_mm256_set1_ps(a), _mm256_sub_ps(next, at), at);
+}
+
+uint64_t splat_separable(const VoxelBlock& block, const ProjectiveBlock& p, const SeparableFootprintTable& table, SplatGrid& grid,
+                         SplatScratch& scratch) {
+    constexpr int kPhases = SeparableFootprintTable::kPhases, kLanes = SeparableFootprintTable::kMaxWindow;
+    // prepare() finds each window's corner and whether it lies inside; its phase blend is for 2-D tables, unused.
+    const WindowLayout w{table.half_width(), table.window(), kLanes, 1, 0};
+    const BlockFrame f = projective_frame<true>(block, *p.lin, p.ref_x, p.ref_y, w, grid, kLanes - table.window());
+    float* tiles = f.region.tiled ? scratch.tile_copies() : nullptr;
+    const TileFlush flush(f.region, tiles, grid);
+    const __m256 one = _mm256_set1_ps(1.0f);
+    auto to_mass = [one](__m256 det) { return _mm256_sqrt_ps(_mm256_div_ps(one, det)); };  // the footprint's integral, node^2
+    VoxelBatch b;
+    uint64_t count = 0;
+    for_each_batch(block, all_active(block), [](int) { return true; }, [&](__m256 i, __m256 j, __m256 k, __m256 v) {
+        __m256 lx, ly, amp;
+        project_batch(*p.lin, i, j, k, v, p.density_scale, to_mass, lx, ly, amp);
+        prepare(lx, ly, amp, f, w, b);
+        b.live &= uint32_t(_mm256_movemask_ps(finite_non_zero(v)));
+        count += __builtin_popcount(b.live);
+        for (uint32_t todo = b.live; todo; todo &= todo - 1) {
+            const int l = __builtin_ctz(todo);
+            const float sx = b.fx[l] * kPhases, sy = b.fy[l] * kPhases;
+            const int px = std::min(kPhases - 1, int(sx)), py = std::min(kPhases - 1, int(sy));
+            const __m256 wx = _mm256_mul_ps(blend_phases(table.x(px), sx - float(px)), _mm256_set1_ps(b.amp[l]));
+            alignas(32) float wy[kLanes];
+            _mm256_store_ps(wy, blend_phases(table.y(py), sy - float(py)));
+            if (!((b.inside >> l) & 1)) {
+                alignas(32) float lanes[kLanes];
+                _mm256_store_ps(lanes, wx);
+                add_separable_clipped(grid, f.region.col0 + b.col[l], f.region.row0 + b.row[l], lanes, wy, w.window);
+            } else if (f.region.tiled) {
+                add_separable(tile_copy(tiles, l) + size_t(b.row[l]) * f.region.pitch + b.col[l], size_t(f.region.pitch), wx, wy,
+                              w.window);
+            } else {
+                add_separable(grid.row(0) + size_t(b.row[l]) * grid.columns() + b.col[l], size_t(grid.columns()), wx, wy, w.window);
+            }
+        }
+    });
+    scratch.taps += count * uint64_t(w.window) * uint64_t(w.window);
+    return count;
+}
+
 #endif  // PCVR_AVX2
 
 }  // namespace
+
+uint64_t splat_block_separable(const VoxelBlock& block, const ProjectiveBlock& projected, const SeparableFootprintTable& table,
+                               SplatGrid& grid, SplatScratch& scratch) {
+#ifdef PCVR_AVX2
+    return splat_separable(block, projected, table, grid, scratch);
+#else
+    return 0;  // the callers keep their per-voxel footprints without AVX2 (kProjectivePhases)
+#endif
+}
 
 uint64_t splat_block_phases(const VoxelBlock& block, const OrthographicMapping& map, const PhaseFootprintTable& table,
                             const ViewProjection* clip_view, SplatGrid& grid, SplatScratch& scratch) {

@@ -64,4 +64,9 @@ constexpr bool kProjectivePhases = false;
 uint64_t splat_block_phases(const VoxelBlock& block, const ProjectiveBlock& projected, const PhaseFootprintTable& table,
                             SplatGrid& grid, SplatScratch& scratch);
 
+/// The same with a pixel-averaged footprint's separable table: each voxel's window is its x row times its y
+/// column (times its footprint integral), added a row of eight lanes at a time.
+uint64_t splat_block_separable(const VoxelBlock& block, const ProjectiveBlock& projected, const SeparableFootprintTable& table,
+                               SplatGrid& grid, SplatScratch& scratch);
+
 }  // namespace pcvr

@@ -19,6 +19,20 @@ int phases_for(int half_width) {
     const int fit = int(std::sqrt(double(kTargetBytes) / (double(window) * pitch_for(window) * sizeof(float)))) - 1;
     return std::clamp(fit, kFewestPhases, kMostPhases);
 }
+
+/// One axis of a pixel-averaged footprint (src/splat/pixel_prefilter.h) for a centre at phase f of its node:
+/// a Gaussian of standard deviation sigma (nodes) integrated over the box of each of the window's taps
+/// (half-width half_pixel nodes), normalised to sum to one.
+void box_averaged_gaussian(double sigma, double half_pixel, double f, int half_width, double* w) {
+    const double scale = 1.0 / (sigma * std::sqrt(2.0));
+    double sum = 0;
+    for (int i = 0; i < 2 * half_width; ++i) {
+        const double d = i - (half_width - 1) - f;
+        w[i] = 0.5 * (std::erf((d + half_pixel) * scale) - std::erf((d - half_pixel) * scale));
+        sum += w[i];
+    }
+    for (int i = 0; i < 2 * half_width; ++i) w[i] = sum > 0 ? w[i] / sum : 0.0;
+}
 }  // namespace
 
 PhaseFootprintTable::PhaseFootprintTable(int half_width, int phases)
@@ -37,22 +51,11 @@ PhaseFootprintTable PhaseFootprintTable::bilinear_spread() {
 PhaseFootprintTable PhaseFootprintTable::pixel_averaged(double sigma_x, double sigma_y, double half_pixel, int half_width) {
     PhaseFootprintTable t(half_width, phases_for(half_width));
     const int window = 2 * half_width;
-    // One axis's weights for a centre at phase f: the Gaussian's mass over each tap's box.
-    auto axis = [&](double sigma, double f, std::vector<double>& w) {
-        const double scale = 1.0 / (sigma * std::sqrt(2.0));
-        double sum = 0;
-        for (int i = 0; i < window; ++i) {
-            const double d = i - (half_width - 1) - f;
-            w[i] = 0.5 * (std::erf((d + half_pixel) * scale) - std::erf((d - half_pixel) * scale));
-            sum += w[i];
-        }
-        for (double& v : w) v = sum > 0 ? v / sum : 0.0;
-    };
     std::vector<double> wx(window), wy(window);
     for (int py = 0; py <= t.phases_; ++py) {
-        axis(sigma_y, double(py) / t.phases_, wy);
+        box_averaged_gaussian(sigma_y, half_pixel, double(py) / t.phases_, half_width, wy.data());
         for (int px = 0; px <= t.phases_; ++px) {
-            axis(sigma_x, double(px) / t.phases_, wx);
+            box_averaged_gaussian(sigma_x, half_pixel, double(px) / t.phases_, half_width, wx.data());
             float* w = t.values_.data() + (size_t(py) * (t.phases_ + 1) + px) * t.entry_size_;
             for (int j = 0; j < window; ++j)
                 for (int i = 0; i < window; ++i) w[size_t(j) * t.pitch_ + i] = float(wx[i] * wy[j]);
@@ -94,6 +97,22 @@ PhaseFootprintTable::PhaseFootprintTable(const FootprintTable& footprint, double
     : PhaseFootprintTable(half_width, phases_for(half_width)) {
     tabulate(values_, half_width, phases_, pitch_, entry_size_, qxx, qxy, qyy, footprint.radius2(),
              [&](double rho2) { return footprint.at_rho2(float(rho2)); });
+}
+
+}  // namespace pcvr
+
+namespace pcvr {
+
+SeparableFootprintTable::SeparableFootprintTable(double sigma_x, double sigma_y, double half_pixel, int half_width)
+    : half_width_(std::clamp(half_width, 1, kMaxWindow / 2)), x_(size_t(kPhases + 1) * kMaxWindow, 0.0f),
+      y_(size_t(kPhases + 1) * kMaxWindow, 0.0f) {
+    double w[kMaxWindow];
+    for (int p = 0; p <= kPhases; ++p) {
+        box_averaged_gaussian(sigma_x, half_pixel, double(p) / kPhases, half_width_, w);
+        std::copy(w, w + window(), x_.begin() + size_t(p) * kMaxWindow);
+        box_averaged_gaussian(sigma_y, half_pixel, double(p) / kPhases, half_width_, w);
+        std::copy(w, w + window(), y_.begin() + size_t(p) * kMaxWindow);
+    }
 }
 
 }  // namespace pcvr

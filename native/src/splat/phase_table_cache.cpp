@@ -1,5 +1,6 @@
 #include "splat/phase_table_cache.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -16,8 +17,8 @@ constexpr double kLogSteps = 64;          // lattice points per octave of a form
 constexpr double kCorrelationSteps = 128;  // of qxy / sqrt(qxx qyy), in [-1, 1]
 /// Beyond this many tables (about 18 MB of 4 x 4 ones) the cache starts again.
 constexpr size_t kMostTables = 256;
-/// Interpolating between phases 1/P of a node apart needs sigma P >= 11 (splatter.cpp, phases_resolve).
-constexpr double kLeastSigmaPhases = 11.0;
+/// A pixel-averaged key's last coordinate: the level of detail plus this many times the stride on the lattice.
+constexpr int32_t kLevels = 64;
 
 enum Kind : int32_t { kSampled = 1, kPixelAveraged = 2 };
 
@@ -37,20 +38,26 @@ CachedPhaseTable sampled(const PhaseTableKey& key, const Kernel& kernel) {
     // The narrowest standard deviation in nodes: the kernel's over the form's largest eigenvalue.
     const double half_trace = 0.5 * (qxx + qyy), half_difference = 0.5 * (qxx - qyy);
     const double largest = half_trace + std::sqrt(half_difference * half_difference + qxy * qxy);
-    if (std::sqrt(kernel.variance() / largest) * table->phases() < kLeastSigmaPhases) return {};
+    if (!table->resolves(std::sqrt(kernel.variance() / largest))) return {};
     return {std::move(table), det};
 }
 
 CachedPhaseTable pixel_averaged(const PhaseTableKey& key, const Kernel& kernel) {
     const double sigma_x = std::exp2(key.lattice[1] / kLogSteps), sigma_y = std::exp2(key.lattice[2] / kLogSteps);
-    const double variance = level_kernel_variance(kernel.variance(), key.lattice[3]);
-    const double half_pixel = kPrefilterReach;  // nodes a pixel apart
+    const double variance = level_kernel_variance(kernel.variance(), key.lattice[3] % kLevels);
+    const double half_pixel = kPrefilterReach / std::exp2((key.lattice[3] / kLevels) / kLogSteps);  // nodes
     const double reach = kernel.radius() * std::max(sigma_x, sigma_y) / std::sqrt(variance) + half_pixel;
     const int half_width = clamp_to_int(std::ceil(reach - 1e-4), 0, PhaseFootprintTable::kMaxHalfWidth + 1);
     if (half_width > PhaseFootprintTable::kMaxHalfWidth) return {};
+    if (2 * half_width <= SeparableFootprintTable::kMaxWindow) {
+        if (!SeparableFootprintTable::resolves(std::min(sigma_x, sigma_y))) return {};
+        CachedPhaseTable made;
+        made.separable = std::make_shared<SeparableFootprintTable>(sigma_x, sigma_y, half_pixel, std::max(half_width, 2));
+        return made;
+    }
     auto table = std::make_shared<PhaseFootprintTable>(
         PhaseFootprintTable::pixel_averaged(sigma_x, sigma_y, half_pixel, std::max(half_width, 2)));
-    if (std::min(sigma_x, sigma_y) * table->phases() < kLeastSigmaPhases) return {};
+    if (!table->resolves(std::min(sigma_x, sigma_y), true)) return {};
     return {std::move(table), 0.0};
 }
 
@@ -74,9 +81,11 @@ PhaseTableKey PhaseTableCache::footprint_key(const Kernel& kernel, double qxx, d
              on_lattice(std::isfinite(correlation) ? correlation : 0.0, kCorrelationSteps)}};
 }
 
-PhaseTableKey PhaseTableCache::pixel_averaged_key(const Kernel& kernel, int level, double sigma_x, double sigma_y) {
+PhaseTableKey PhaseTableCache::pixel_averaged_key(const Kernel& kernel, int level, double sigma_x, double sigma_y,
+                                                  double stride) {
+    const int32_t strides = clamp_to_int(std::round(std::log2(std::max(stride, 1.0)) * kLogSteps), 0, (1 << 20));
     return {{kPixelAveraged * 16 + int32_t(kernel.shape()), on_lattice(std::log2(sigma_x), kLogSteps),
-             on_lattice(std::log2(sigma_y), kLogSteps), level}};
+             on_lattice(std::log2(sigma_y), kLogSteps), std::clamp(level, 0, kLevels - 1) + kLevels * strides}};
 }
 
 CachedPhaseTable PhaseTableCache::get(const PhaseTableKey& key, const Kernel& kernel) {

@@ -25,12 +25,6 @@ struct PhaseSplat {
     PhaseFootprintTable table;
 };
 
-/// Interpolating between phases 1/P of a node apart is off by about 1 / (8 (sigma P)^2) of a
-/// footprint's peak, sigma its narrowest standard deviation in nodes. Beyond 1e-3 (sigma P < 11:
-/// minified views, elongated footprints in wide windows of few phases) footprints go per tap; a
-/// 1 x 1 image at 26 voxels per pixel was 1.3% off, isolated voxels at 0.5 pixels per voxel 0.7%.
-bool phases_resolve(double sigma, const PhaseFootprintTable& table) { return sigma * table.phases() >= 11.0; }
-
 /// An orthographic view's footprints narrower than a pixel, averaged over each pixel (src/
 /// pixel_prefilter.h), as a phase table: they all have one shape, so the per-voxel integration over
 /// pixels becomes a table lookup (5x faster from 0.6 to 1 pixel per voxel). Tilted footprints (widened
@@ -45,7 +39,7 @@ std::optional<PhaseSplat> pixel_averaged_splat(const Footprint& f0, Orthographic
     const int half_width = clamp_to_int(std::ceil(reach - 1e-4), 0, PhaseFootprintTable::kMaxHalfWidth + 1);
     if (half_width > PhaseFootprintTable::kMaxHalfWidth) return std::nullopt;
     PhaseFootprintTable table = PhaseFootprintTable::pixel_averaged(std::sqrt(c.xx), std::sqrt(c.yy), half_pixel, std::max(half_width, 2));
-    if (!phases_resolve(std::sqrt(std::min(c.xx, c.yy)), table)) return std::nullopt;
+    if (!table.resolves(std::sqrt(std::min(c.xx, c.yy)), true)) return std::nullopt;
     map.amp_per_value *= float(1.0 / std::sqrt(qxx * qyy - qxy * qxy));  // the footprint's integral, node^2
     return PhaseSplat{map, std::move(table)};
 }
@@ -84,7 +78,7 @@ std::optional<PhaseSplat> phase_splat(const ViewProjection& view, const SplatGri
     if (!params.kernel->smooth_footprint() || half_width > PhaseFootprintTable::kMaxHalfWidth) return std::nullopt;
     const double s2 = stride * stride;  // rho^2 per node^2
     PhaseFootprintTable table(*params.kernel, f0.qxx * s2, f0.qxy * s2, f0.qyy * s2, std::max(half_width, 2));
-    if (!phases_resolve(std::sqrt(params.kernel->variance()) * f0.min_pixels_per_voxel() * inv_stride, table)) return std::nullopt;
+    if (!table.resolves(std::sqrt(params.kernel->variance()) * f0.min_pixels_per_voxel() * inv_stride)) return std::nullopt;
     return PhaseSplat{map, std::move(table)};
 }
 

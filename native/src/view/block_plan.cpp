@@ -63,6 +63,8 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
     bool all_projectable = true;
     double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
     double ext_x = 0, ext_y = 0, mag_min = 1e300, mag_max = 0;
+    // A perspective block whose centre is narrower than a pixel integrates all its footprints over pixels.
+    const bool block_narrow = !shared && block_prefiltered(block, view);
     for (int corner = 0; corner < 8; ++corner) {
         const Vec3 p{double(block.origin[0] + ((corner & 1) ? VoxelBlock::kDim - 1 : 0)),
                      double(block.origin[1] + ((corner & 2) ? VoxelBlock::kDim - 1 : 0)),
@@ -83,7 +85,7 @@ BlockDecision decide(uint32_t index, const VoxelBlock& block, const ViewProjecti
         y0 = std::min(y0, py);
         y1 = std::max(y1, py);
         if (shared && corner > 0) continue;  // the same shape at every corner
-        const double reach = prefiltered(fp) ? kPrefilterReach : 0.0;  // integrated over whole pixels
+        const double reach = block_narrow || prefiltered(fp) ? kPrefilterReach : 0.0;  // integrated over whole pixels
         ext_x = std::max(ext_x, fp.extent_x(params.kernel_radius) + reach);
         ext_y = std::max(ext_y, fp.extent_y(params.kernel_radius) + reach);
         const double m = fp.min_pixels_per_voxel();

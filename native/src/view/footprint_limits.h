@@ -9,6 +9,7 @@
 
 #include <limits>
 
+#include "pcvr/grid.h"
 #include "view/view_projection.h"
 
 namespace pcvr {
@@ -21,6 +22,16 @@ constexpr double kPrefilterBelowPixelsPerVoxel = 1.0 - 1e-6;
 constexpr double kPrefilterReach = 0.5;
 
 inline bool prefiltered(const Footprint& f) { return f.min_pixels_per_voxel() < kPrefilterBelowPixelsPerVoxel; }
+
+/// Whether a perspective block's footprints are integrated over pixels, all of them or none: its centre's
+/// footprint is narrower than a pixel (src/splat/block_linearisation.h says why the block chooses, not each
+/// voxel). The block plan (how far the block reaches) and the splats ask the same question.
+inline bool block_prefiltered(const VoxelBlock& block, const ViewProjection& view) {
+    const double middle = 0.5 * (VoxelBlock::kDim - 1);
+    Footprint centre;
+    return view.footprint_unclipped({block.origin[0] + middle, block.origin[1] + middle, block.origin[2] + middle}, centre) &&
+           prefiltered(centre);
+}
 
 /// The linearised footprint's largest error relative to its peak, for kernel radius R at `depth`,
 /// `lateral` distance from the axis and `line_scale_slope` (index units, ViewProjection::eye_offset):
