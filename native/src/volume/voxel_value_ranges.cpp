@@ -65,10 +65,7 @@ VoxelValueRanges build_voxel_value_ranges(const std::vector<VoxelBlock>& blocks,
         }
     });
 
-    BlockIndex index;
-    index.reserve(blocks.size());
-    for (size_t b = 0; b < blocks.size(); ++b) index.emplace(blocks[b].origin, b);
-    const BlockLookup lookup(blocks, index);
+    const BlockLookup lookup(blocks);
 
     // The blocks by chunk of kChunk^3 voxels (4^3 blocks): a chunk's window (the chunk and `radius`
     // voxels around it) is filled from the blocks in and around it, the background where there are
