@@ -130,12 +130,59 @@ void build_brick_ranges_densely(const std::vector<VoxelBlock>& blocks, const std
     }
 }
 
-/// BlockValueRange's brick ranges: densely where the blocks fill at least half their bounding box (as a
-/// brick of a stream, or a scan, does; the lattice is then at most 128 bytes a block), else block by block.
+/// Whether the ranges are built on dense lattices over the blocks' bounding box: where the blocks fill at
+/// least half of it (as a brick of a stream, or a scan, does; the brick lattice is then at most 128 bytes
+/// a block), else block by block.
+bool builds_densely(const std::vector<VoxelBlock>& blocks, const BlockLookup& lookup) {
+    const std::array<int64_t, 3> per_side = lookup.blocks_per_side();
+    return lookup.dense() && uint64_t(per_side[0] * per_side[1] * per_side[2]) <= 2 * uint64_t(blocks.size());
+}
+
+/// The rings' ranges over the 3^3 and 5^3 blocks around each block (reach_, wide_), from its own
+/// (min, max): block by block through `lookup`, or on a dense lattice of blocks one axis at a time.
+void build_ring_ranges(const std::vector<VoxelBlock>& blocks, const BlockLookup& lookup, std::vector<BlockValueRange>& ranges) {
+    if (builds_densely(blocks, lookup)) {
+        const std::array<int64_t, 3> first = lookup.first_block(), sides = lookup.blocks_per_side();
+        auto at = [&](size_t b) {
+            const auto& o = blocks[b].origin;
+            return size_t(((o[0] / VoxelBlock::kDim - first[0]) * sides[1] + (o[1] / VoxelBlock::kDim - first[1])) * sides[2] +
+                          (o[2] / VoxelBlock::kDim - first[2]));
+        };
+        std::vector<Range> lattice(size_t(sides[0] * sides[1] * sides[2]));
+        for (size_t b = 0; b < blocks.size(); ++b) lattice[at(b)] = Range{ranges[b].min, ranges[b].max};
+        for (auto [lo, hi] : {std::pair{&BlockValueRange::reach_min, &BlockValueRange::reach_max},
+                              std::pair{&BlockValueRange::wide_min, &BlockValueRange::wide_max}}) {
+            for (int axis = 0; axis < 3; ++axis) unite_along(lattice, sides, axis, 1);  // each ring widens the last by a block
+            for (size_t b = 0; b < blocks.size(); ++b) ranges[b].*lo = lattice[at(b)].lo, ranges[b].*hi = lattice[at(b)].hi;
+        }
+        return;
+    }
+    // Each ring is the union of the previous ring's ranges over the 27 blocks around.
+    auto widen = [&](auto inner_lo, auto inner_hi, auto outer_lo, auto outer_hi) {
+        tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
+            float lo = ranges[b].*inner_lo, hi = ranges[b].*inner_hi;
+            const auto& o = blocks[b].origin;
+            for (int dx = -1; dx <= 1; ++dx)
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dz = -1; dz <= 1; ++dz) {
+                        const int64_t n = lookup.find({o[0] + dx * VoxelBlock::kDim, o[1] + dy * VoxelBlock::kDim,
+                                                       o[2] + dz * VoxelBlock::kDim});
+                        if (n < 0) continue;
+                        lo = std::min(lo, ranges[size_t(n)].*inner_lo);
+                        hi = std::max(hi, ranges[size_t(n)].*inner_hi);
+                    }
+            ranges[b].*outer_lo = lo;
+            ranges[b].*outer_hi = hi;
+        });
+    };
+    widen(&BlockValueRange::min, &BlockValueRange::max, &BlockValueRange::reach_min, &BlockValueRange::reach_max);
+    widen(&BlockValueRange::reach_min, &BlockValueRange::reach_max, &BlockValueRange::wide_min, &BlockValueRange::wide_max);
+}
+
+/// BlockValueRange's brick ranges (see builds_densely).
 void build_brick_ranges(const std::vector<VoxelBlock>& blocks, const std::vector<std::array<Range, 8>>& halves,
                         const BlockLookup& lookup, std::vector<BlockValueRange>& ranges) {
-    const std::array<int64_t, 3> per_side = lookup.blocks_per_side();
-    if (lookup.dense() && uint64_t(per_side[0] * per_side[1] * per_side[2]) <= 2 * uint64_t(blocks.size()))
+    if (builds_densely(blocks, lookup))
         build_brick_ranges_densely(blocks, halves, lookup, ranges);
     else
         build_brick_ranges_block_by_block(blocks, halves, lookup, ranges);
@@ -163,26 +210,7 @@ std::vector<BlockValueRange> build_block_value_ranges(const std::vector<VoxelBlo
     // Every pass below looks up each block's neighbours: through the dense array where the grid allows it
     // (the hash map's 150 lookups a block were most of a streamed brick's range building).
     const BlockLookup lookup(blocks);
-    // Each ring is the union of the previous ring's ranges over the 27 blocks around.
-    auto widen = [&](auto inner_lo, auto inner_hi, auto outer_lo, auto outer_hi) {
-        tbb::parallel_for(size_t(0), blocks.size(), [&](size_t b) {
-            float lo = ranges[b].*inner_lo, hi = ranges[b].*inner_hi;
-            const auto& o = blocks[b].origin;
-            for (int dx = -1; dx <= 1; ++dx)
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dz = -1; dz <= 1; ++dz) {
-                        const int64_t n = lookup.find({o[0] + dx * VoxelBlock::kDim, o[1] + dy * VoxelBlock::kDim,
-                                                       o[2] + dz * VoxelBlock::kDim});
-                        if (n < 0) continue;
-                        lo = std::min(lo, ranges[size_t(n)].*inner_lo);
-                        hi = std::max(hi, ranges[size_t(n)].*inner_hi);
-                    }
-            ranges[b].*outer_lo = lo;
-            ranges[b].*outer_hi = hi;
-        });
-    };
-    widen(&BlockValueRange::min, &BlockValueRange::max, &BlockValueRange::reach_min, &BlockValueRange::reach_max);
-    widen(&BlockValueRange::reach_min, &BlockValueRange::reach_max, &BlockValueRange::wide_min, &BlockValueRange::wide_max);
+    build_ring_ranges(blocks, lookup, ranges);
     build_brick_ranges(blocks, halves, lookup, ranges);
     // Within 12: the 3^3 ring, and of the blocks two away along an axis only the half facing this one,
     // which is along each axis the bricks 3 before the block's first to 4 after: the union of its own
