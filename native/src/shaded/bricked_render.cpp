@@ -160,6 +160,9 @@ struct WorkingSet {
 /// are built from, its splat mask, plan, culling and tile entries, the tree's leaf and the blocks' index.
 constexpr uint64_t kBytesPerBlock = sizeof(VoxelBlock) + sizeof(BlockValueRange) + 8 * 2 * sizeof(float) + sizeof(VoxelMask) +
                                     sizeof(BlockCulling) + sizeof(PlannedBlock) + 2 * sizeof(TileBlock) + 128;
+/// Per block, while transparency culling builds the value ranges: the lattice of its bricks' ranges they are
+/// built on, over a box at most twice the blocks (sparser ones use the index above: block_value_ranges.cpp).
+constexpr uint64_t kRangeLatticeBytesPerBlock = 2 * 8 * 2 * sizeof(float);
 /// A thread's buffers (sheet_walk.cpp): per pixel of its tile, four colour planes, the depth and the MIP's
 /// maximum; per pixel of the tile grown by the gradient's halo and the splat windows' margins (16 at most at
 /// the strides bricks render), each layer's ring of sheets and the grid's four slots of post-convolved ones.
@@ -192,7 +195,8 @@ WorkingSet working_set(const GridStream& stream, const Camera& camera, const Sha
     const int threads = params.threads > 0 ? params.threads : tbb::this_task_arena::max_concurrency();
     set.threads = uint64_t(threads) * thread_bytes(stream, camera, params) + kUnmodelledBytes;
     const bool culls = !mip && params.cull_transparent;
-    set.per_value_byte = 1.0 + double(kBytesPerBlock + (culls && voxel_culling ? 2 * VoxelBlock::kSize : 0)) /
+    set.per_value_byte = 1.0 + double(kBytesPerBlock + (culls ? kRangeLatticeBytesPerBlock : 0) +
+                                      (culls && voxel_culling ? 2 * VoxelBlock::kSize : 0)) /
                                    double(VoxelBlock::kSize * sizeof(float));
     if (!mip && params.sheet_fill == SheetFill::Sample) set.per_box_voxel = sizeof(float);
     return set;
