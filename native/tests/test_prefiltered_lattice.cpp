@@ -2,6 +2,7 @@
 // the background, the three-tap blur along each axis, and brick ranges holding everything within their reach.
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "random_blocks.h"
@@ -65,27 +66,31 @@ TEST(prefiltered_lattice_blurs_the_voxels_less_the_background) {
         for (size_t n = 0; n < e.values.size(); ++n) worst = std::max(worst, std::abs(e.values[n] - lattice.values[n]));
         CHECK(worst < 1e-4);
 
-        // Each brick's levels hold every element within kRangeReach of it, rounded outwards by at most a level and a half.
-        const int B = PrefilteredLattice::kBrick, R = PrefilteredLattice::kRangeReach;
-        int mismatches = 0;
-        for (int bi = 0; bi < lattice.bricks[0]; ++bi)
-            for (int bj = 0; bj < lattice.bricks[1]; ++bj)
-                for (int bk = 0; bk < lattice.bricks[2]; ++bk) {
-                    double lo = INFINITY, hi = -INFINITY;
-                    for (int i = B * bi - R; i < B * bi + B + R; ++i)
-                        for (int j = B * bj - R; j < B * bj + B + R; ++j)
-                            for (int k = B * bk - R; k < B * bk + B + R; ++k) {
-                                if (i < 0 || j < 0 || k < 0 || i >= e.shape[0] || j >= e.shape[1] || k >= e.shape[2]) continue;
-                                const double v = lattice.values[(size_t(i) * e.shape[1] + j) * e.shape[2] + k];
-                                lo = std::min(lo, v), hi = std::max(hi, v);
-                            }
-                    const uint16_t levels = lattice.ranges[(size_t(bi) * lattice.bricks[1] + bj) * lattice.bricks[2] + bk];
-                    const double low = lattice.range_lowest + (levels & 255) * double(lattice.range_step);
-                    const double high = lattice.range_lowest + (levels >> 8) * double(lattice.range_step);
-                    const double step = lattice.range_step;
-                    mismatches += !(low <= lo + 1e-6 && lo - low < 1.5 * step && high >= hi - 1e-6 && high - hi < 1.5 * step);
-                }
-        CHECK(mismatches == 0);
-        CHECK(lattice.ranges.size() == size_t(lattice.bricks[0]) * lattice.bricks[1] * lattice.bricks[2] + 1);
+        // Each brick's levels hold every element within its set's reach (kRangeReach, kTightRangeReach) of it,
+        // rounded outwards by at most a level and a half.
+        const int B = PrefilteredLattice::kBrick;
+        for (const auto& [ranges, R] : {std::pair{&lattice.ranges, PrefilteredLattice::kRangeReach},
+                                        std::pair{&lattice.tight_ranges, PrefilteredLattice::kTightRangeReach}}) {
+            int mismatches = 0;
+            for (int bi = 0; bi < lattice.bricks[0]; ++bi)
+                for (int bj = 0; bj < lattice.bricks[1]; ++bj)
+                    for (int bk = 0; bk < lattice.bricks[2]; ++bk) {
+                        double lo = INFINITY, hi = -INFINITY;
+                        for (int i = B * bi - R; i < B * bi + B + R; ++i)
+                            for (int j = B * bj - R; j < B * bj + B + R; ++j)
+                                for (int k = B * bk - R; k < B * bk + B + R; ++k) {
+                                    if (i < 0 || j < 0 || k < 0 || i >= e.shape[0] || j >= e.shape[1] || k >= e.shape[2]) continue;
+                                    const double v = lattice.values[(size_t(i) * e.shape[1] + j) * e.shape[2] + k];
+                                    lo = std::min(lo, v), hi = std::max(hi, v);
+                                }
+                        const uint16_t levels = (*ranges)[(size_t(bi) * lattice.bricks[1] + bj) * lattice.bricks[2] + bk];
+                        const double low = lattice.range_lowest + (levels & 255) * double(lattice.range_step);
+                        const double high = lattice.range_lowest + (levels >> 8) * double(lattice.range_step);
+                        const double step = lattice.range_step;
+                        mismatches += !(low <= lo + 1e-6 && lo - low < 1.5 * step && high >= hi - 1e-6 && high - hi < 1.5 * step);
+                    }
+            CHECK(mismatches == 0);
+            CHECK(ranges->size() == size_t(lattice.bricks[0]) * lattice.bricks[1] * lattice.bricks[2] + 1);
+        }
     }
 }

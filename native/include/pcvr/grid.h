@@ -92,9 +92,12 @@ struct PrefilteredLattice {
 
     /// Value ranges per brick of kBrick^3 elements, over every element within kRangeReach elements
     /// (per axis) of the brick: whatever is interpolated within that distance of a point in it lies
-    /// in its brick's range.
+    /// in its brick's range. A second set over kTightRangeReach serves views whose values reach less
+    /// (finer pixels, thinner sheets across the voxels): its bricks hug what may be visible more
+    /// closely, so fewer values in front of an opaque surface are interpolated.
     static constexpr int kBrick = 2;
     static constexpr int kRangeReach = 6;
+    static constexpr int kTightRangeReach = 4;
 
     std::array<int32_t, 3> origin{};
     std::array<int32_t, 3> shape{};
@@ -104,6 +107,7 @@ struct PrefilteredLattice {
     /// Per brick (bi, bj, bk), bk fastest, and one more: its range as two 8-bit levels (low end in the
     /// low byte), level q standing for range_lowest + q range_step, low ends rounded down and high ends up.
     std::vector<uint16_t> ranges;
+    std::vector<uint16_t> tight_ranges;  ///< the same over kTightRangeReach, in the same levels
     double range_lowest = 0, range_step = 1;
     /// Which bricks may be visible, per transfer function's visible span (src/volume/brick_visibility.h): made on
     /// first use of each span and kept with the lattice.
@@ -117,12 +121,12 @@ struct PrefilteredLattice {
         for (int a = 0; a < 3; ++a) n *= size_t(int64_t(box[a + 3]) - box[a] + 1 + 2 * kMargin);
         return n;
     }
-    /// The bytes a lattice over `box` keeps: 4 an element for its values and 2 a brick for its ranges (4.25 a
-    /// voxel), besides its build's scratch of 1.5 a voxel.
+    /// The bytes a lattice over `box` keeps: 4 an element for its values and 2 a brick for each of its two
+    /// range sets (4.5 a voxel), besides its build's scratch of 1.5 a voxel.
     static size_t bytes(const std::array<int32_t, 6>& box) {
         size_t bricks = 1;
         for (int a = 0; a < 3; ++a) bricks *= size_t((int64_t(box[a + 3]) - box[a] + 1 + 2 * kMargin + kBrick - 1) / kBrick);
-        return elements(box) * sizeof(float) + bricks * sizeof(uint16_t);
+        return elements(box) * sizeof(float) + 2 * bricks * sizeof(uint16_t);
     }
 };
 

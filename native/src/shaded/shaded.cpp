@@ -232,8 +232,8 @@ void render_sheets(const std::vector<ShadedVolume>& volumes, const Camera& camer
         // few pixels), sampling it all at stride 1 measured faster than splatting it at its strides (the
         // CT head at 1024^2, strides 1-3: 1.1-1.3 times; at 1448^2, strides 2-4, splatting was faster).
         const bool finest_one = !plans.back().by_stride.empty() && plans.back().by_stride.begin()->first == 1;
-        // The lattice costs 4.25 bytes a voxel of the grid's box, kept with the grid: sampled where that
-        // is at most a quarter of the memory available (a 512 x 512 x 250 CT head: 287 MB).
+        // The lattice costs 4.5 bytes a voxel of the grid's box, kept with the grid: sampled where that
+        // is at most a quarter of the memory available (a 512 x 512 x 250 CT head: 304 MB).
         const std::array<int32_t, 6> box = volumes[g].grid->index_bbox();
         const bool fits = may_sample && finest_one &&
                           PrefilteredLattice::bytes(box) <= default_memory_limit() / 4;

@@ -6,7 +6,7 @@
 /// that span, the grid's density scale and its background, not on the camera or the lights, so they are made
 /// once per span and kept here: viewport redraws, camera paths and light sweeps of one transfer function reuse
 /// them (for the 256^3 phantom's lattice, 2.2M bricks, a few milliseconds a render). Memory: a bit per brick of
-/// 2^3 elements, 1/256 of the lattice's values, for each of at most kEntries spans.
+/// 2^3 elements, 1/256 of the lattice's values, for each of at most kEntries pairs of a span and a range set.
 #pragma once
 
 #include <cstdint>
@@ -21,16 +21,17 @@ class BrickVisibilityCache {
 public:
     using Bits = std::vector<uint32_t>;
     /// What the bits depend on: the span of densities that may be visible (ClassificationTable::visible_span),
-    /// and how lattice values become densities.
+    /// how lattice values become densities, and which of the lattice's range sets they test (its reach).
     struct Key {
         float visible_from, visible_to, density_scale, background;
+        int range_reach;
         bool operator==(const Key& o) const {
             return visible_from == o.visible_from && visible_to == o.visible_to && density_scale == o.density_scale &&
-                   background == o.background;
+                   background == o.background && range_reach == o.range_reach;
         }
     };
-    /// Spans kept; the least recently used goes first.
-    static constexpr size_t kEntries = 8;
+    /// Spans kept (two range sets each); the least recently used goes first.
+    static constexpr size_t kEntries = 16;
 
     /// The bits for `key`, made by `build` on the first request. Thread-safe: concurrent renders of one
     /// lattice wait for each other's build rather than building twice. `built` says whether this call built them.

@@ -59,7 +59,7 @@ void dilate_axis(const std::vector<float>& in, std::vector<float>& out, const st
     });
 }
 
-/// PrefilteredLattice::ranges from its values.
+/// PrefilteredLattice::ranges and tight_ranges from its values.
 void build_ranges(PrefilteredLattice& lattice) {
     constexpr int B = PrefilteredLattice::kBrick;
     const std::array<int32_t, 3> n = lattice.bricks = {(lattice.shape[0] + B - 1) / B, (lattice.shape[1] + B - 1) / B,
@@ -81,23 +81,31 @@ void build_ranges(PrefilteredLattice& lattice) {
                 lo[b] = least, hi[b] = most;
             }
     });
-    // Over the bricks within kRangeReach / kBrick of each, axis by axis.
-    constexpr int reach = PrefilteredLattice::kRangeReach / B;
+    // Over the bricks within kTightRangeReach / kBrick of each, axis by axis, then as many more as make
+    // kRangeReach (a window's extremes over a window's extremes are the wider window's).
     std::vector<float> scratch(count);
-    for (int axis = 0; axis < 3; ++axis) {
-        dilate_axis(lo, scratch, n, axis, reach, std::less<float>());
-        lo.swap(scratch);
-        dilate_axis(hi, scratch, n, axis, reach, std::greater<float>());
-        hi.swap(scratch);
-    }
-    float lowest = INFINITY, most = -INFINITY;
+    auto dilate = [&](int reach) {
+        for (int axis = 0; axis < 3; ++axis) {
+            dilate_axis(lo, scratch, n, axis, reach, std::less<float>());
+            lo.swap(scratch);
+            dilate_axis(hi, scratch, n, axis, reach, std::greater<float>());
+            hi.swap(scratch);
+        }
+    };
+    constexpr int tight = PrefilteredLattice::kTightRangeReach / B, wide = PrefilteredLattice::kRangeReach / B;
+    static_assert(tight <= wide);
+    float lowest = INFINITY, most = -INFINITY;  // the same over every reach
     for (size_t b = 0; b < count; ++b) lowest = std::min(lowest, lo[b]), most = std::max(most, hi[b]);
     const ValueLevels levels = ValueLevels::spanning(lowest, most);
     lattice.range_lowest = levels.lowest, lattice.range_step = levels.step;
-    lattice.ranges.assign(count + 1, 0);
-    tbb::parallel_for(size_t(0), count, [&](size_t b) {
-        lattice.ranges[b] = uint16_t(levels.below(lo[b]) | (levels.above(hi[b]) << 8));
-    });
+    auto quantise = [&](std::vector<uint16_t>& ranges) {
+        ranges.assign(count + 1, 0);
+        tbb::parallel_for(size_t(0), count, [&](size_t b) { ranges[b] = uint16_t(levels.below(lo[b]) | (levels.above(hi[b]) << 8)); });
+    };
+    dilate(tight);
+    quantise(lattice.tight_ranges);
+    if (wide > tight) dilate(wide - tight);
+    quantise(lattice.ranges);
 }
 
 }  // namespace

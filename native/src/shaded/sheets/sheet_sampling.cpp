@@ -28,22 +28,28 @@ SheetSampler::SheetSampler(const PrefilteredLattice& l, const Mat4& index_to_wor
     // Half a level wider: float's rounding of the decoding cannot narrow them. 0 is what a skipped value holds.
     // Which bricks may show depends on the classification only through its visible span: kept per span with the lattice.
     const auto [visible_from, visible_to] = classification->visible_span();
-    const BrickVisibilityCache::Key key{visible_from, visible_to, scale, background_density};
-    visible_bricks_ = l.visibility->get(key, [&] {
-        const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
-        BrickVisibilityCache::Bits visible(bricks / 32 + 1, 0u);
-        const float lowest = float(l.range_lowest), level = float(l.range_step);
-        const float8 zero = broadcast8(0.0f);
-        for (size_t b = 0; b < bricks; b += 8) {
-            int8x levels{};
-            for (size_t e = 0; e < 8 && b + e < bricks; ++e) levels[e] = l.ranges[b + e];
-            const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * level, zero) * scale + background_density;
-            const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * level, zero) * scale + background_density;
-            // b is a multiple of 8: its eight bits share a word.
-            visible[b / 32] |= lane_mask(classification->maybe_opaque_within(lo, hi)) << (b % 32);
-        }
-        return visible;
-    }, visibility_built);
+    auto bits_of = [&](const std::vector<uint16_t>& ranges, int reach) {
+        bool built = false;
+        auto bits = l.visibility->get({visible_from, visible_to, scale, background_density, reach}, [&] {
+            const size_t bricks = size_t(l.bricks[0]) * size_t(l.bricks[1]) * size_t(l.bricks[2]);
+            BrickVisibilityCache::Bits visible(bricks / 32 + 1, 0u);
+            const float lowest = float(l.range_lowest), level = float(l.range_step);
+            const float8 zero = broadcast8(0.0f);
+            for (size_t b = 0; b < bricks; b += 8) {
+                int8x levels{};
+                for (size_t e = 0; e < 8 && b + e < bricks; ++e) levels[e] = ranges[b + e];
+                const float8 lo = min8(lowest + (__builtin_convertvector(levels & 255, float8) - 0.5f) * level, zero) * scale + background_density;
+                const float8 hi = max8(lowest + (__builtin_convertvector(levels >> 8, float8) + 0.5f) * level, zero) * scale + background_density;
+                // b is a multiple of 8: its eight bits share a word.
+                visible[b / 32] |= lane_mask(classification->maybe_opaque_within(lo, hi)) << (b % 32);
+            }
+            return visible;
+        }, built);
+        visibility_built |= built;
+        return bits;
+    };
+    visible_bricks_ = bits_of(l.ranges, PrefilteredLattice::kRangeReach);
+    tight_visible_bricks_ = bits_of(l.tight_ranges, PrefilteredLattice::kTightRangeReach);
 }
 
 namespace {
@@ -108,27 +114,34 @@ int SheetSampler::stride_at(const SheetGeometry& geometry, bool spherical, doubl
     return int(std::clamp(std::floor(1.0 / per_pixel + 1e-6), 1.0, double(kMostStride)));
 }
 
-bool SheetSampler::may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1,
-                            int y1, int spread) const {
-    if (!classification) return false;
-    // The samples that read a value lie within two sheets along the ray or a gradient step across it; a
-    // sample's test reads the sheets on either side of it, whose values are interpolated within
-    // 1 / (2 sqrt 3) of a sheet and a lattice cell of their middles: the value's reach, in index units.
+const BrickVisibilityCache::Bits* SheetSampler::skip_bits(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0,
+                                                          int y0, int x1, int y1, int spread) const {
+    if (!classification) return nullptr;
+    // Every test of whether a sample may be visible reads only the values of the two sheets around it at its
+    // pixel (the cubic between them is clamped to their range; pre-integrated stretches' ends and middle too):
+    // a value at sheet t is read by samples from sheet t - 2 to t + 1 on its ray, whose tests read sheets t - 2
+    // to t + 2, and by the in-sheet gradients of the samples a gradient step away, whose tests read sheets
+    // t - 1 to t + 1. Those values are interpolated within 1 / (2 sqrt 3) of a sheet and a lattice cell of
+    // their middles: the value's reach, in index units, per axis (the bricks' reach is per axis: a ray
+    // across the voxels reaches less far along each axis than along itself).
     // It changes slowly and smoothly across the image: 5% more than at the region's corners covers the
     // pixels between them.
     const float8 px = select8(lane_index8() < 4.0f, broadcast8(float(x0)), broadcast8(float(x1)));
+    const float pixels = float(gradient_step + spread);
+    float most = 0.0f;
     for (int y : {y0, y1}) {
         const SampleFrames f = sample_frames(geometry, spherical, px, float(y), u);
         const Vec3x8 along = in_index(f.along), right = in_index(f.per_pixel_x), down = in_index(f.per_pixel_y);
-        const float8 reach = (3.29f * spacing) * sqrt8(dot(along, along)) +
-                             float(gradient_step + spread) * sqrt8(max8(dot(right, right), dot(down, down))) + 1.0f;
-        if (any8(1.05f * reach > float(PrefilteredLattice::kRangeReach))) return false;
+        auto reach = [&](float8 a, float8 r, float8 d) { return (2.29f * spacing) * abs8(a) + pixels * max8(abs8(r), abs8(d)) + 1.0f; };
+        const float8 widest = max8(max8(reach(along.x, right.x, down.x), reach(along.y, right.y, down.y)), reach(along.z, right.z, down.z));
+        for (int l = 0; l < 8; ++l) most = std::max(most, 1.05f * widest[l]);
     }
-    return true;
+    if (!(most <= float(PrefilteredLattice::kRangeReach))) return nullptr;
+    return most <= float(PrefilteredLattice::kTightRangeReach) ? tight_visible_bricks_.get() : visible_bricks_.get();
 }
 
 int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                             bool skip_transparent, float* out, int width, int step) const {
+                             const BrickVisibilityCache::Bits* skip, float* out, int width, int step) const {
     const float* values = lattice->values.data();
     const int32_t si = int32_t(lattice->stride_i()), sj = int32_t(lattice->stride_j());
     // Trilinear cells start at elements 0 .. shape - 2 (the margin's zeros lie beyond every voxel's reach).
@@ -161,7 +174,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
     for (int q = 0; q < n; ++q) {
         Vec3x8 p, along;
         rays.at(float(x0) + float(step) * (float(8 * q) + lane_index8()), p, along);
-        if (skip_transparent) {
+        if (skip) {
             // Within its reach, everything lies in the value's brick range; where that range (0 included:
             // what a skipped value holds) cannot be visible, no visible sample reads the value. Lanes
             // outside the lattice hold 0 anyway.
@@ -169,7 +182,7 @@ int SheetSampler::sample_run(const SheetGeometry& geometry, bool spherical, doub
             const int8x b = __builtin_convertvector(select8(in, p.x * per_brick, zero), int8x) * bi +
                             __builtin_convertvector(select8(in, p.y * per_brick, zero), int8x) * bj +
                             __builtin_convertvector(select8(in, p.z * per_brick, zero), int8x);
-            if (!any8(in & bit_set8(visible_bricks_->data(), b))) continue;
+            if (!any8(in & bit_set8(skip->data(), b))) continue;
         }
         const float8 value = (density(p - along * offset) + density(p + along * offset)) * (0.5f * spacing * density_scale);
         float* to = out + 8 * q;

@@ -68,19 +68,19 @@ struct SheetSampler {
     /// The post filter from a stride-L subgrid to the pixels.
     const PostFilter& post_filter(int stride) const { return post_filters_[size_t(stride - 1)]; }
 
-    /// Whether the lattice's brick ranges can tell which values of the sheet of parameter u at pixels
-    /// [x0, x1] x [y0, y1] no sample that may be visible reads: what such a value reaches, `spread`
-    /// pixels of post-convolution included, lies within PrefilteredLattice::kRangeReach (and the grid
-    /// is classified).
-    bool may_skip(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0, int x1, int y1,
-                  int spread = 0) const;
+    /// The brick bits that tell which values of the sheet of parameter u at pixels [x0, x1] x [y0, y1] no
+    /// sample that may be visible reads, or null where the lattice's ranges cannot tell (or the grid is not
+    /// classified): those of the tightest range set (PrefilteredLattice::kTightRangeReach, kRangeReach) within
+    /// whose reach lies what such a value reaches, `spread` pixels of post-convolution included.
+    const BrickVisibilityCache::Bits* skip_bits(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y0,
+                                                int x1, int y1, int spread = 0) const;
 
     /// Slab integrals of the volume on the sheet of parameter u (its middle) and thickness `spacing`
     /// at pixels x0, x0 + step, ... (8 n of them) of row y, added to out[0 .. width) (width <= 8 n: the
-    /// values past it are left out); with `skip_transparent` (may_skip), nothing for vectors that
-    /// nothing visible reads. Returns how many vectors were interpolated.
+    /// values past it are left out); with `skip` (skip_bits), nothing for vectors that nothing visible
+    /// reads. Returns how many vectors were interpolated.
     int sample_run(const SheetGeometry& geometry, bool spherical, double u, float spacing, int x0, int y, int n,
-                   bool skip_transparent, float* out, int width, int step = 1) const;
+                   const BrickVisibilityCache::Bits* skip, float* out, int width, int step = 1) const;
 
 private:
     /// World displacements as lattice (index) displacements, eight at a time.
@@ -89,7 +89,8 @@ private:
     /// may be visible under `classification`: decided once per visible span and kept with the lattice
     /// (BrickVisibilityCache), so the per-vector test is a lookup in a table small enough to stay in cache
     /// (a bit a brick: 118 KB for the CT head, where the ranges are 1.9 MB). Null without a classification.
-    std::shared_ptr<const BrickVisibilityCache::Bits> visible_bricks_;
+    /// One per range set: PrefilteredLattice::ranges and tight_ranges.
+    std::shared_ptr<const BrickVisibilityCache::Bits> visible_bricks_, tight_visible_bricks_;
     std::vector<PostFilter> post_filters_;  // strides 1 .. kMostStride
 };
 

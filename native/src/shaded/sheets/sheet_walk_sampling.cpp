@@ -65,8 +65,8 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
         stats.seconds_sampling += seconds_since(start);
         return;
     }
-    const bool skip_transparent =
-        sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1);
+    const BrickVisibilityCache::Bits* skip =
+        sampler.skip_bits(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1);
     for (int y = 0; y < g.height; ++y) {
         const uint8_t* cells = sample_cells_.data() + size_t(y / C) * g.cell_columns;
         for (int cx = 0; cx < g.cell_columns;) {
@@ -79,7 +79,7 @@ void SheetWalker::sample_sheet(const SheetWalkSetup& setup, uint32_t layer, int6
             // Vectors [cx, end), their pixels past the slot's width dropped.
             const int x0 = C * cx, x1 = std::min(C * end, g.width) - 1;
             const int interpolated = sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0 + x0, g.y0 + y,
-                                                        end - cx, skip_transparent, slot + size_t(y) * g.pitch() + x0, x1 - x0 + 1);
+                                                        end - cx, skip, slot + size_t(y) * g.pitch() + x0, x1 - x0 + 1);
             stats.sheet_samples += uint64_t(C) * uint64_t(interpolated);
             stats.sheet_samples_skipped += uint64_t(C) * uint64_t(end - cx - interpolated);
             box.include(Box{x0, y, x1, y});
@@ -120,8 +120,10 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
     // Skipped nodes hold 0, and the brick ranges hold 0 too: a pixel's value, a weighted mean of its
     // nodes, stays within them unless the filter has negative lobes (Catmull-Rom's overshoot), which
     // the ranges do not bound: then every wanted node is interpolated.
-    const bool skip_transparent = filter.overshoot() == 0.0 && sampler.may_skip(*setup.geometry, setup.sheets.spherical, middle, spacing,
-                                                                               g.x0, g.y0, g.x0 + g.width - 1, g.y0 + g.height - 1, L * reach);
+    const BrickVisibilityCache::Bits* skip =
+        filter.overshoot() == 0.0 ? sampler.skip_bits(*setup.geometry, setup.sheets.spherical, middle, spacing, g.x0, g.y0, g.x0 + g.width - 1,
+                                                      g.y0 + g.height - 1, L * reach)
+                                  : nullptr;
     for (int r = 0; r < rows; ++r) {
         const uint8_t* wanted = node_wanted_.data() + size_t(r) * columns;
         for (int c = 0; c < columns;) {
@@ -133,7 +135,7 @@ void SheetWalker::sample_subgrid(const SheetWalkSetup& setup, const SheetSampler
             while (end < columns && wanted[end]) ++end;
             const int vectors = (end - c + 7) / 8;
             const int interpolated = sampler.sample_run(*setup.geometry, setup.sheets.spherical, middle, spacing, L * (nx0 + c),
-                                                        L * (ny0 + r), vectors, skip_transparent, nodes_.data() + size_t(r) * pitch + c,
+                                                        L * (ny0 + r), vectors, skip, nodes_.data() + size_t(r) * pitch + c,
                                                         end - c, L);
             stats.sheet_samples += uint64_t(8) * uint64_t(interpolated);
             stats.sheet_samples_skipped += uint64_t(8) * uint64_t(vectors - interpolated);
