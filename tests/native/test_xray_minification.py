@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from pcvr_native import phantoms
+from pcvr_native import _build, _cpu, phantoms
 
 from conftest import LINEAR_PARTS, frame_ortho, frame_perspective, rel_rmse, render, volume_mass
 from xray_helpers import CameraSpec, pixel_means
@@ -118,7 +118,12 @@ def test_perspective_minified(cubic, magnification):
 # chooses at its centre between sampled and pixel-averaged footprints (src/splat/block_linearisation.h).
 # Measured against the pixel means: 0.036% (0.4), 0.029% (0.6), 0.70% (1.0); voxel by voxel before, 0.020%,
 # 0.008% and 2.9% (at 1.0 the blocks holding both kinds were projected voxel by voxel, sampled or averaged).
-@pytest.mark.parametrize("magnification, tolerance", [(0.4, 5e-3), (0.6, 5e-3), (1.0, 1e-2)])
+# A build without AVX2 (PCVR_ARCH=x86-64, `make test-no-avx2`) has no block tables and still projects voxel by
+# voxel: 2.9% at 1.0, measured, hence its own bound there.
+AVX2_BUILD = "avx2" in _cpu._REQUIRED.get(_build.ARCH, ("avx2",))  # "native" builds: the machines tested have it
+
+
+@pytest.mark.parametrize("magnification, tolerance", [(0.4, 5e-3), (0.6, 5e-3), (1.0, 1e-2 if AVX2_BUILD else 3.5e-2)])
 def test_distant_perspective_minified(cubic, magnification, tolerance):
     ph, grid = cubic
     cam = frame_perspective(ph, magnification, direction=VIEW, distance=8.0)
