@@ -10,6 +10,7 @@ from bl_ui.utils import PresetPanel
 from ..render import native_render, statistics
 from ..scene import lighting, scene_inputs
 from . import presets
+from .properties import scatters
 
 
 def property_split(layout):
@@ -320,7 +321,7 @@ class PCVR_DATA_PT_shading(VolumeSheetPanel, Panel):
         layout.prop(settings, "shading_model")
         layout.prop(settings, "ambient_occlusion")
         col = layout.column(align=True)
-        if settings.shading_model == 'SCATTER' or settings.source == 'MATERIAL':
+        if scatters(settings):
             col.prop(settings, "scattering_octaves")
             if settings.scattering_octaves == 0:
                 col.label(text=light_paths_label(context.scene), icon='INFO')
